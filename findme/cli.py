@@ -1,0 +1,49 @@
+"""The ``findme`` command: one sub-command per job; each lives in its own module."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from findme_core.errors import FindmeError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line on stderr and exit status 2."""
+
+    def error(self, message):  # noqa: D102 - argparse API
+        sys.stderr.write(f"{self.prog}: error: {message} (see --help)\n")
+        sys.exit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import single, evaluate
+    p = _Parser(prog="findme", description=__doc__)
+    p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for mod in (single, evaluate):
+        mod.register(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except FindmeError as e:
+        sys.stderr.write(f"findme {args.command}: error: {e}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted\n")
+        return 130
+    except Exception as e:  # a bug, not bad input: one line unless --debug
+        if args.debug:
+            raise
+        sys.stderr.write(f"findme {args.command}: internal error: {type(e).__name__}: {e} "
+                         "(run with --debug for the traceback)\n")
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,67 @@
+"""Parsing of user-facing values shared by the command line and the services.
+
+Degrees and comma-separated numbers live here, at the edge; the core takes radians-free
+plain numbers (intrinsics in pixels, unit gravity vectors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from findme_core.camera import Camera
+from findme_core.errors import CameraError, InputError
+
+#: Field of view assumed when a photo comes without intrinsics: a typical phone main camera
+#: (26 mm equivalent lens, landscape).
+DEFAULT_HFOV_DEG = 65.0
+
+
+def floats(text: str, n: int, name: str) -> tuple[float, ...]:
+    """Parse ``n`` comma-separated finite numbers, e.g. ``"1,2.5,3"``."""
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != n:
+        raise InputError(f"{name} needs {n} comma-separated numbers, got {text!r}")
+    try:
+        vals = tuple(float(p) for p in parts)
+    except ValueError:
+        raise InputError(f"{name} needs {n} comma-separated numbers, got {text!r}") from None
+    if not all(math.isfinite(v) for v in vals):
+        raise InputError(f"{name} must be finite numbers, got {text!r}")
+    return vals
+
+
+def add_camera_args(p: argparse.ArgumentParser, gravity_flags=("--gravity",)) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--hfov", type=float, metavar="DEG",
+                   help=f"horizontal field of view in degrees (default {DEFAULT_HFOV_DEG:g}, a "
+                        "typical phone camera, when --intrinsics is not given either)")
+    g.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
+                   help="focal lengths and principal point in pixels of this image")
+    for flag in gravity_flags:
+        p.add_argument(flag, metavar="GX,GY,GZ",
+                       help="gravity in camera coordinates (x right, y down, z forward), e.g. "
+                            "from the phone's accelerometer; default level (0,1,0)")
+
+
+def camera_from(width: int, height: int, hfov: float | None = None,
+                intrinsics: str | None = None, gravity: str | None = None,
+                gravity_name: str = "--gravity") -> Camera:
+    """A Camera for an image of the given size from user-facing flag values."""
+    g = floats(gravity, 3, gravity_name) if gravity else None
+    try:
+        if intrinsics:
+            fx, fy, cx, cy = floats(intrinsics, 4, "--intrinsics")
+            return Camera(fx, fy, cx, cy, width, height, g)
+        return Camera.from_hfov(DEFAULT_HFOV_DEG if hfov is None else hfov, width, height, g)
+    except CameraError as e:
+        raise InputError(str(e)) from None
+
+
+def camera_height(value: float | None) -> tuple[float, bool]:
+    """(height in metres, metric?): without a height the scene is up to scale (h = 1)."""
+    if value is None:
+        return 1.0, False
+    if not math.isfinite(value) or value <= 0 or value > 100:
+        raise InputError(f"--camera-height must be in (0, 100] metres, got {value}")
+    return float(value), True

@@ -1,0 +1,1 @@
+"""Find Me core: camera geometry, room hypotheses and synthetic test scenes."""

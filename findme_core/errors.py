@@ -1,0 +1,48 @@
+"""The one exception root of Find Me and a subclass per area.
+
+Every message names the offending value, so a user reading one line on stderr (or on a
+session's ``error`` key) knows what to change.
+"""
+
+from __future__ import annotations
+
+
+class FindmeError(Exception):
+    """Root of every error Find Me raises on purpose."""
+
+
+class InputError(FindmeError):
+    """A user-supplied value is malformed (flags, files, JSON, image bytes)."""
+
+
+class ImageError(InputError):
+    """An image is unreadable, corrupt, not an image, or over the size limit."""
+
+
+class CameraError(FindmeError):
+    """Intrinsics or gravity are invalid or degenerate."""
+
+
+class GeometryError(FindmeError):
+    """A geometric query has no answer (pixel above the horizon, ray parallel to a wall,
+    point behind the camera, degenerate configuration)."""
+
+
+class HypothesisError(FindmeError):
+    """A hypothesis does not exist or cannot be built."""
+
+
+class MotionError(FindmeError):
+    """Planar motion cannot be estimated (too few matches, no common view, identical photos)."""
+
+
+class SchemaError(FindmeError):
+    """A bus message is malformed or of the wrong type."""
+
+
+class BusError(FindmeError):
+    """A Zenoh bus operation failed (unknown session, oversized message, no service)."""
+
+
+class RecordingError(FindmeError):
+    """An MCAP recording is unreadable or cannot be written."""

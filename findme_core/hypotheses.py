@@ -1,0 +1,248 @@
+"""Ground-wall boundary hypotheses from one photo (paper step 2, extended).
+
+Pipeline of our method (``generate``):
+
+1. segments (LSD) -> collinear merge -> classification in the level frame (``lines``);
+2. edge support of every floor-candidate line, per column (``support``);
+3. best boundary through every corner / occluding step / top crossing (``search``);
+4. re-ranking by edge score plus colour separability of the floor region (``appearance``),
+   near-duplicate suppression, best first.
+
+A hypothesis is a polyline from u = 0 to u = W - 1; the floor is the region below it. Its
+segments are tagged WALL (a wall or object face stands on it), STEP (occluding edge) or OPEN
+(the floor continues past the top border), which the scene model uses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .appearance import FloorLikelihood, RegionStats
+from .camera import Camera
+from .errors import InputError
+from .lines import Lines, LineKind, classify, detect_segments, merge_collinear
+from .refine import SnapParams, snap_polyline
+from .search import SearchParams, SegKind, best_paths, events, path_polyline, rewards, track_rows
+from .support import EdgeField, SupportParams, tabulate
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One ground-wall boundary.
+
+    Attributes:
+        polyline: (M, 2) pixel vertices (u, v), u non-decreasing from 0 to W - 1; v may lie
+            outside the image (the boundary is hidden below or above it there).
+        kinds: (M - 1,) SegKind of each segment.
+        score: ranking score (higher is better).
+        support: fraction of the in-image WALL length on edge evidence (the paper's score).
+    """
+
+    polyline: np.ndarray
+    kinds: np.ndarray
+    score: float
+    support: float = 0.0
+
+
+@dataclass(frozen=True)
+class HypothesisSet:
+    """Ranked hypotheses of one photo, best first, with the lines that produced them."""
+
+    width: int
+    height: int
+    hypotheses: list[Hypothesis]
+    lines: Lines
+    kinds: np.ndarray
+    reason: str | None = None  # why the list is empty, if it is
+    timing_ms: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class HypothesisParams:
+    segment_method: str = "lsd"
+    lsd_scale: float = 0.8
+    min_segment_px: float = 12.0
+    min_line_support_px: float = 25.0
+    max_lines: int = 40
+    horizon_margin: float = 0.01
+    rerank_top: int = 300
+    region_weight: float = 1.0
+    region_dp_weight: float = 3.0
+    vertical_weight: float = 0.002
+    nms_px: float = 3.0
+    snap: bool = True
+    snap_params: SnapParams = SnapParams()
+    support: SupportParams = SupportParams()
+    search: SearchParams = SearchParams()
+
+
+def column_rows(polyline: np.ndarray, height: int, cols: np.ndarray) -> np.ndarray:
+    """Row of the polyline at the given columns, clipped to [0, height]."""
+    return np.clip(np.interp(cols, polyline[:, 0], polyline[:, 1]), 0.0, float(height))
+
+
+def suppress_duplicates(rows: np.ndarray, order: np.ndarray, nms_px: float, max_n: int) -> list[int]:
+    """Greedy non-maximum suppression on (K, C) clipped boundary rows: skip a candidate whose
+    rows differ from a kept one by less than ``nms_px`` on average."""
+    kept: list[int] = []
+    for i in order:
+        if kept and np.min(np.mean(np.abs(rows[kept] - rows[i]), axis=1)) < nms_px:
+            continue
+        kept.append(int(i))
+        if len(kept) >= max_n:
+            break
+    return kept
+
+
+def vertical_in_floor(built, verticals: np.ndarray, width: int, n_samples: int = 8,
+                      tol_px: float = 4.0) -> np.ndarray:
+    """(K,) length in pixels of 3D-vertical segments lying inside each candidate's floor
+    region (more than ``tol_px`` below its polyline). A floor has nothing standing on it
+    inside the region the hypothesis calls floor, so long verticals there (cabinet doors
+    under a countertop taken for the floor) count against it."""
+    if len(verticals) == 0:
+        return np.zeros(len(built))
+    t = (np.arange(n_samples) + 0.5) / n_samples
+    seg = np.asarray(verticals, float)
+    pts = seg[:, None, :2] + t[None, :, None] * (seg[:, None, 2:] - seg[:, None, :2])
+    pts = pts.reshape(-1, 2)
+    w = np.repeat(np.hypot(*(seg[:, 2:] - seg[:, :2]).T) / n_samples, n_samples)
+    inside = np.array([np.interp(pts[:, 0], poly[:, 0], poly[:, 1]) + tol_px < pts[:, 1]
+                       for poly, _, _ in built])
+    return inside.astype(float) @ w
+
+
+def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams):
+    """Detect, merge and classify lines.
+
+    Returns:
+        (Lines, kinds (N,), indices of floor-candidate lines, indices of vertical lines).
+    """
+    segs = detect_segments(image, params.segment_method, params.min_segment_px,
+                           lsd_scale=params.lsd_scale)
+    lines = merge_collinear(segs)
+    kinds = classify(lines, camera, horizon_margin=params.horizon_margin)
+    floor = np.isin(kinds, (LineKind.LEFT, LineKind.FRONT, LineKind.RIGHT))
+    floor &= lines.support >= params.min_line_support_px
+    floor &= np.abs(lines.coef[:, 1]) > 0.05
+    cand = np.nonzero(floor)[0][: params.max_lines]
+    vert = np.nonzero(kinds == LineKind.VERTICAL)[0]
+    return lines, kinds, cand, vert
+
+
+def _check_image(image: np.ndarray, camera: Camera) -> None:
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in (2, 3):
+        raise InputError("image must be a uint8 HxW or HxWx3 array, got "
+                         f"{getattr(image, 'dtype', type(image))} {getattr(image, 'shape', '')}")
+    H, W = image.shape[:2]
+    if (W, H) != (camera.width, camera.height):
+        raise InputError(f"image is {W}x{H} but the camera is {camera.width}x{camera.height}")
+
+
+def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
+             params: HypothesisParams = HypothesisParams(), clock=None,
+             debug: dict | None = None) -> HypothesisSet:
+    """All steps for one photo: lines -> candidates -> scored, ranked hypotheses.
+
+    Args:
+        image: (H, W, 3) uint8 BGR or (H, W) grey, the size of ``camera``.
+        camera: intrinsics and gravity of the photo.
+        max_n: at most this many hypotheses are returned.
+        clock: optional zero-argument function returning seconds, for ``timing_ms``
+            (the core reads no clock itself).
+    """
+    _check_image(image, camera)
+    H, W = image.shape[:2]
+    t = [clock()] if clock else []
+    lines, kinds, cand, vert = floor_candidates(image, camera, params)
+    if clock:
+        t.append(clock())
+    if len(cand) == 0:
+        reason = ("no straight lines found in the image" if len(lines) == 0 else
+                  "no line below the horizon could be a ground-wall boundary")
+        return HypothesisSet(W, H, [], lines, kinds, reason, _timing(t, ("lines",)))
+    coef = lines.coef[cand]
+    table = tabulate(EdgeField(image, params.support), coef)
+    if clock:
+        t.append(clock())
+    sp = params.search
+    rows_t = track_rows(table, H)
+    verts = lines.ends[vert]
+    stats = RegionStats(image)
+    A, valid = rewards(table, camera, sp)
+    ev = events(coef, rows_t, valid, verts, camera, sp)
+    ranked = _search_and_rank(A, valid, ev, coef, stats, verts, params, W, H)
+    if params.region_dp_weight > 0 and ranked:
+        best = ranked[0][1][0]
+        fl = FloorLikelihood(image, column_rows(best, H, np.arange(W, dtype=float)))
+        if fl.valid:  # second pass with colour evidence inside the search
+            A2, _ = rewards(table, camera, sp, params.region_dp_weight * fl.below(rows_t))
+            ranked = _search_and_rank(A2, valid, ev, coef, stats, verts, params, W, H)
+    if clock:
+        t.append(clock())
+    if not ranked:
+        return HypothesisSet(W, H, [], lines, kinds,
+                             "no boundary hypothesis fits below the horizon",
+                             _timing(t, ("lines", "support", "search")))
+    if debug is not None:
+        debug["ranked"] = ranked
+    rows = np.array([r[2] for r in ranked])
+    keep = suppress_duplicates(rows, np.arange(len(ranked)), params.nms_px, max_n)
+    lab = cv2.cvtColor(image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR),
+                       cv2.COLOR_BGR2LAB).astype(np.float32) if params.snap else None
+    hyps = []
+    for i in keep:
+        poly, kinds_i = ranked[i][1][0], ranked[i][1][1]
+        if params.snap:
+            poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params)
+        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]),
+                               _support_fraction(table, ranked[i][1], len(coef))))
+    if clock:
+        t.append(clock())
+    return HypothesisSet(W, H, hyps, lines, kinds, None,
+                         _timing(t, ("lines", "support", "search", "rank")))
+
+
+def _search_and_rank(A, valid, ev, coef, stats, verts, params, W, H):
+    """Best paths -> polylines -> ranking score; list of (score, built, rows, features),
+    best first."""
+    paths = best_paths(A, valid, ev)
+    paths.sort(key=lambda c: -c[0])
+    paths = paths[: params.rerank_top]
+    if not paths:
+        return []
+    built = [path_polyline(start, chain, ev, coef, W, H) for _, start, chain in paths]
+    rows = np.array([column_rows(poly, H, stats.cols) for poly, _, _ in built])
+    edge = np.array([c[0] for c in paths]) / W
+    gain = stats.gain(rows)
+    vpen = vertical_in_floor(built, verts, W)
+    score = edge + params.region_weight * gain - params.vertical_weight * vpen
+    order = np.argsort(-score, kind="stable")
+    return [(float(score[i]), built[i], rows[i], (edge[i], gain[i], vpen[i])) for i in order]
+
+
+def _support_fraction(table, built, n_lines) -> float:
+    """Edge-supported fraction of the in-image length of the WALL segments of a polyline."""
+    poly, kinds, tracks = built
+    sup = tot = 0.0
+    ti = 0
+    W = table.S.shape[1] - 1
+    for s, kind in enumerate(kinds):
+        if kind == SegKind.STEP:
+            continue
+        t = tracks[min(ti, len(tracks) - 1)]
+        ti += 1
+        if t >= n_lines:
+            continue
+        a = int(np.clip(round(poly[s, 0] + 0.5), 0, W))
+        b = int(np.clip(round(poly[s + 1, 0] + 0.5), 0, W))
+        sup += table.S[t, b] - table.S[t, a]
+        tot += table.L[t, b] - table.L[t, a]
+    return float(sup / tot) if tot > 0 else 0.0
+
+
+def _timing(t, names):
+    return {n: 1e3 * (b - a) for n, a, b in zip(names, t[:-1], t[1:])}

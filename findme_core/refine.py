@@ -1,0 +1,138 @@
+"""Snap a boundary to the wall base when a baseboard band lies between it and the floor.
+
+Line detectors find the crisp top edge of a baseboard (wall paint against wood) and often
+miss its soft bottom edge against the floor, which is the real ground-wall boundary: a
+wall point computed from the top edge is ~10 % too far. A baseboard is a band of the wall
+of fixed height; in the image its width is a fixed fraction of the boundary's depression
+below the horizon (a level camera sees height y above the floor at (h - y) / h of the
+floor's depression). So we average the colour profile across each WALL segment in
+*relative* offsets s = offset / depression, over the whole segment (a strong average where
+one column is noise), find where the profile settles into the floor colour, and move the
+segment's line down to the last colour edge before it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .camera import Camera
+from .search import SegKind
+
+
+@dataclass(frozen=True)
+class SnapParams:
+    max_rel: float = 0.16        # deepest band searched, relative to the depression
+    floor_band: tuple[float, float] = (0.2, 0.3)  # where the floor colour is sampled
+    settle_tol: float = 12.0     # Lab distance counted as "floor colour"
+    settle_len: float = 0.04     # the profile must stay at the floor colour this long
+    min_shift_px: float = 1.5
+    step_px: float = 3.0         # spacing of profile columns along the segment
+
+
+def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
+    """(M,) pixel distance from each point to the horizon, measured along the image
+    direction 'down' (towards the floor)."""
+    l = camera.horizon_line()
+    n = np.hypot(l[0], l[1])
+    return (pts @ l[:2] + l[2]) / max(n, 1e-12)
+
+
+def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
+                  kinds: np.ndarray, p: SnapParams = SnapParams()) -> np.ndarray:
+    """Return a copy of ``polyline`` with WALL segments moved down to the wall base.
+
+    Args:
+        image_lab: (H, W, 3) float32 Lab image.
+        polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
+    """
+    poly = np.array(polyline, float)
+    H, W = image_lab.shape[:2]
+    l = camera.horizon_line()
+    down = l[:2] / max(np.hypot(l[0], l[1]), 1e-12)   # unit image direction away from horizon
+    lines = {}
+    for s, kind in enumerate(kinds):
+        if kind != SegKind.WALL:
+            continue
+        a, b = poly[s], poly[s + 1]
+        shift = _segment_shift(image_lab, camera, a, b, down, p)
+        d = b - a
+        n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)
+        if n @ down < 0:
+            n = -n
+        lines[s] = (a + shift * n, d)   # point on the moved line, direction
+    if not lines:
+        return poly
+    out = poly.copy()
+    for k in range(len(poly)):
+        left, right = lines.get(k - 1), lines.get(k)
+        if left and right:
+            x = _intersect(*left, *right)
+            if x is not None and abs(x[0] - poly[k, 0]) < 0.05 * W:
+                out[k] = x
+                continue
+        ln = left or right
+        if ln is not None:
+            (q, d) = ln
+            if abs(d[0]) > 1e-9:
+                out[k, 1] = q[1] + (poly[k, 0] - q[0]) * d[1] / d[0]
+    return out
+
+
+def _intersect(p, d, q, e):
+    A = np.array([[d[0], -e[0]], [d[1], -e[1]]])
+    if abs(np.linalg.det(A)) < 1e-9:
+        return None
+    t = np.linalg.solve(A, q - p)
+    return p + t[0] * d
+
+
+def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float:
+    """Pixels to move the segment a-b along its normal (0 = keep)."""
+    H, W = lab.shape[:2]
+    length = np.hypot(*(b - a))
+    n_cols = int(length // p.step_px)
+    if n_cols < 4:
+        return 0.0
+    t = (np.arange(n_cols) + 0.5) / n_cols
+    base = a[None, :] + t[:, None] * (b - a)[None, :]
+    inside = (base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0) & (base[:, 1] <= H - 1)
+    base = base[inside]
+    if len(base) < 4:
+        return 0.0
+    dep = _depression(camera, base)
+    dep = np.maximum(dep, 1.0)
+    s = np.arange(-0.02, p.floor_band[1] + 1e-9, 0.005)
+    pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
+    ok = ((pts[..., 0] >= 0) & (pts[..., 0] <= W - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= H - 1))
+    cols = ok.all(1)
+    if cols.sum() < 4:
+        return 0.0
+    P = pts[cols].reshape(-1, 2).astype(np.float32)
+    prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
+    prof = np.median(prof.reshape(cols.sum(), len(s), 3), axis=0)    # (S, 3) robust average
+    fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
+    floor = np.median(prof[fb], axis=0)
+    dist = np.linalg.norm(prof - floor, axis=1)
+    far = dist > p.settle_tol
+    win = max(1, int(round(p.settle_len / 0.005)))
+    # first offset >= 0 from which the profile stays at the floor colour for `win` samples
+    start = int(np.searchsorted(s, 0.0))
+    settle = None
+    for k in range(start, len(s) - win):
+        if s[k] > p.max_rel:
+            break
+        if not far[k:k + win].any():
+            settle = k
+            break
+    if settle is None or settle == start:
+        return 0.0
+    # the colour edge just before settling: largest profile gradient between the top edge
+    # (skipping its own blur, 2 samples) and the settling point
+    g = np.linalg.norm(np.gradient(prof, axis=0), axis=1)
+    lo = min(start + 3, settle)
+    k = lo + int(np.argmax(g[lo:settle + 1]))
+    shift = float(s[k] * np.median(dep[cols]))
+    return shift if shift >= p.min_shift_px else 0.0

@@ -1,0 +1,263 @@
+"""Search for ground-wall boundary polylines over candidate lines (our method).
+
+A boundary runs from the left image border to the right border over pieces of *tracks*:
+the N candidate floor lines plus two virtual tracks: ``TOP`` (track N: the floor continues
+past the top image border, every pixel of the column is floor) and ``BOTTOM`` (track N + 1:
+no floor in the column; across the whole width it is the answer "no floor visible"). It
+moves from track to track at *events*,
+each at a column:
+
+* corner: two floor lines intersect at the image of a floor point (a room corner);
+* step: an occluding vertical edge (a 3D vertical line, which the paper discards) stands on
+  one line at its foot, and the boundary jumps there to a farther line or to TOP (furniture
+  in front of a wall, a wall corner occluding another wall);
+* crossing: a floor line leaves through the top border (the floor continues beyond it) or
+  the bottom border (a near wall hides the floor).
+
+Every track has a cumulative reward ``A[t, k]`` over column boundaries k = 0..W
+(edge support minus a cost per unit of unsupported length and per column outside the image;
+columns where a line is at or above the horizon are forbidden). The score of a path is the
+sum of its pieces' rewards minus its events' costs. One forward and one backward pass over
+the events sorted by column give, for every event, the best path through it; those paths and
+the single lines spanning the image are the candidates. Each pass is O(number of events).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from .camera import Camera
+from .support import SupportTable
+
+NEG = -1e18
+FORBIDDEN = 1e6  # reward per column where a track is not a floor boundary
+
+
+class SegKind(IntEnum):
+    """Kind of each polyline segment (between consecutive vertices)."""
+
+    WALL = 0  # ground-wall boundary on a floor line: a wall (or object face) stands on it
+    STEP = 1  # occluding edge: the boundary jumps between a nearer and a farther surface
+    OPEN = 2  # floor continues past the top image border: no wall seen in these columns
+    NONE = 3  # no floor in these columns (along the bottom border)
+
+
+@dataclass(frozen=True)
+class SearchParams:
+    unsupported_cost: float = 0.35  # per px of line length without edge evidence
+    out_cost: float = 0.2           # per column where a floor line runs outside the image
+    top_cost: float = 0.3           # per column on the TOP track
+    bottom_cost: float = 0.2        # per column on the BOTTOM track
+    corner_cost: float = 3.0
+    step_cost: float = 15.0
+    step_foot_tol_px: float = 6.0   # a vertical edge's foot must lie this close to its line
+    step_min_jump_px: float = 15.0
+    min_vertical_px: float = 25.0
+    horizon_margin: float = 0.01
+
+
+@dataclass(frozen=True)
+class Events:
+    src: np.ndarray    # (E,) track before the event
+    dst: np.ndarray    # (E,) track after
+    col: np.ndarray    # (E,) column boundary k in 1..W-1
+    u: np.ndarray      # (E,) exact column of the event
+    cost: np.ndarray   # (E,)
+    step: np.ndarray   # (E,) bool: occluding step (else corner / crossing)
+
+
+def track_rows(table: SupportTable, height: int) -> np.ndarray:
+    """(N + 2, W) row of every track per column (TOP = -0.5, BOTTOM = height - 0.5)."""
+    W = table.v.shape[1]
+    return np.vstack([table.v, np.full((1, W), -0.5), np.full((1, W), height - 0.5)])
+
+
+def rewards(table: SupportTable, camera: Camera, p: SearchParams,
+            region: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative rewards ``A`` (N + 2, W + 1) and per-column validity (N + 2, W).
+
+    Args:
+        region: optional (N + 2, W) reward per column for the floor region each track
+            implies (``appearance.FloorLikelihood.below`` of the track rows, weighted).
+    """
+    W = camera.width
+    rows = track_rows(table, camera.height)
+    u = np.broadcast_to(np.arange(W, dtype=float), rows.shape)
+    valid = camera.below_horizon(np.column_stack([u.ravel(), rows.ravel()]),
+                                 p.horizon_margin).reshape(rows.shape)
+    valid[-1] = True  # "no floor here" is always a possible answer
+    n = len(table.S)
+    A = np.zeros((n + 2, W + 1))
+    A[:n] = table.S - p.unsupported_cost * table.L - p.out_cost * table.O
+    A[n, 1:] = -p.top_cost * np.arange(1, W + 1)
+    A[n + 1, 1:] = -p.bottom_cost * np.arange(1, W + 1)
+    if region is not None:
+        A[:, 1:] += np.cumsum(region, axis=1)
+    bad = np.zeros((n + 2, W + 1))
+    bad[:, 1:] = np.cumsum(~valid, axis=1)
+    return A - FORBIDDEN * bad, valid
+
+
+def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.ndarray,
+           camera: Camera, p: SearchParams) -> Events:
+    """All corners, border crossings and occluding steps of N lines (TOP = N, BOTTOM = N + 1).
+
+    Args:
+        coef: (N, 3) candidate floor lines.
+        rows: (N + 2, W) track rows; valid: (N + 2, W) per-column validity.
+        verticals: (V, 4) segments of 3D-vertical lines ``[u1, v1, u2, v2]``.
+    """
+    W = camera.width
+    n = len(coef)
+    top = n
+    src, dst, us, cost, step = [], [], [], [], []
+    # corners: both orders (which line is on the left)
+    X = np.cross(coef[:, None, :], coef[None, :, :])
+    w = X[..., 2]
+    ok = np.abs(w) > 1e-9
+    ws = np.where(ok, w, 1.0)
+    cu, cv = X[..., 0] / ws, X[..., 1] / ws
+    ok &= (cu > 0.0) & (cu < W - 1.0) & (np.abs(cv) < 1e6)
+    cu, cv = np.where(ok, cu, 0.0), np.where(ok, cv, 0.0)
+    ok &= camera.below_horizon(np.column_stack([cu.ravel(), cv.ravel()]),
+                               p.horizon_margin).reshape(n, n)
+    np.fill_diagonal(ok, False)
+    ii, jj = np.nonzero(ok)
+    src.append(ii), dst.append(jj), us.append(cu[ii, jj])
+    cost.append(np.full(len(ii), p.corner_cost)), step.append(np.zeros(len(ii), bool))
+    # crossings of the top border (v = -0.5) into / out of TOP, and of the bottom border
+    for track, vb in ((top, -0.5), (top + 1, camera.height - 0.5)):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ut = -(coef[:, 1] * vb + coef[:, 2]) / coef[:, 0]
+        okt = np.isfinite(ut) & (ut > 0) & (ut < W - 1)
+        ut = np.where(okt, ut, 0.0)
+        okt &= camera.below_horizon(np.column_stack([ut, np.full(n, vb)]), p.horizon_margin)
+        it = np.nonzero(okt)[0]
+        for a, b in ((it, np.full(len(it), track)), (np.full(len(it), track), it)):
+            src.append(a), dst.append(b), us.append(ut[it])
+            cost.append(np.full(len(it), p.corner_cost)), step.append(np.zeros(len(it), bool))
+    # occluding steps at the foot of vertical edges
+    for seg in np.asarray(verticals, float).reshape(-1, 4):
+        (u1, v1), (u2, v2) = seg[:2], seg[2:]
+        if np.hypot(u2 - u1, v2 - v1) < p.min_vertical_px:
+            continue
+        fu, fv = (u1, v1) if v1 > v2 else (u2, v2)
+        k = int(round(fu))
+        if not 1 <= k <= W - 2:
+            continue
+        r = rows[:, k]
+        near = np.nonzero(valid[:n, k] & (np.abs(r[:n] - fv) <= p.step_foot_tol_px))[0]
+        far = np.nonzero(valid[: n + 1, k] & (r[: n + 1] < fv - p.step_min_jump_px))[0]
+        if len(near) == 0 or len(far) == 0:
+            continue
+        a = np.repeat(near, len(far))
+        b = np.tile(far, len(near))
+        for s_, d_ in ((a, b), (b, a)):
+            src.append(s_), dst.append(d_), us.append(np.full(len(a), fu))
+            cost.append(np.full(len(a), p.step_cost)), step.append(np.ones(len(a), bool))
+    cat = np.concatenate
+    u_all = cat(us) if us else np.zeros(0)
+    return Events(cat(src).astype(int), cat(dst).astype(int),
+                  np.clip(np.round(u_all + 0.5), 1, W - 1).astype(int), u_all,
+                  cat(cost), cat(step))
+
+
+def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events) -> list[tuple[float, int, tuple[int, ...]]]:
+    """Best path through every event, and every single track spanning the image.
+
+    Returns:
+        list of (score, start track, event indices left to right), unsorted, distinct.
+    """
+    n_tracks, W1 = A.shape
+    W = W1 - 1
+    Al = A.tolist()
+    left = valid[:, 0].tolist()
+    right = valid[:, -1].tolist()
+    src, dst, col, cost = ev.src.tolist(), ev.dst.tolist(), ev.col.tolist(), ev.cost.tolist()
+    order = sorted(range(len(src)), key=col.__getitem__)
+    # forward: potential F[t] so that the best prefix value on t at column k is F[t] + A[t][k]
+    F = [(-Al[t][0] if left[t] else NEG) for t in range(n_tracks)]
+    ptr = [-1] * n_tracks
+    fval, pred = [NEG] * len(src), [-1] * len(src)
+    for e in order:
+        i, j, k = src[e], dst[e], col[e]
+        if F[i] <= NEG:
+            continue
+        val = F[i] + Al[i][k] - cost[e]
+        fval[e], pred[e] = val, ptr[i]
+        if val - Al[j][k] > F[j]:
+            F[j], ptr[j] = val - Al[j][k], e
+    # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
+    B = [(Al[t][W] if right[t] else NEG) for t in range(n_tracks)]
+    ptrb = [-1] * n_tracks
+    sval, succ = [NEG] * len(src), [-1] * len(src)
+    for e in reversed(order):
+        i, j, k = src[e], dst[e], col[e]
+        if B[j] <= NEG:
+            continue
+        suf = B[j] - Al[j][k]
+        sval[e], succ[e] = suf, ptrb[j]
+        if suf - cost[e] + Al[i][k] > B[i]:
+            B[i], ptrb[i] = suf - cost[e] + Al[i][k], e
+    out, seen = [], set()
+    for t in range(n_tracks):
+        if left[t] and right[t]:
+            out.append((Al[t][W] - Al[t][0], t, ()))
+    for e in range(len(src)):
+        if fval[e] <= NEG or sval[e] <= NEG:
+            continue
+        chain = [e]
+        p = pred[e]
+        while p >= 0:
+            chain.append(p)
+            p = pred[p]
+        chain.reverse()
+        s = succ[e]
+        while s >= 0:
+            chain.append(s)
+            s = succ[s]
+        key = tuple(chain)
+        if key in seen:
+            continue
+        seen.add(key)
+        out.append((fval[e] + sval[e], src[chain[0]], key))
+    return [c for c in out if c[0] > -FORBIDDEN / 2]
+
+
+def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarray,
+                  width: int, height: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Vertices (M, 2), segment kinds (M - 1,) and tracks used of a path.
+
+    Corners are exact line intersections; a step is drawn as a near-vertical segment 0.5 px
+    wide at the foot column of its vertical edge; TOP is the row -0.5, BOTTOM the row H - 0.5.
+    """
+    n = len(coef)
+    seg_kind = {n: SegKind.OPEN, n + 1: SegKind.NONE}
+
+    def row(t, u):
+        if t >= n:
+            return -0.5 if t == n else height - 0.5
+        return -(coef[t, 0] * u + coef[t, 2]) / coef[t, 1]
+
+    track = start
+    pts = [(0.0, row(track, 0.0))]
+    kinds: list[int] = []
+    tracks = [track]
+    for e in chain:
+        d = int(ev.dst[e])
+        u = float(ev.u[e])
+        here = seg_kind.get(track, SegKind.WALL)
+        if ev.step[e]:
+            pts += [(u - 0.25, row(track, u)), (u + 0.25, row(d, u))]
+            kinds += [here, SegKind.STEP]
+        else:
+            pts.append((u, row(track, u) if d >= n else row(d, u)))
+            kinds.append(here)
+        track = d
+        tracks.append(d)
+    pts.append((width - 1.0, row(track, width - 1.0)))
+    kinds.append(seg_kind.get(track, SegKind.WALL))
+    return np.array(pts), np.array(kinds, dtype=int), tracks
