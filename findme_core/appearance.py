@@ -16,24 +16,29 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-_EPS_VAR = 4.0  # colour variance floor (grey levels^2): keeps log det finite on flat regions
+_EPS_VAR = 4.0
+
+
+def to_lab(image: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 BGR (or (H, W) grey) -> (H, W, 3) float32 CIE Lab (OpenCV 8-bit scale)."""
+    img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2LAB).astype(np.float32)  # colour variance floor (grey levels^2): keeps log det finite on flat regions
 
 
 class RegionStats:
     """Prefix colour moments of an image on ``n_cols`` evenly spaced columns.
 
     Args:
-        image: (H, W, 3) uint8 BGR.
+        lab: (H, W, 3) Lab image (``to_lab``).
         n_cols: number of sampled columns.
         row_step: use every ``row_step``-th row (moments are scaled back to full rows).
     """
 
-    def __init__(self, image: np.ndarray, n_cols: int = 64, row_step: int = 2):
-        img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-        H, W = img.shape[:2]
+    def __init__(self, lab: np.ndarray, n_cols: int = 64, row_step: int = 2):
+        H, W = lab.shape[:2]
         self.height, self.width, self.row_step = H, W, row_step
         self.cols = np.linspace(0, W - 1, n_cols).round().astype(int)
-        lab = cv2.cvtColor(img, cv2.COLOR_BGR2LAB)[::row_step, self.cols].astype(np.float64)
+        lab = lab[::row_step, self.cols].astype(np.float64)
         x = lab.transpose(1, 0, 2)  # (C, R, 3)
         mom = np.concatenate([np.ones(x.shape[:2] + (1,)), x,
                               (x[..., :, None] * x[..., None, :])[..., [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]],
@@ -75,15 +80,13 @@ class FloorLikelihood:
 
     ``below(u, v)`` = sum over rows >= v of the clipped ratio in column u, divided by the
     image height: the reward (in [-clip, clip]) for calling everything below row v floor.
-    Computed on a half-resolution Lab image.
+    Computed on a quarter-resolution Lab image (``lab`` from ``to_lab``).
     """
 
-    def __init__(self, image: np.ndarray, floor_rows: np.ndarray, clip: float = 3.0,
-                 margin_px: float = 3.0, scale: int = 2):
-        img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-        H, W = img.shape[:2]
-        small = cv2.resize(img, (W // scale, H // scale), interpolation=cv2.INTER_AREA)
-        lab = cv2.cvtColor(small, cv2.COLOR_BGR2LAB).astype(np.float32)
+    def __init__(self, lab: np.ndarray, floor_rows: np.ndarray, clip: float = 3.0,
+                 margin_px: float = 3.0, scale: int = 4):
+        H, W = lab.shape[:2]
+        lab = cv2.resize(lab, (W // scale, H // scale), interpolation=cv2.INTER_AREA)
         h, w = lab.shape[:2]
         self.scale, self.height, self.width = scale, H, W
         b = np.interp((np.arange(w) + 0.5) * scale - 0.5, np.arange(W), floor_rows)
@@ -115,4 +118,4 @@ def _gauss_loglik(x: np.ndarray, sample: np.ndarray) -> np.ndarray:
     C = np.cov(sample.T) + _EPS_VAR * np.eye(3)
     Ci = np.linalg.inv(C)
     d = x - mu
-    return -0.5 * np.einsum("ij,jk,ik->i", d, Ci, d) - 0.5 * np.linalg.slogdet(C)[1]
+    return -0.5 * ((d @ Ci) * d).sum(1) - 0.5 * np.linalg.slogdet(C)[1]

@@ -17,15 +17,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
-from .appearance import FloorLikelihood, RegionStats
+from .appearance import FloorLikelihood, RegionStats, to_lab
 from .camera import Camera
 from .errors import InputError
 from .lines import Lines, LineKind, classify, detect_segments, merge_collinear
 from .refine import SnapParams, snap_polyline
-from .search import SearchParams, SegKind, best_paths, events, path_polyline, rewards, track_rows
+from .ranking import RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
+from .search import (SearchParams, SegKind, best_paths, events, path_features, path_polyline,
+                     rewards, track_rows, track_tables)
 from .support import EdgeField, SupportParams, tabulate
 
 
@@ -63,20 +64,19 @@ class HypothesisSet:
 @dataclass(frozen=True)
 class HypothesisParams:
     segment_method: str = "lsd"
-    lsd_scale: float = 0.8
+    lsd_scale: float = 0.5
     min_segment_px: float = 12.0
     min_line_support_px: float = 25.0
     max_lines: int = 40
     horizon_margin: float = 0.01
-    rerank_top: int = 300
-    region_weight: float = 1.0
-    region_dp_weight: float = 3.0
-    vertical_weight: float = 0.002
+    rerank_top: int = 120
     nms_px: float = 3.0
     snap: bool = True
     snap_params: SnapParams = SnapParams()
     support: SupportParams = SupportParams()
     search: SearchParams = SearchParams()
+    search_weights: RankWeights = SEARCH_WEIGHTS
+    weights: RankWeights = RANK_WEIGHTS
 
 
 def column_rows(polyline: np.ndarray, height: int, cols: np.ndarray) -> np.ndarray:
@@ -163,24 +163,28 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     if len(cand) == 0:
         reason = ("no straight lines found in the image" if len(lines) == 0 else
                   "no line below the horizon could be a ground-wall boundary")
-        return HypothesisSet(W, H, [], lines, kinds, reason, _timing(t, ("lines",)))
+        return HypothesisSet(W, H, [no_floor_hypothesis(W, H)], lines, kinds, reason,
+                             _timing(t, ("lines",)))
     coef = lines.coef[cand]
-    table = tabulate(EdgeField(image, params.support), coef)
+    lab = to_lab(image)
+    table = tabulate(EdgeField(image, params.support, color=lab), coef)
     if clock:
         t.append(clock())
-    sp = params.search
+    sp, w, ws = params.search, params.weights.vector(), params.search_weights.vector()
     rows_t = track_rows(table, H)
     verts = lines.ends[vert]
-    stats = RegionStats(image)
-    A, valid = rewards(table, camera, sp)
+    stats = RegionStats(lab)
+    F, valid = track_tables(table, camera, sp)
     ev = events(coef, rows_t, valid, verts, camera, sp)
-    ranked = _search_and_rank(A, valid, ev, coef, stats, verts, params, W, H)
-    if params.region_dp_weight > 0 and ranked:
-        best = ranked[0][1][0]
-        fl = FloorLikelihood(image, column_rows(best, H, np.arange(W, dtype=float)))
+    ranked, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H)
+    if ws[5] != 0 and ranked:
+        # the colour model is seeded by the best under the *search* weights, so the candidate
+        # pool does not depend on the re-ranking weights (no feedback when fitting them)
+        best = seed
+        fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)))
         if fl.valid:  # second pass with colour evidence inside the search
-            A2, _ = rewards(table, camera, sp, params.region_dp_weight * fl.below(rows_t))
-            ranked = _search_and_rank(A2, valid, ev, coef, stats, verts, params, W, H)
+            F, _ = track_tables(table, camera, sp, fl.below(rows_t))
+            ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H)
     if clock:
         t.append(clock())
     if not ranked:
@@ -191,13 +195,12 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         debug["ranked"] = ranked
     rows = np.array([r[2] for r in ranked])
     keep = suppress_duplicates(rows, np.arange(len(ranked)), params.nms_px, max_n)
-    lab = cv2.cvtColor(image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR),
-                       cv2.COLOR_BGR2LAB).astype(np.float32) if params.snap else None
     hyps = []
+    cache: dict = {}
     for i in keep:
         poly, kinds_i = ranked[i][1][0], ranked[i][1][1]
         if params.snap:
-            poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params)
+            poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache)
         hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]),
                                _support_fraction(table, ranked[i][1], len(coef))))
     if clock:
@@ -206,22 +209,33 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
                          _timing(t, ("lines", "support", "search", "rank")))
 
 
-def _search_and_rank(A, valid, ev, coef, stats, verts, params, W, H):
-    """Best paths -> polylines -> ranking score; list of (score, built, rows, features),
-    best first."""
-    paths = best_paths(A, valid, ev)
+def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H):
+    """Best paths under search weights ``ws`` -> polylines -> score under weights ``w``.
+
+    Returns:
+        (list of (score, (polyline, kinds, tracks), rows at ``stats.cols``, features), best
+        first; polyline of the best candidate under ``ws``).
+    """
+    A = rewards(F, valid, ws[:6])
+    paths = best_paths(A, valid, ev, -ws[6], -ws[7])
     paths.sort(key=lambda c: -c[0])
     paths = paths[: params.rerank_top]
     if not paths:
-        return []
+        return [], None
     built = [path_polyline(start, chain, ev, coef, W, H) for _, start, chain in paths]
     rows = np.array([column_rows(poly, H, stats.cols) for poly, _, _ in built])
-    edge = np.array([c[0] for c in paths]) / W
-    gain = stats.gain(rows)
-    vpen = vertical_in_floor(built, verts, W)
-    score = edge + params.region_weight * gain - params.vertical_weight * vpen
+    pf = np.array([path_features(start, chain, ev, F) for _, start, chain in paths])
+    feats = feature_matrix(pf, stats.gain(rows), vertical_in_floor(built, verts, W), rows, W, H)
+    score = feats @ w
     order = np.argsort(-score, kind="stable")
-    return [(float(score[i]), built[i], rows[i], (edge[i], gain[i], vpen[i])) for i in order]
+    seed = built[int(np.argmax(feats @ ws))][0]
+    return [(float(score[i]), built[i], rows[i], feats[i]) for i in order], seed
+
+
+def no_floor_hypothesis(width: int, height: int) -> Hypothesis:
+    """The answer "no floor visible": the boundary along the bottom border."""
+    poly = np.array([[0.0, height - 0.5], [width - 1.0, height - 0.5]])
+    return Hypothesis(poly, np.array([SegKind.NONE]), 0.0, 0.0)
 
 
 def _support_fraction(table, built, n_lines) -> float:

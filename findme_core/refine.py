@@ -8,7 +8,8 @@ below the horizon (a level camera sees height y above the floor at (h - y) / h o
 floor's depression). So we average the colour profile across each WALL segment in
 *relative* offsets s = offset / depression, over the whole segment (a strong average where
 one column is noise), find where the profile settles into the floor colour, and move the
-segment's line down to the last colour edge before it.
+segment's line down to the last colour edge before it. A band with the floor's chromaticity
+but darker is a shadow on the floor (under furniture) and is left alone.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ class SnapParams:
     settle_tol: float = 12.0     # Lab distance counted as "floor colour"
     settle_len: float = 0.04     # the profile must stay at the floor colour this long
     min_shift_px: float = 1.5
+    shadow_chroma: float = 6.0   # a band with the floor's chroma (a, b) and lower L is a shadow
     step_px: float = 3.0         # spacing of profile columns along the segment
 
 
@@ -41,12 +43,15 @@ def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
 
 
 def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
-                  kinds: np.ndarray, p: SnapParams = SnapParams()) -> np.ndarray:
+                  kinds: np.ndarray, p: SnapParams = SnapParams(),
+                  cache: dict | None = None) -> np.ndarray:
     """Return a copy of ``polyline`` with WALL segments moved down to the wall base.
 
     Args:
         image_lab: (H, W, 3) float32 Lab image.
         polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
+        cache: optional dict reused across the hypotheses of one image (segments shared by
+            several hypotheses are measured once).
     """
     poly = np.array(polyline, float)
     H, W = image_lab.shape[:2]
@@ -57,7 +62,13 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
         if kind != SegKind.WALL:
             continue
         a, b = poly[s], poly[s + 1]
-        shift = _segment_shift(image_lab, camera, a, b, down, p)
+        key = (round(a[0]), round(a[1]), round(b[0]), round(b[1]))
+        if cache is not None and key in cache:
+            shift = cache[key]
+        else:
+            shift = _segment_shift(image_lab, camera, a, b, down, p)
+            if cache is not None:
+                cache[key] = shift
         d = b - a
         n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)
         if n @ down < 0:
@@ -134,5 +145,8 @@ def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float:
     g = np.linalg.norm(np.gradient(prof, axis=0), axis=1)
     lo = min(start + 3, settle)
     k = lo + int(np.argmax(g[lo:settle + 1]))
+    band = np.median(prof[start + 1:k + 1], axis=0) if k > start else prof[start]
+    if (np.linalg.norm(band[1:] - floor[1:]) < p.shadow_chroma and band[0] < floor[0]):
+        return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
     shift = float(s[k] * np.median(dep[cols]))
     return shift if shift >= p.min_shift_px else 0.0

@@ -45,14 +45,12 @@ class SegKind(IntEnum):
     NONE = 3  # no floor in these columns (along the bottom border)
 
 
+#: Additive features: summed along a path from cumulative per-column tables.
+ADDITIVE = ("support", "length", "outside", "top", "bottom", "region")
+
+
 @dataclass(frozen=True)
 class SearchParams:
-    unsupported_cost: float = 0.35  # per px of line length without edge evidence
-    out_cost: float = 0.2           # per column where a floor line runs outside the image
-    top_cost: float = 0.3           # per column on the TOP track
-    bottom_cost: float = 0.2        # per column on the BOTTOM track
-    corner_cost: float = 3.0
-    step_cost: float = 15.0
     step_foot_tol_px: float = 6.0   # a vertical edge's foot must lie this close to its line
     step_min_jump_px: float = 15.0
     min_vertical_px: float = 25.0
@@ -65,7 +63,6 @@ class Events:
     dst: np.ndarray    # (E,) track after
     col: np.ndarray    # (E,) column boundary k in 1..W-1
     u: np.ndarray      # (E,) exact column of the event
-    cost: np.ndarray   # (E,)
     step: np.ndarray   # (E,) bool: occluding step (else corner / crossing)
 
 
@@ -75,13 +72,19 @@ def track_rows(table: SupportTable, height: int) -> np.ndarray:
     return np.vstack([table.v, np.full((1, W), -0.5), np.full((1, W), height - 0.5)])
 
 
-def rewards(table: SupportTable, camera: Camera, p: SearchParams,
-            region: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Cumulative rewards ``A`` (N + 2, W + 1) and per-column validity (N + 2, W).
+def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
+                 region: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative additive features of every track and per-column validity.
 
     Args:
-        region: optional (N + 2, W) reward per column for the floor region each track
-            implies (``appearance.FloorLikelihood.below`` of the track rows, weighted).
+        table: support of the N candidate lines.
+        region: optional (N + 2, W) colour reward per column of the floor region each track
+            implies (``appearance.FloorLikelihood.below`` of the track rows).
+    Returns:
+        F: (len(ADDITIVE), N + 2, W + 1) cumulative sums over column boundaries, in pixels
+            (support and length: arc length; outside / top / bottom: columns; region: the
+            per-column reward).
+        valid: (N + 2, W) bool, the track is a possible floor boundary in that column.
     """
     W = camera.width
     rows = track_rows(table, camera.height)
@@ -90,15 +93,23 @@ def rewards(table: SupportTable, camera: Camera, p: SearchParams,
                                  p.horizon_margin).reshape(rows.shape)
     valid[-1] = True  # "no floor here" is always a possible answer
     n = len(table.S)
-    A = np.zeros((n + 2, W + 1))
-    A[:n] = table.S - p.unsupported_cost * table.L - p.out_cost * table.O
-    A[n, 1:] = -p.top_cost * np.arange(1, W + 1)
-    A[n + 1, 1:] = -p.bottom_cost * np.arange(1, W + 1)
+    F = np.zeros((len(ADDITIVE), n + 2, W + 1))
+    F[0, :n], F[1, :n], F[2, :n] = table.S, table.L, table.O
+    cols = np.arange(W + 1, dtype=float)
+    F[3, n], F[4, n + 1] = cols, cols
     if region is not None:
-        A[:, 1:] += np.cumsum(region, axis=1)
-    bad = np.zeros((n + 2, W + 1))
+        F[5, :, 1:] = np.cumsum(region, axis=1)
+    return F, valid
+
+
+def rewards(F: np.ndarray, valid: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(T, W + 1) cumulative reward ``weights . F`` per column of the image width, with
+    columns where a track is invalid forbidden."""
+    W = F.shape[2] - 1
+    A = np.tensordot(np.asarray(weights, float), F, axes=1) / W
+    bad = np.zeros(A.shape)
     bad[:, 1:] = np.cumsum(~valid, axis=1)
-    return A - FORBIDDEN * bad, valid
+    return A - FORBIDDEN * bad
 
 
 def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.ndarray,
@@ -113,7 +124,7 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
     W = camera.width
     n = len(coef)
     top = n
-    src, dst, us, cost, step = [], [], [], [], []
+    src, dst, us, step = [], [], [], []
     # corners: both orders (which line is on the left)
     X = np.cross(coef[:, None, :], coef[None, :, :])
     w = X[..., 2]
@@ -126,8 +137,7 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
                                p.horizon_margin).reshape(n, n)
     np.fill_diagonal(ok, False)
     ii, jj = np.nonzero(ok)
-    src.append(ii), dst.append(jj), us.append(cu[ii, jj])
-    cost.append(np.full(len(ii), p.corner_cost)), step.append(np.zeros(len(ii), bool))
+    src.append(ii), dst.append(jj), us.append(cu[ii, jj]), step.append(np.zeros(len(ii), bool))
     # crossings of the top border (v = -0.5) into / out of TOP, and of the bottom border
     for track, vb in ((top, -0.5), (top + 1, camera.height - 0.5)):
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -137,8 +147,7 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
         okt &= camera.below_horizon(np.column_stack([ut, np.full(n, vb)]), p.horizon_margin)
         it = np.nonzero(okt)[0]
         for a, b in ((it, np.full(len(it), track)), (np.full(len(it), track), it)):
-            src.append(a), dst.append(b), us.append(ut[it])
-            cost.append(np.full(len(it), p.corner_cost)), step.append(np.zeros(len(it), bool))
+            src.append(a), dst.append(b), us.append(ut[it]), step.append(np.zeros(len(it), bool))
     # occluding steps at the foot of vertical edges
     for seg in np.asarray(verticals, float).reshape(-1, 4):
         (u1, v1), (u2, v2) = seg[:2], seg[2:]
@@ -157,16 +166,20 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
         b = np.tile(far, len(near))
         for s_, d_ in ((a, b), (b, a)):
             src.append(s_), dst.append(d_), us.append(np.full(len(a), fu))
-            cost.append(np.full(len(a), p.step_cost)), step.append(np.ones(len(a), bool))
+            step.append(np.ones(len(a), bool))
     cat = np.concatenate
     u_all = cat(us) if us else np.zeros(0)
     return Events(cat(src).astype(int), cat(dst).astype(int),
-                  np.clip(np.round(u_all + 0.5), 1, W - 1).astype(int), u_all,
-                  cat(cost), cat(step))
+                  np.clip(np.round(u_all + 0.5), 1, W - 1).astype(int), u_all, cat(step))
 
 
-def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events) -> list[tuple[float, int, tuple[int, ...]]]:
+def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
+               step_cost: float) -> list[tuple[float, int, tuple[int, ...]]]:
     """Best path through every event, and every single track spanning the image.
+
+    Args:
+        A: (T, W + 1) cumulative rewards (``rewards``); valid: (T, W).
+        corner_cost, step_cost: cost of a corner / crossing and of an occluding step.
 
     Returns:
         list of (score, start track, event indices left to right), unsorted, distinct.
@@ -176,7 +189,8 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events) -> list[tuple[float
     Al = A.tolist()
     left = valid[:, 0].tolist()
     right = valid[:, -1].tolist()
-    src, dst, col, cost = ev.src.tolist(), ev.dst.tolist(), ev.col.tolist(), ev.cost.tolist()
+    src, dst, col = ev.src.tolist(), ev.dst.tolist(), ev.col.tolist()
+    cost = np.where(ev.step, step_cost, corner_cost).tolist()
     order = sorted(range(len(src)), key=col.__getitem__)
     # forward: potential F[t] so that the best prefix value on t at column k is F[t] + A[t][k]
     F = [(-Al[t][0] if left[t] else NEG) for t in range(n_tracks)]
@@ -261,3 +275,18 @@ def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarr
     pts.append((width - 1.0, row(track, width - 1.0)))
     kinds.append(seg_kind.get(track, SegKind.WALL))
     return np.array(pts), np.array(kinds, dtype=int), tracks
+
+
+def path_features(start: int, chain: tuple[int, ...], ev: Events, F: np.ndarray) -> np.ndarray:
+    """(len(ADDITIVE) + 2,) features of a path: the additive sums (``track_tables``) over its
+    pieces, then the number of corners / crossings and of occluding steps."""
+    W = F.shape[2] - 1
+    out = np.zeros(len(ADDITIVE) + 2)
+    track, k = start, 0
+    for e in chain:
+        k2 = int(ev.col[e])
+        out[: len(ADDITIVE)] += F[:, track, k2] - F[:, track, k]
+        out[len(ADDITIVE) + int(ev.step[e])] += 1
+        track, k = int(ev.dst[e]), k2
+    out[: len(ADDITIVE)] += F[:, track, W] - F[:, track, k]
+    return out

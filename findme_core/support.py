@@ -54,15 +54,22 @@ class SupportTable:
 
 
 class EdgeField:
-    """Precomputed image derivatives for sampling edge evidence (one per image)."""
+    """Precomputed image derivatives for sampling edge evidence (one per image).
 
-    def __init__(self, image: np.ndarray, params: SupportParams = SupportParams()):
+    Args:
+        image: (H, W, 3) uint8 BGR.
+        color: optional (H, W, 3) float32 image to compare colours in (e.g. Lab; default
+            BGR); ``tau_c`` is in its units.
+    """
+
+    def __init__(self, image: np.ndarray, params: SupportParams = SupportParams(),
+                 color: np.ndarray | None = None):
         img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         self.params = params
         self.height, self.width = img.shape[:2]
-        f = cv2.GaussianBlur(img.astype(np.float32), (0, 0), params.blur_sigma)
-        self.color = f
-        gray = cv2.cvtColor(f, cv2.COLOR_BGR2GRAY)
+        self.color = img.astype(np.float32) if color is None else color
+        gray = cv2.GaussianBlur(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32), (0, 0),
+                                params.blur_sigma)
         self.gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8.0
         self.gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8.0
 

@@ -1,0 +1,334 @@
+"""Per-type structural checks of bus messages (no geometry, no findme_core).
+
+A check returns the list of problems of one message; each problem names the field and the
+offending value. What is checked is what a consumer could not do without: the session id
+is usable in a key, required parts are present, numbers are finite and in range, enum
+values are known, repeated fields agree in length, and a failure carries no numbers.
+Geometry (is the camera sane, does the boundary span the image) is left to the services.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from typing import Any
+
+from google.protobuf.message import Message
+
+from .v1 import common_pb2, frame_pb2, hypotheses_pb2, measure_pb2, motion_pb2, scene_pb2
+from .v1 import selection_pb2, status_pb2
+
+#: A session id: safe as one Zenoh key chunk and as a file name.
+SESSION_PATTERN = r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}"
+_SESSION_RE = re.compile(SESSION_PATTERN + r"\Z")
+
+#: Image formats of foxglove.CompressedImage (Foxglove's own names).
+IMAGE_FORMATS = ("jpeg", "png", "webp", "avif")
+
+Problems = list[str]
+
+
+def is_valid_session(session: object) -> bool:
+    """True when ``session`` is a usable session id (see SESSION_PATTERN)."""
+    return isinstance(session, str) and _SESSION_RE.match(session) is not None
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    r = repr(value)
+    return r if len(r) <= limit else r[: limit - 3] + "..."
+
+
+def _session(p: Problems, session: str, allow_empty: bool = False) -> None:
+    if session == "" and allow_empty:
+        return
+    if session == "":
+        p.append("session is empty")
+    elif not is_valid_session(session):
+        p.append(f"session {_short(session)} is not 1-128 characters of [A-Za-z0-9_.-] "
+                 "not starting with '.'")
+
+
+def _finite(p: Problems, name: str, x: float) -> bool:
+    if not math.isfinite(x):
+        p.append(f"{name} must be finite, got {x!r}")
+        return False
+    return True
+
+
+def _positive(p: Problems, name: str, x: float) -> None:
+    if _finite(p, name, x) and x <= 0:
+        p.append(f"{name} must be > 0, got {x!r}")
+
+
+def _nonneg(p: Problems, name: str, x: float) -> None:
+    if _finite(p, name, x) and x < 0:
+        p.append(f"{name} must be >= 0, got {x!r}")
+
+
+def _enum(p: Problems, name: str, enum: Any, value: int, allow_zero: bool) -> None:
+    if value not in enum.values():
+        p.append(f"{name} has unknown value {value}")
+    elif value == 0 and not allow_zero:
+        p.append(f"{name} is unset ({enum.Name(0)})")
+
+
+def _pixel(p: Problems, name: str, px: common_pb2.Pixel) -> None:
+    _finite(p, f"{name}.u", px.u)
+    _finite(p, f"{name}.v", px.v)
+
+
+def _vec3(p: Problems, name: str, v: common_pb2.Vec3, nonzero: bool = False) -> None:
+    ok = all([_finite(p, f"{name}.{c}", getattr(v, c)) for c in "xyz"])
+    if ok and nonzero and v.x == 0 and v.y == 0 and v.z == 0:
+        p.append(f"{name} must not be the zero vector")
+
+
+def _intrinsics(p: Problems, name: str, k: common_pb2.Intrinsics) -> None:
+    _positive(p, f"{name}.fx", k.fx)
+    _positive(p, f"{name}.fy", k.fy)
+    _finite(p, f"{name}.cx", k.cx)
+    _finite(p, f"{name}.cy", k.cy)
+    if k.width == 0 or k.height == 0:
+        p.append(f"{name} image size must be positive, got {k.width}x{k.height}")
+
+
+def _polyline(p: Problems, name: str, pl: common_pb2.Polyline) -> None:
+    n = len(pl.points)
+    if n < 2:
+        p.append(f"{name} needs at least 2 points, got {n}")
+    if len(pl.kinds) != max(n - 1, 0):
+        p.append(f"{name} has {n} points, so needs {max(n - 1, 0)} segment kinds, "
+                 f"got {len(pl.kinds)}")
+    for i, px in enumerate(pl.points):
+        _pixel(p, f"{name}.points[{i}]", px)
+    for i, k in enumerate(pl.kinds):
+        _enum(p, f"{name}.kinds[{i}]", common_pb2.SegKind, k, allow_zero=True)
+
+
+def _height(p: Problems, msg: Message, field: str = "camera_height_m",
+            sigma: str = "camera_height_sigma_m") -> None:
+    if msg.HasField(field):
+        _positive(p, field, getattr(msg, field))
+    if msg.HasField(sigma):
+        _nonneg(p, sigma, getattr(msg, sigma))
+
+
+def _frame(m: frame_pb2.Frame) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if not m.HasField("image"):
+        p.append("image is missing")
+    else:
+        img = m.image
+        if not img.data:
+            p.append("image.data is empty")
+        if img.format not in IMAGE_FORMATS:
+            p.append(f"image.format must be one of {', '.join(IMAGE_FORMATS)}, "
+                     f"got {_short(img.format)}")
+        if img.HasField("timestamp"):
+            ns = img.timestamp.seconds * 1_000_000_000 + img.timestamp.nanos
+            if ns != m.capture_time_ns:
+                p.append(f"image.timestamp ({ns} ns) differs from capture_time_ns "
+                         f"({m.capture_time_ns}); leave it unset or equal")
+    lens = m.WhichOneof("lens")
+    if lens == "intrinsics":
+        _intrinsics(p, "intrinsics", m.intrinsics)
+    elif lens == "hfov_deg" and not (math.isfinite(m.hfov_deg) and 0 < m.hfov_deg < 180):
+        p.append(f"hfov_deg must be in (0, 180) degrees, got {m.hfov_deg!r}")
+    if m.HasField("gravity"):
+        _vec3(p, "gravity", m.gravity, nonzero=True)
+    _height(p, m)
+    return p
+
+
+def _hypothesis_set(m: hypotheses_pb2.HypothesisSet) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if m.width == 0 or m.height == 0:
+        p.append(f"image size must be positive, got {m.width}x{m.height}")
+    for i, h in enumerate(m.hypotheses):
+        name = f"hypotheses[{i}]"
+        if h.rank != i + 1:
+            p.append(f"{name}.rank must be {i + 1} (best first, 1-based), got {h.rank}")
+        _finite(p, f"{name}.score", h.score)
+        if _finite(p, f"{name}.support", h.support) and not 0 <= h.support <= 1:
+            p.append(f"{name}.support must be in [0, 1], got {h.support!r}")
+        _polyline(p, f"{name}.polyline", h.polyline)
+    if not m.hypotheses and not m.reason.strip():
+        p.append("no hypotheses and no reason: an empty set must say why")
+    for k, v in sorted(m.timing_ms.items()):
+        _nonneg(p, f"timing_ms[{k!r}]", v)
+    return p
+
+
+def _selection(m: selection_pb2.Selection) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if m.rank < 1:
+        p.append("rank must be >= 1 (1 = best hypothesis), got 0")
+    _enum(p, "by", selection_pb2.SelectedBy, m.by, allow_zero=False)
+    _height(p, m)
+    return p
+
+
+def _scene(m: scene_pb2.Scene) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if m.rank < 1:
+        p.append("rank must be >= 1, got 0")
+    if not m.camera.HasField("intrinsics"):
+        p.append("camera.intrinsics is missing")
+    else:
+        _intrinsics(p, "camera.intrinsics", m.camera.intrinsics)
+    if m.camera.HasField("gravity"):
+        _vec3(p, "camera.gravity", m.camera.gravity, nonzero=True)
+    _positive(p, "camera_height_m", m.camera_height_m)
+    _nonneg(p, "camera_height_sigma_m", m.camera_height_sigma_m)
+    _polyline(p, "polyline", m.polyline)
+    return p
+
+
+def _measure_request(m: measure_pb2.MeasureRequest) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if not m.pixels:
+        p.append("pixels is empty: nothing to measure")
+    for i, px in enumerate(m.pixels):
+        _pixel(p, f"pixels[{i}]", px)
+    return p
+
+
+def _measure_reply(m: measure_pb2.MeasureReply) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if m.error:
+        if m.points or m.distances:
+            p.append("a failed request (error set) must carry no points or distances")
+        return p
+    for i, pt in enumerate(m.points):
+        name = f"points[{i}]"
+        _pixel(p, f"{name}.pixel", pt.pixel)
+        _enum(p, f"{name}.surface", measure_pb2.Surface, pt.surface, allow_zero=True)
+        if pt.error:
+            if pt.HasField("xyz") or pt.HasField("sigma_m") or pt.surface:
+                p.append(f"{name} has an error, so must have no xyz, sigma_m or surface")
+        else:
+            if not pt.HasField("xyz"):
+                p.append(f"{name} has neither xyz nor error")
+            else:
+                _vec3(p, f"{name}.xyz", pt.xyz)
+            if pt.surface == measure_pb2.SURFACE_NONE:
+                p.append(f"{name} has no error, so needs a surface (FLOOR or WALL)")
+            if pt.HasField("sigma_m"):
+                _nonneg(p, f"{name}.sigma_m", pt.sigma_m)
+    n = len(m.points)
+    for i, d in enumerate(m.distances):
+        name = f"distances[{i}]"
+        if d.a >= n or d.b >= n or d.a == d.b:
+            p.append(f"{name} joins points {d.a} and {d.b}: need two different indices "
+                     f"below {n}")
+        if d.error:
+            if d.HasField("distance_m") or d.HasField("sigma_m"):
+                p.append(f"{name} has an error, so must have no distance_m or sigma_m")
+        else:
+            if not d.HasField("distance_m"):
+                p.append(f"{name} has neither distance_m nor error")
+            else:
+                _nonneg(p, f"{name}.distance_m", d.distance_m)
+            if d.HasField("sigma_m"):
+                _nonneg(p, f"{name}.sigma_m", d.sigma_m)
+    return p
+
+
+_MOTION_VALUES = ("x_m", "z_m", "yaw_rad")
+_MOTION_SIGMAS = ("sigma_x_m", "sigma_z_m", "sigma_yaw_rad")
+
+
+def _motion(m: motion_pb2.Motion) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if m.index_a == m.index_b:
+        p.append(f"index_a and index_b are both {m.index_a}: a motion needs two photos")
+    present = [f for f in _MOTION_VALUES + _MOTION_SIGMAS if m.HasField(f)]
+    if m.error:
+        if present:
+            p.append(f"a failed motion (error set) must carry no numbers, has {', '.join(present)}")
+    else:
+        missing = [f for f in _MOTION_VALUES if not m.HasField(f)]
+        if missing:
+            p.append(f"{', '.join(missing)} missing and no error: a motion carries "
+                     "x_m, z_m and yaw_rad, or an error")
+        for f in present:
+            (_nonneg if f.startswith("sigma") else _finite)(p, f, getattr(m, f))
+    if m.inliers > m.matches:
+        p.append(f"inliers ({m.inliers}) exceed matches ({m.matches})")
+    return p
+
+
+def _pose_fields(p: Problems, m: motion_pb2.Pose, prefix: str = "") -> None:
+    for f in _MOTION_VALUES:
+        _finite(p, prefix + f, getattr(m, f))
+    for f in _MOTION_SIGMAS:
+        if m.HasField(f):
+            _nonneg(p, prefix + f, getattr(m, f))
+
+
+def _pose(m: motion_pb2.Pose) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    _pose_fields(p, m)
+    return p
+
+
+def _trajectory(m: motion_pb2.Trajectory) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    last = -1
+    for i, pose in enumerate(m.poses):
+        name = f"poses[{i}]"
+        if pose.schema not in ("", motion_pb2.Pose.DESCRIPTOR.full_name):
+            p.append(f"{name}.schema must be empty or findme.v1.Pose, got {_short(pose.schema)}")
+        if pose.session not in ("", m.session):
+            p.append(f"{name}.session {_short(pose.session)} differs from the trajectory's")
+        if pose.index <= last:
+            p.append(f"{name}.index {pose.index} out of order (after {last}): poses are "
+                     "sorted by index, each at most once")
+        last = pose.index
+        _pose_fields(p, pose, f"{name}.")
+    return p
+
+
+def _error(m: status_pb2.Error) -> Problems:
+    p: Problems = []
+    _session(p, m.session, allow_empty=True)
+    _enum(p, "code", status_pb2.ErrorCode, m.code, allow_zero=False)
+    if not m.message.strip():
+        p.append("message is empty: say what went wrong")
+    return p
+
+
+def _service_status(m: status_pb2.ServiceStatus) -> Problems:
+    p: Problems = []
+    if not m.service:
+        p.append("service is empty")
+    if not m.instance:
+        p.append("instance is empty")
+    return p
+
+
+VALIDATORS: dict[str, Callable[[Any], Problems]] = {
+    cls.DESCRIPTOR.full_name: fn for cls, fn in [
+        (frame_pb2.Frame, _frame),
+        (hypotheses_pb2.HypothesisSet, _hypothesis_set),
+        (selection_pb2.Selection, _selection),
+        (scene_pb2.Scene, _scene),
+        (measure_pb2.MeasureRequest, _measure_request),
+        (measure_pb2.MeasureReply, _measure_reply),
+        (motion_pb2.Motion, _motion),
+        (motion_pb2.Pose, _pose),
+        (motion_pb2.Trajectory, _trajectory),
+        (status_pb2.Error, _error),
+        (status_pb2.ServiceStatus, _service_status),
+    ]
+}

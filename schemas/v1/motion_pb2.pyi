@@ -1,0 +1,77 @@
+from google.protobuf.internal import containers as _containers
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
+from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class Motion(_message.Message):
+    __slots__ = ("schema", "session", "index_a", "index_b", "x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "inliers", "matches", "method", "error", "time_ns")
+    SCHEMA_FIELD_NUMBER: _ClassVar[int]
+    SESSION_FIELD_NUMBER: _ClassVar[int]
+    INDEX_A_FIELD_NUMBER: _ClassVar[int]
+    INDEX_B_FIELD_NUMBER: _ClassVar[int]
+    X_M_FIELD_NUMBER: _ClassVar[int]
+    Z_M_FIELD_NUMBER: _ClassVar[int]
+    YAW_RAD_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_X_M_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_Z_M_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_YAW_RAD_FIELD_NUMBER: _ClassVar[int]
+    INLIERS_FIELD_NUMBER: _ClassVar[int]
+    MATCHES_FIELD_NUMBER: _ClassVar[int]
+    METHOD_FIELD_NUMBER: _ClassVar[int]
+    ERROR_FIELD_NUMBER: _ClassVar[int]
+    TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    schema: str
+    session: str
+    index_a: int
+    index_b: int
+    x_m: float
+    z_m: float
+    yaw_rad: float
+    sigma_x_m: float
+    sigma_z_m: float
+    sigma_yaw_rad: float
+    inliers: int
+    matches: int
+    method: str
+    error: str
+    time_ns: int
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index_a: _Optional[int] = ..., index_b: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ..., inliers: _Optional[int] = ..., matches: _Optional[int] = ..., method: _Optional[str] = ..., error: _Optional[str] = ..., time_ns: _Optional[int] = ...) -> None: ...
+
+class Pose(_message.Message):
+    __slots__ = ("schema", "session", "index", "x_m", "z_m", "yaw_rad", "time_ns", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad")
+    SCHEMA_FIELD_NUMBER: _ClassVar[int]
+    SESSION_FIELD_NUMBER: _ClassVar[int]
+    INDEX_FIELD_NUMBER: _ClassVar[int]
+    X_M_FIELD_NUMBER: _ClassVar[int]
+    Z_M_FIELD_NUMBER: _ClassVar[int]
+    YAW_RAD_FIELD_NUMBER: _ClassVar[int]
+    TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_X_M_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_Z_M_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_YAW_RAD_FIELD_NUMBER: _ClassVar[int]
+    schema: str
+    session: str
+    index: int
+    x_m: float
+    z_m: float
+    yaw_rad: float
+    time_ns: int
+    sigma_x_m: float
+    sigma_z_m: float
+    sigma_yaw_rad: float
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., time_ns: _Optional[int] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ...) -> None: ...
+
+class Trajectory(_message.Message):
+    __slots__ = ("schema", "session", "poses", "time_ns")
+    SCHEMA_FIELD_NUMBER: _ClassVar[int]
+    SESSION_FIELD_NUMBER: _ClassVar[int]
+    POSES_FIELD_NUMBER: _ClassVar[int]
+    TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    schema: str
+    session: str
+    poses: _containers.RepeatedCompositeFieldContainer[Pose]
+    time_ns: int
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., poses: _Optional[_Iterable[_Union[Pose, _Mapping]]] = ..., time_ns: _Optional[int] = ...) -> None: ...

@@ -1,0 +1,147 @@
+"""Realistic sample messages of every bus type (several variants for oneofs and failures)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import schemas as S
+
+SESSION = "2024-05-01T10-00-00Z_pixel7-a1b2"
+T0 = 1_714_557_600_123_456_789
+# A small byte string shaped like a JPEG (SOI ... EOI); schemas never decode images.
+JPEG = b"\xff\xd8\xff\xe0\x00\x10JFIF\x00" + bytes(range(256)) * 3 + b"\xff\xd9"
+
+
+def _poly(points, kinds):
+    return S.polyline_to_msg(points, kinds)
+
+
+def sample_messages() -> list[tuple[str, object]]:
+    """(variant id, message) pairs; every message is valid and has its schema tag set."""
+    g = (0.02, 0.96, 0.28)
+    n = math.sqrt(sum(c * c for c in g))
+    gravity = S.Vec3(x=g[0] / n, y=g[1] / n, z=g[2] / n)
+    intr = S.Intrinsics(fx=525.3, fy=524.9, cx=319.5, cy=239.5, width=640, height=480)
+
+    frame = S.Frame(session=SESSION, index=3, capture_time_ns=T0, intrinsics=intr,
+                    gravity=gravity, camera_height_m=1.42, camera_height_sigma_m=0.05,
+                    device="Pixel 7 / Android 14 / findme-app 0.3")
+    frame.image.data = JPEG
+    frame.image.format = "jpeg"
+    frame.image.frame_id = f"{SESSION}/camera/3"
+    frame.image.timestamp.CopyFrom(S.ns_to_timestamp(T0))
+    frame_hfov = S.Frame(session=SESSION, index=0, capture_time_ns=T0 - 5_000_000_000,
+                         hfov_deg=68.5, device="file:IMG_0001.png")
+    frame_hfov.image.data = b"\x89PNG\r\n\x1a\n" + bytes(100)
+    frame_hfov.image.format = "png"
+
+    poly1 = _poly([(0, 352.5), (210.25, 301.0), (455.0, 305.5), (639, 371.75)], [0, 1, 0])
+    poly2 = _poly([(0, 360.0), (300.5, 290.0), (639, 520.0)], [2, 3])
+    hset = S.HypothesisSet(
+        session=SESSION, index=3, width=640, height=480, method="lsd+dp findme_core 0.1",
+        hypotheses=[S.Hypothesis(rank=1, score=12.75, support=0.83, polyline=poly1),
+                    S.Hypothesis(rank=2, score=9.5, support=0.61, polyline=poly2)],
+        timing_ms={"lines": 24.8, "merge": 1.9, "search": 112.4})
+    hset_empty = S.HypothesisSet(session=SESSION, index=4, width=640, height=480,
+                                 reason="no floor lines below the horizon",
+                                 timing_ms={"lines": 20.0}, method="lsd+dp findme_core 0.1")
+
+    sel = S.Selection(session=SESSION, index=3, rank=2, by=S.SELECTED_BY_USER,
+                      time_ns=T0 + 4_200_000_000, camera_height_m=1.38,
+                      camera_height_sigma_m=0.03)
+    sel_auto = S.Selection(session=SESSION, index=4, rank=1, by=S.SELECTED_BY_AUTO,
+                           time_ns=T0 + 9_000_000_000)
+
+    scene = S.Scene(session=SESSION, index=3, rank=2,
+                    camera=S.Camera(intrinsics=intr, gravity=gravity),
+                    camera_height_m=1.38, camera_height_sigma_m=0.03, metric=True,
+                    polyline=poly1, time_ns=T0 + 4_210_000_000)
+
+    req = S.MeasureRequest(session=SESSION, index=3,
+                           pixels=S.pixels_to_msg([(320.0, 420.5), (500.25, 250.0), (10, 5)]))
+    reply = S.MeasureReply(
+        session=SESSION, index=3, rank=2, metric=True,
+        points=[
+            S.MeasuredPoint(pixel=S.Pixel(u=320.0, v=420.5), surface=S.SURFACE_FLOOR,
+                            xyz=S.Vec3(x=0.004, y=1.21, z=2.87), sigma_m=0.06),
+            S.MeasuredPoint(pixel=S.Pixel(u=500.25, v=250.0), surface=S.SURFACE_WALL,
+                            xyz=S.Vec3(x=1.52, y=0.18, z=4.4), sigma_m=0.21),
+            S.MeasuredPoint(pixel=S.Pixel(u=10, v=5),
+                            error="pixel (10, 5) is at or above the horizon"),
+        ],
+        distances=[S.Distance(a=0, b=1, distance_m=2.19, sigma_m=0.22),
+                   S.Distance(a=1, b=2, error="an end point has no 3D position")])
+    reply_err = S.MeasureReply(session=SESSION, index=7,
+                               error="no scene for photo 7: select a hypothesis first")
+
+    motion = S.Motion(session=SESSION, index_a=3, index_b=4, x_m=0.42, z_m=1.87,
+                      yaw_rad=math.radians(-12.5), sigma_x_m=0.08, sigma_z_m=0.12,
+                      sigma_yaw_rad=math.radians(1.5), inliers=143, matches=388,
+                      method="sift+ratio+eq5-8", time_ns=T0 + 12_000_000_000)
+    motion_failed = S.Motion(session=SESSION, index_a=4, index_b=5, inliers=3, matches=7,
+                             method="sift+ratio+eq5-8",
+                             error="too few matches: 7 (need 12)", time_ns=T0 + 13_000_000_000)
+
+    poses = [S.Pose(index=0, time_ns=T0 - 5_000_000_000),
+             S.Pose(index=3, x_m=1.1, z_m=3.4, yaw_rad=0.35, time_ns=T0, sigma_x_m=0.1,
+                    sigma_z_m=0.15, sigma_yaw_rad=0.03),
+             S.Pose(index=4, x_m=1.52, z_m=5.27, yaw_rad=0.13, time_ns=T0 + 8_000_000_000)]
+    pose = S.Pose(schema="findme.v1.Pose", session=SESSION, index=4, x_m=1.52, z_m=5.27,
+                  yaw_rad=0.13, time_ns=T0 + 8_000_000_000, sigma_x_m=0.13, sigma_z_m=0.19,
+                  sigma_yaw_rad=0.04)
+    traj = S.Trajectory(session=SESSION, poses=poses, time_ns=T0 + 12_500_000_000)
+
+    err = S.Error(session=SESSION, key=f"findme/{SESSION}/selection/9",
+                  code=S.ErrorCode.Value("ERROR_CODE_NO_SUCH_HYPOTHESIS"),
+                  message="photo 9 has no hypothesis set; rank 2 cannot be selected",
+                  time_ns=T0 + 20_000_000_000, service="selection/host-a-4121")
+    err_nosession = S.Error(key="findme/bad key/frame/0",
+                            code=S.ErrorCode.Value("ERROR_CODE_MALFORMED"),
+                            message="session 'bad key' is not a valid session id",
+                            time_ns=T0)
+    status = S.ServiceStatus(service="hypotheses", instance="host-a-4121",
+                             started_ns=T0 - 3_600_000_000_000, time_ns=T0,
+                             frames_in=152, results_out=149, errors=2, dropped=1,
+                             queue_depth=3, version="0.1.0",
+                             counters={"cache_hits": 12, "oversize": 1})
+
+    out = [("frame", frame), ("frame-hfov", frame_hfov), ("hypotheses", hset),
+           ("hypotheses-empty", hset_empty), ("selection-user", sel),
+           ("selection-auto", sel_auto), ("scene", scene), ("measure-request", req),
+           ("measure-reply", reply), ("measure-reply-error", reply_err), ("motion", motion),
+           ("motion-failed", motion_failed), ("pose", pose), ("trajectory", traj),
+           ("error", err), ("error-no-session", err_nosession), ("status", status)]
+    for _, m in out:
+        if not m.schema:
+            m.schema = m.DESCRIPTOR.full_name
+    return out
+
+
+@pytest.fixture
+def samples() -> dict[str, object]:
+    """variant id -> a fresh sample message."""
+    return dict(sample_messages())
+
+
+@pytest.fixture
+def sample_of():
+    """type full name -> a fresh copy of its first sample variant."""
+    def get(type_name: str):
+        for _, m in sample_messages():
+            if m.DESCRIPTOR.full_name == type_name:
+                return m
+        raise KeyError(type_name)
+    return get
+
+
+@pytest.fixture
+def sample(sample_id):
+    """A fresh sample message for the parametrised ``sample_id``."""
+    return dict(sample_messages())[sample_id]
+
+
+def pytest_generate_tests(metafunc):
+    if "sample_id" in metafunc.fixturenames:
+        metafunc.parametrize("sample_id", [name for name, _ in sample_messages()])

@@ -1,0 +1,163 @@
+"""Fit the hypothesis ranking weights (findme_core.ranking.RankWeights) on a labelled split.
+
+    python tools/fit_ranker.py ../shared/data/findme-eval [--out weights.json] [--show]
+
+For every view with a label map: run the generator with the search weights, keep every
+re-ranked candidate's features and its floor pixel error (scored like shared/eval/score.py),
+then fit the re-ranking weights w to minimise the expected top-1 error under the model's
+softmax over each view's candidates (sum_c softmax(w . f / T)_c error_c), with an L2 pull
+towards the starting weights. The search's own costs (ranking.SEARCH_WEIGHTS) are not
+fitted: the candidate pool stays fixed, so there is no feedback loop.
+
+Held-out accuracy is reported by leave-one-group-out cross-validation (ZInD: one room per
+group; TUM: blocks of 6 frames), so the figures are not in-sample. Only the dev split is
+ever used for fitting; the weights are hyper-parameters and carry no image data.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+from findme_core import hypotheses as H  # noqa: E402
+from findme_core.ranking import FEATURES, RankWeights  # noqa: E402
+from findme.evaluate import view_inputs  # noqa: E402
+
+SUBSETS = ("zind-level", "zind-level-lowfloor", "zind-tilted", "zind-pairs-level",
+           "zind-pairs-tilted", "tum-cabinet")
+
+
+def group_of(vid: str) -> str:
+    m = re.match(r"z\w+?_r(\d+)_", vid)
+    if m:
+        return "room" + m.group(1)
+    m = re.match(r"tum_cab_(\d+)", vid)
+    return f"tum{int(m.group(1)) // 6}" if m else vid
+
+
+def pixel_errors(polys, labels):
+    valid = (labels != 255) & ~((labels >= 100) & (labels < 200))
+    gt = labels == 0
+    H_, W_ = labels.shape
+    n = valid.sum()
+    rows = np.arange(H_, dtype=float)[:, None]
+    out = []
+    for poly in polys:
+        a = np.asarray(poly, float)
+        vp = np.interp(np.arange(W_, dtype=float), a[:, 0], a[:, 1])
+        pred = rows >= vp[None, :] - 1e-6
+        out.append(float(((pred != gt) & valid).sum()) / n)
+    return np.array(out)
+
+
+def candidates(job):
+    view_dir, vid, w = job
+    cv2.setNumThreads(1)
+    meta = json.load(open(os.path.join(view_dir, vid + ".json")))
+    cam, _, _ = view_inputs(meta)
+    image = cv2.imread(os.path.join(view_dir, meta["image"]))
+    labels = cv2.imread(os.path.join(view_dir, meta["labels"]), cv2.IMREAD_UNCHANGED)
+    params = replace(H.HypothesisParams(), snap=False)
+    dbg: dict = {}
+    H.generate(image, cam, 10, params, debug=dbg)
+    ranked = dbg.get("ranked") or []
+    if not ranked:
+        return vid, np.zeros((0, len(FEATURES))), np.zeros(0)
+    feats = np.array([r[3] for r in ranked])
+    errs = pixel_errors([r[1][0] for r in ranked], labels)
+    return vid, feats, errs
+
+
+def fit(data, w0, free, temp=0.01, l2=0.02, iters=800, lr=0.05, cap=0.15):
+    """Minimise mean expected top-1 error, sum_c softmax(w . f / temp)_c e_c, by Adam
+    (weights not in ``free`` stay at w0); features are standardised for the optimiser."""
+    F_all = np.concatenate([f for f, e in data if len(e)])
+    mu, sd = F_all.mean(0), F_all.std(0) + 1e-9
+    sd[~free] = 1.0
+    mu[~free] = 0.0
+    z0 = w0 * sd                      # weights in standardised units
+    z = z0.copy()
+    m = np.zeros_like(z)
+    v = np.zeros_like(z)
+    # errors above `cap` count as `cap`: hopeless views (no candidate near the truth) must not
+    # dominate the fit
+    fs = [((f - mu) / sd, np.minimum(e, cap)) for f, e in data if len(e) > 1]
+    for it in range(1, iters + 1):
+        g = np.zeros_like(z)
+        for f, e in fs:
+            s = f @ z / temp
+            p = np.exp(s - s.max())
+            p /= p.sum()
+            g += f.T @ (p * (e - p @ e)) / temp
+        g = g / len(fs) + l2 * (z - z0)
+        g[~free] = 0
+        m = 0.9 * m + 0.1 * g
+        v = 0.999 * v + 0.001 * g * g
+        z = z - lr * (m / (1 - 0.9 ** it)) / (np.sqrt(v / (1 - 0.999 ** it)) + 1e-8)
+    return z / sd
+
+
+def top1(data, w):
+    return np.array([e[np.argmax(f @ w)] if len(e) else 1.0 for f, e in data])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("dataset")
+    ap.add_argument("--out")
+    ap.add_argument("--show", action="store_true", help="print every view's held-out error")
+    a = ap.parse_args(argv)
+    index = json.load(open(os.path.join(a.dataset, "index.json")))
+    view_dir = os.path.join(a.dataset, index.get("views_dir", "views"))
+    subset_of = {}
+    for s in SUBSETS:
+        for vid in index["subsets"][s]["views"]:
+            subset_of.setdefault(vid, s)
+    vids = sorted(subset_of)
+    from findme_core.ranking import RANK_WEIGHTS
+    w = RANK_WEIGHTS.vector()
+    free = np.array([f != "support" for f in FEATURES])
+    with ProcessPoolExecutor(os.cpu_count()) as ex:
+        res = list(ex.map(candidates, [(view_dir, v, w) for v in vids], chunksize=4))
+    data = {vid: (f, e) for vid, f, e in res}
+    oracle = {vid: (e.min() if len(e) else 1.0) for vid, (f, e) in data.items()}
+    if True:
+        groups = sorted({group_of(v) for v in vids})
+        held = {}
+        for g in groups:
+            train = [data[v] for v in vids if group_of(v) != g]
+            wg = fit(train, w, free)
+            for v in vids:
+                if group_of(v) == g:
+                    held[v] = top1([data[v]], wg)[0]
+        w_new = fit([data[v] for v in vids], w, free)
+        print("top-1 median pixel error per subset "
+              "(current weights | held-out fit | in-sample fit | best candidate)")
+        for s in SUBSETS:
+            vs = [v for v in vids if subset_of[v] == s]
+            cur = np.median(top1([data[v] for v in vs], w))
+            ho = np.median([held[v] for v in vs])
+            ins = np.median(top1([data[v] for v in vs], w_new))
+            orc = np.median([oracle[v] for v in vs])
+            print(f"  {s:22s} {100 * cur:6.2f}% | {100 * ho:6.2f}% | {100 * ins:6.2f}% | {100 * orc:6.2f}%")
+        print("  weights:", json.dumps(dict(zip(FEATURES, np.round(w_new, 5).tolist()))))
+        w = w_new
+        if a.show:
+            for s in SUBSETS:
+                vs = [v for v in vids if subset_of[v] == s]
+                print(s, "held-out errors:", " ".join(f"{v}:{100 * held[v]:.1f}" for v in vs))
+    if a.out:
+        json.dump(dict(zip(FEATURES, w.tolist())), open(a.out, "w"), indent=1)
+
+
+if __name__ == "__main__":
+    main()
