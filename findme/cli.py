@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from findme_core.errors import FindmeError
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line on stderr and exit status 2."""
+    """argparse, but a usage error is one line on stderr and exit status 2, and values such
+    as ``-0.05,0.9,0.4`` (a gravity vector) or ``-4,2`` (a pixel) are values, not options."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-\.?\d")
 
     def error(self, message):  # noqa: D102 - argparse API
         sys.stderr.write(f"{self.prog}: error: {message} (see --help)\n")
@@ -17,11 +23,11 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import single, evaluate
+    from . import demo, evaluate, single
     p = _Parser(prog="findme", description=__doc__)
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for mod in (single, evaluate):
+    for mod in (demo, single, evaluate):
         mod.register(sub)
     return p
 

@@ -45,7 +45,8 @@ def register(sub) -> None:
     q.add_argument("--max", type=int, default=10, metavar="N", help=argparse_suppress())
     q.add_argument("--method", default="findme", choices=METHODS)
     pts = q.add_mutually_exclusive_group(required=True)
-    pts.add_argument("--point", action="append", metavar="U,V", help="a pixel; repeat for more")
+    pts.add_argument("--point", action="append", metavar="U,V",
+                     help="a pixel; repeat for more (negative values: --point=-4,2)")
     pts.add_argument("--points", metavar="FILE.json",
                      help='pixels as JSON: [[u, v], ...] or {"points": [[u, v], ...]}')
     q.add_argument("--json", action="store_true", help="print one JSON object")

@@ -73,6 +73,10 @@ class Camera:
             raise CameraError(
                 f"gravity {g.round(4).tolist()} is along the optical axis: the camera looks "
                 "straight down or up, so it has no horizontal forward direction")
+        z = fwd / np.linalg.norm(fwd)
+        R = np.stack([np.cross(g, z), g, z])
+        R.setflags(write=False)
+        object.__setattr__(self, "_R", R)
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -108,12 +112,9 @@ class Camera:
 
     @property
     def R_level_from_cam(self) -> np.ndarray:
-        """(3, 3) rotation with the level axes (x_l, y_l, z_l) as rows, in camera coords."""
-        y = self.gravity
-        z = np.array([0.0, 0.0, 1.0]) - y[2] * y
-        z = z / np.linalg.norm(z)
-        x = np.cross(y, z)
-        return np.stack([x, y, z])
+        """(3, 3) rotation with the level axes (x_l, y_l, z_l) as rows, in camera coords
+        (read-only; computed once)."""
+        return self._R
 
     @property
     def pitch_deg(self) -> float:

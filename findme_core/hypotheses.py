@@ -25,8 +25,8 @@ from .errors import InputError
 from .lines import Lines, LineKind, classify, detect_segments, merge_collinear
 from .refine import SnapParams, snap_polyline
 from .ranking import RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
-from .search import (SearchParams, SegKind, best_paths, events, path_features, path_polyline,
-                     rewards, track_rows, track_tables)
+from .search import (SearchParams, SegKind, best_paths, events, path_features, path_pieces,
+                     path_polyline, path_rows, rewards, track_rows, track_tables)
 from .support import EdgeField, SupportParams, tabulate
 
 
@@ -70,6 +70,9 @@ class HypothesisParams:
     max_lines: int = 40
     horizon_margin: float = 0.01
     rerank_top: int = 120
+    seed_top: int = 120
+    substeps: int = 1
+    likelihood_scale: int = 8
     nms_px: float = 3.0
     snap: bool = True
     snap_params: SnapParams = SnapParams()
@@ -87,31 +90,42 @@ def column_rows(polyline: np.ndarray, height: int, cols: np.ndarray) -> np.ndarr
 def suppress_duplicates(rows: np.ndarray, order: np.ndarray, nms_px: float, max_n: int) -> list[int]:
     """Greedy non-maximum suppression on (K, C) clipped boundary rows: skip a candidate whose
     rows differ from a kept one by less than ``nms_px`` on average."""
+    rows = rows[order]
+    head = min(len(rows), 4 * max_n + 8)  # the kept ones nearly always come from the head
+    near = np.abs(rows[:head, None, :] - rows[None, :head, :]).mean(2) < nms_px
     kept: list[int] = []
-    for i in order:
-        if kept and np.min(np.mean(np.abs(rows[kept] - rows[i]), axis=1)) < nms_px:
-            continue
-        kept.append(int(i))
+    for i in range(len(order)):
+        if kept:
+            dup = (near[i, kept].any() if i < head else
+                   (np.abs(rows[kept] - rows[i]).mean(1) < nms_px).any())
+            if dup:
+                continue
+        kept.append(i)
         if len(kept) >= max_n:
             break
-    return kept
+    return [int(order[i]) for i in kept]
 
 
-def vertical_in_floor(built, verticals: np.ndarray, width: int, n_samples: int = 8,
+def vertical_in_floor(rows: np.ndarray, verticals: np.ndarray, n_samples: int = 8,
                       tol_px: float = 4.0) -> np.ndarray:
     """(K,) length in pixels of 3D-vertical segments lying inside each candidate's floor
     region (more than ``tol_px`` below its polyline). A floor has nothing standing on it
     inside the region the hypothesis calls floor, so long verticals there (cabinet doors
-    under a countertop taken for the floor) count against it."""
+    under a countertop taken for the floor) count against it.
+
+    Args:
+        rows: (K, W) boundary row of each candidate at every column.
+        verticals: (V, 4) segments.
+    """
     if len(verticals) == 0:
-        return np.zeros(len(built))
+        return np.zeros(len(rows))
     t = (np.arange(n_samples) + 0.5) / n_samples
     seg = np.asarray(verticals, float)
     pts = seg[:, None, :2] + t[None, :, None] * (seg[:, None, 2:] - seg[:, None, :2])
     pts = pts.reshape(-1, 2)
     w = np.repeat(np.hypot(*(seg[:, 2:] - seg[:, :2]).T) / n_samples, n_samples)
-    inside = np.array([np.interp(pts[:, 0], poly[:, 0], poly[:, 1]) + tol_px < pts[:, 1]
-                       for poly, _, _ in built])
+    cols = np.clip(np.round(pts[:, 0]), 0, rows.shape[1] - 1).astype(int)
+    inside = rows[:, cols] + tol_px < pts[:, 1][None, :]
     return inside.astype(float) @ w
 
 
@@ -167,7 +181,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
                              _timing(t, ("lines",)))
     coef = lines.coef[cand]
     lab = to_lab(image)
-    table = tabulate(EdgeField(image, params.support, color=lab), coef)
+    table = tabulate(EdgeField(image, params.support, color=lab), coef, params.substeps)
     if clock:
         t.append(clock())
     sp, w, ws = params.search, params.weights.vector(), params.search_weights.vector()
@@ -176,15 +190,24 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     stats = RegionStats(lab)
     F, valid = track_tables(table, camera, sp)
     ev = events(coef, rows_t, valid, verts, camera, sp)
-    ranked, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H)
-    if ws[5] != 0 and ranked:
+    if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
+        paths = best_paths(rewards(F, valid, ws[:6]), valid, ev, -ws[6], -ws[7], limit=1)
+        ranked, seed = None, (paths[0] if paths else None)
+    else:
+        ranked, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
+                                        rows_t, params.seed_top)
+    if ws[5] != 0 and seed is not None:
         # the colour model is seeded by the best under the *search* weights, so the candidate
         # pool does not depend on the re-ranking weights (no feedback when fitting them)
-        best = seed
-        fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)))
+        best = path_polyline(seed[1], seed[2], ev, coef, W, H)[0]
+        fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)),
+                             scale=params.likelihood_scale)
         if fl.valid:  # second pass with colour evidence inside the search
             F, _ = track_tables(table, camera, sp, fl.below(rows_t))
-            ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H)
+            ranked = None
+    if ranked is None:
+        ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
+                                     rows_t, params.rerank_top)
     if clock:
         t.append(clock())
     if not ranked:
@@ -198,64 +221,45 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     hyps = []
     cache: dict = {}
     for i in keep:
-        poly, kinds_i = ranked[i][1][0], ranked[i][1][1]
+        built = path_polyline(ranked[i][1][1], ranked[i][1][2], ev, coef, W, H)
+        poly, kinds_i = built[0], built[1]
         if params.snap:
-            poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache)
-        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]),
-                               _support_fraction(table, ranked[i][1], len(coef))))
+            poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache, built[2])
+        f = ranked[i][3]
+        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[10])))
     if clock:
         t.append(clock())
     return HypothesisSet(W, H, hyps, lines, kinds, None,
                          _timing(t, ("lines", "support", "search", "rank")))
 
 
-def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H):
-    """Best paths under search weights ``ws`` -> polylines -> score under weights ``w``.
+def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows_t,
+                     top: int):
+    """Best paths under search weights ``ws``, re-scored under weights ``w``.
 
     Returns:
-        (list of (score, (polyline, kinds, tracks), rows at ``stats.cols``, features), best
-        first; polyline of the best candidate under ``ws``).
+        (list of (score, path, rows at ``stats.cols``, features), best first;
+         the best path under ``ws``). A path is (score, start track, event chain).
     """
     A = rewards(F, valid, ws[:6])
-    paths = best_paths(A, valid, ev, -ws[6], -ws[7])
-    paths.sort(key=lambda c: -c[0])
-    paths = paths[: params.rerank_top]
+    paths = best_paths(A, valid, ev, -ws[6], -ws[7], limit=top)
     if not paths:
         return [], None
-    built = [path_polyline(start, chain, ev, coef, W, H) for _, start, chain in paths]
-    rows = np.array([column_rows(poly, H, stats.cols) for poly, _, _ in built])
-    pf = np.array([path_features(start, chain, ev, F) for _, start, chain in paths])
-    feats = feature_matrix(pf, stats.gain(rows), vertical_in_floor(built, verts, W), rows, W, H)
+    pieces = path_pieces(paths, ev, W)
+    full_rows = np.clip(path_rows(pieces, rows_t, len(paths)), 0.0, float(H))
+    rows = full_rows[:, stats.cols]
+    feats = feature_matrix(path_features(pieces, F, len(paths)), stats.gain(rows),
+                           vertical_in_floor(full_rows, verts), rows, W, H)
     score = feats @ w
     order = np.argsort(-score, kind="stable")
-    seed = built[int(np.argmax(feats @ ws))][0]
-    return [(float(score[i]), built[i], rows[i], feats[i]) for i in order], seed
+    seed = paths[int(np.argmax(feats @ ws))]
+    return [(float(score[i]), paths[i], rows[i], feats[i]) for i in order], seed
 
 
 def no_floor_hypothesis(width: int, height: int) -> Hypothesis:
     """The answer "no floor visible": the boundary along the bottom border."""
     poly = np.array([[0.0, height - 0.5], [width - 1.0, height - 0.5]])
     return Hypothesis(poly, np.array([SegKind.NONE]), 0.0, 0.0)
-
-
-def _support_fraction(table, built, n_lines) -> float:
-    """Edge-supported fraction of the in-image length of the WALL segments of a polyline."""
-    poly, kinds, tracks = built
-    sup = tot = 0.0
-    ti = 0
-    W = table.S.shape[1] - 1
-    for s, kind in enumerate(kinds):
-        if kind == SegKind.STEP:
-            continue
-        t = tracks[min(ti, len(tracks) - 1)]
-        ti += 1
-        if t >= n_lines:
-            continue
-        a = int(np.clip(round(poly[s, 0] + 0.5), 0, W))
-        b = int(np.clip(round(poly[s + 1, 0] + 0.5), 0, W))
-        sup += table.S[t, b] - table.S[t, a]
-        tot += table.L[t, b] - table.L[t, a]
-    return float(sup / tot) if tot > 0 else 0.0
 
 
 def _timing(t, names):

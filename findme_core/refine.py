@@ -32,6 +32,8 @@ class SnapParams:
     min_shift_px: float = 1.5
     shadow_chroma: float = 6.0   # a band with the floor's chroma (a, b) and lower L is a shadow
     step_px: float = 3.0         # spacing of profile columns along the segment
+    s_step: float = 0.005        # profile resolution, relative to the depression
+    robust: bool = True          # median over columns (else mean)
 
 
 def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
@@ -44,14 +46,16 @@ def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
 
 def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
                   kinds: np.ndarray, p: SnapParams = SnapParams(),
-                  cache: dict | None = None) -> np.ndarray:
+                  cache: dict | None = None, keys=None) -> np.ndarray:
     """Return a copy of ``polyline`` with WALL segments moved down to the wall base.
 
     Args:
         image_lab: (H, W, 3) float32 Lab image.
         polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
-        cache: optional dict reused across the hypotheses of one image (segments shared by
-            several hypotheses are measured once).
+        cache: optional dict reused across the hypotheses of one image.
+        keys: optional cache key per segment, e.g. the id of the image line it lies on: the
+            band under a line is a property of the line, so each line is measured once
+            (default: the segment's rounded end points).
     """
     poly = np.array(polyline, float)
     H, W = image_lab.shape[:2]
@@ -62,13 +66,15 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
         if kind != SegKind.WALL:
             continue
         a, b = poly[s], poly[s + 1]
-        key = (round(a[0]), round(a[1]), round(b[0]), round(b[1]))
+        key = keys[s] if keys is not None else (round(a[0]), round(a[1]), round(b[0]), round(b[1]))
         if cache is not None and key in cache:
             shift = cache[key]
         else:
             shift = _segment_shift(image_lab, camera, a, b, down, p)
-            if cache is not None:
+            if cache is not None and shift is not None:
                 cache[key] = shift
+        if shift is None:  # too short to measure: its corners follow the neighbours
+            continue
         d = b - a
         n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)
         if n @ down < 0:
@@ -81,15 +87,23 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
         left, right = lines.get(k - 1), lines.get(k)
         if left and right:
             x = _intersect(*left, *right)
-            if x is not None and abs(x[0] - poly[k, 0]) < 0.05 * W:
+            lo = poly[k - 1, 0] if k > 0 else 0.0
+            hi = poly[k + 1, 0] if k + 1 < len(poly) else W - 1.0
+            # a corner of two nearly parallel lines can slide far when they move: then keep
+            # its column (the polyline must stay monotonic in u) and take the lines' mean row
+            if x is not None and abs(x[0] - poly[k, 0]) <= 2.0 and lo <= x[0] <= hi:
                 out[k] = x
-                continue
+            else:
+                out[k, 1] = np.mean([_row_at(*ln, poly[k, 0]) for ln in (left, right)])
+            continue
         ln = left or right
         if ln is not None:
-            (q, d) = ln
-            if abs(d[0]) > 1e-9:
-                out[k, 1] = q[1] + (poly[k, 0] - q[0]) * d[1] / d[0]
+            out[k, 1] = _row_at(*ln, poly[k, 0])
     return out
+
+
+def _row_at(q, d, u):
+    return q[1] + (u - q[0]) * d[1] / d[0] if abs(d[0]) > 1e-9 else q[1]
 
 
 def _intersect(p, d, q, e):
@@ -100,35 +114,37 @@ def _intersect(p, d, q, e):
     return p + t[0] * d
 
 
-def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float:
-    """Pixels to move the segment a-b along its normal (0 = keep)."""
+def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
+    """Pixels to move the segment a-b along its normal (0 = keep; None = too little of it
+    in the image to tell)."""
     H, W = lab.shape[:2]
     length = np.hypot(*(b - a))
     n_cols = int(length // p.step_px)
     if n_cols < 4:
-        return 0.0
+        return None
     t = (np.arange(n_cols) + 0.5) / n_cols
     base = a[None, :] + t[:, None] * (b - a)[None, :]
     inside = (base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0) & (base[:, 1] <= H - 1)
     base = base[inside]
     if len(base) < 4:
-        return 0.0
+        return None
     dep = _depression(camera, base)
     dep = np.maximum(dep, 1.0)
-    s = np.arange(-0.02, p.floor_band[1] + 1e-9, 0.005)
+    s = np.arange(-0.02, p.floor_band[1] + 1e-9, p.s_step)
     pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
     ok = ((pts[..., 0] >= 0) & (pts[..., 0] <= W - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= H - 1))
     cols = ok.all(1)
     if cols.sum() < 4:
-        return 0.0
+        return None
     P = pts[cols].reshape(-1, 2).astype(np.float32)
     prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
-    prof = np.median(prof.reshape(cols.sum(), len(s), 3), axis=0)    # (S, 3) robust average
+    prof = prof.reshape(cols.sum(), len(s), 3)
+    prof = np.median(prof, axis=0) if p.robust else prof.mean(0)    # (S, 3) average profile
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
     floor = np.median(prof[fb], axis=0)
     dist = np.linalg.norm(prof - floor, axis=1)
     far = dist > p.settle_tol
-    win = max(1, int(round(p.settle_len / 0.005)))
+    win = max(1, int(round(p.settle_len / p.s_step)))
     # first offset >= 0 from which the profile stays at the floor colour for `win` samples
     start = int(np.searchsorted(s, 0.0))
     settle = None

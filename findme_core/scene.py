@@ -126,6 +126,9 @@ class Scene:
                 t = p[4] / den
                 if t > 0:
                     t_wall = t
+                elif not np.isfinite(t_floor):
+                    raise GeometryError("the wall's plane lies behind the camera in this "
+                                        "direction: the point would be behind the camera")
             elif not np.isfinite(t_floor):
                 raise GeometryError("the pixel's ray runs parallel to the wall: it never meets it")
         elif p[2] == SegKind.NONE:

@@ -174,15 +174,16 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
 
 
 def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
-               step_cost: float) -> list[tuple[float, int, tuple[int, ...]]]:
+               step_cost: float, limit: int = 1 << 30) -> list[tuple[float, int, tuple[int, ...]]]:
     """Best path through every event, and every single track spanning the image.
 
     Args:
         A: (T, W + 1) cumulative rewards (``rewards``); valid: (T, W).
         corner_cost, step_cost: cost of a corner / crossing and of an occluding step.
+        limit: return at most this many paths (the best).
 
     Returns:
-        list of (score, start track, event indices left to right), unsorted, distinct.
+        list of (score, start track, event indices left to right), best first, distinct.
     """
     n_tracks, W1 = A.shape
     W = W1 - 1
@@ -216,12 +217,16 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
         sval[e], succ[e] = suf, ptrb[j]
         if suf - cost[e] + Al[i][k] > B[i]:
             B[i], ptrb[i] = suf - cost[e] + Al[i][k], e
+    cands = [(Al[t][W] - Al[t][0], t, -1) for t in range(n_tracks) if left[t] and right[t]]
+    cands += [(fval[e] + sval[e], src[e], e) for e in range(len(src))
+              if fval[e] > NEG and sval[e] > NEG]
+    cands.sort(key=lambda c: -c[0])
     out, seen = [], set()
-    for t in range(n_tracks):
-        if left[t] and right[t]:
-            out.append((Al[t][W] - Al[t][0], t, ()))
-    for e in range(len(src)):
-        if fval[e] <= NEG or sval[e] <= NEG:
+    for total, start, e in cands:
+        if total <= -FORBIDDEN / 2 or len(out) >= limit:
+            break
+        if e < 0:
+            out.append((total, start, ()))
             continue
         chain = [e]
         p = pred[e]
@@ -229,21 +234,20 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
             chain.append(p)
             p = pred[p]
         chain.reverse()
-        s = succ[e]
-        while s >= 0:
-            chain.append(s)
-            s = succ[s]
+        q = succ[e]
+        while q >= 0:
+            chain.append(q)
+            q = succ[q]
         key = tuple(chain)
-        if key in seen:
-            continue
-        seen.add(key)
-        out.append((fval[e] + sval[e], src[chain[0]], key))
-    return [c for c in out if c[0] > -FORBIDDEN / 2]
+        if key not in seen:
+            seen.add(key)
+            out.append((total, src[chain[0]], key))
+    return out
 
 
 def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarray,
                   width: int, height: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """Vertices (M, 2), segment kinds (M - 1,) and tracks used of a path.
+    """Vertices (M, 2), segment kinds (M - 1,) and the track of each segment (-1 for a step).
 
     Corners are exact line intersections; a step is drawn as a near-vertical segment 0.5 px
     wide at the foot column of its vertical edge; TOP is the row -0.5, BOTTOM the row H - 0.5.
@@ -259,7 +263,7 @@ def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarr
     track = start
     pts = [(0.0, row(track, 0.0))]
     kinds: list[int] = []
-    tracks = [track]
+    tracks: list[int] = []
     for e in chain:
         d = int(ev.dst[e])
         u = float(ev.u[e])
@@ -267,26 +271,65 @@ def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarr
         if ev.step[e]:
             pts += [(u - 0.25, row(track, u)), (u + 0.25, row(d, u))]
             kinds += [here, SegKind.STEP]
+            tracks += [track, -1]
         else:
             pts.append((u, row(track, u) if d >= n else row(d, u)))
             kinds.append(here)
+            tracks.append(track)
         track = d
-        tracks.append(d)
     pts.append((width - 1.0, row(track, width - 1.0)))
     kinds.append(seg_kind.get(track, SegKind.WALL))
-    return np.array(pts), np.array(kinds, dtype=int), tracks
+    tracks.append(track)
+    pts = np.array(pts)
+    # events in one column are ordered by column boundary, not by their exact u
+    pts[:, 0] = np.maximum.accumulate(np.clip(pts[:, 0], 0.0, width - 1.0))
+    kinds = np.array(kinds, dtype=int)
+    # two events at one point leave a zero-length segment: drop it
+    keep = np.ones(len(kinds), bool)
+    keep[np.all(np.abs(np.diff(pts, axis=0)) < 1e-9, axis=1)] = False
+    if not keep.all() and keep.any():
+        pts = np.vstack([pts[:1], pts[1:][keep]])
+        kinds, tracks = kinds[keep], [t for t, k in zip(tracks, keep) if k]
+    return pts, kinds, tracks
 
 
-def path_features(start: int, chain: tuple[int, ...], ev: Events, F: np.ndarray) -> np.ndarray:
-    """(len(ADDITIVE) + 2,) features of a path: the additive sums (``track_tables``) over its
-    pieces, then the number of corners / crossings and of occluding steps."""
-    W = F.shape[2] - 1
-    out = np.zeros(len(ADDITIVE) + 2)
-    track, k = start, 0
-    for e in chain:
-        k2 = int(ev.col[e])
-        out[: len(ADDITIVE)] += F[:, track, k2] - F[:, track, k]
-        out[len(ADDITIVE) + int(ev.step[e])] += 1
-        track, k = int(ev.dst[e]), k2
-    out[: len(ADDITIVE)] += F[:, track, W] - F[:, track, k]
+def path_pieces(paths, ev: Events, width: int):
+    """Flatten paths into pieces.
+
+    Args:
+        paths: sequence of (score, start track, event chain).
+    Returns:
+        (piece_path, piece_track, k0, k1) arrays over all pieces (column boundaries
+        [k0, k1)), and (K, 2) counts of corners / crossings and of steps per path.
+    """
+    col, dst, step = ev.col.tolist(), ev.dst.tolist(), ev.step.tolist()
+    pp, pt, a, b = [], [], [], []
+    counts = np.zeros((len(paths), 2))
+    for i, (_, track, chain) in enumerate(paths):
+        k = 0
+        for e in chain:
+            pp.append(i), pt.append(track), a.append(k), b.append(col[e])
+            counts[i, int(step[e])] += 1
+            track, k = dst[e], col[e]
+        pp.append(i), pt.append(track), a.append(k), b.append(width)
+    return np.array(pp), np.array(pt), np.array(a), np.array(b), counts
+
+
+def path_features(pieces, F: np.ndarray, n_paths: int) -> np.ndarray:
+    """(K, len(ADDITIVE) + 2) features of K paths: the additive sums (``track_tables``) over
+    their pieces, then the numbers of corners / crossings and of occluding steps."""
+    pp, pt, a, b, counts = pieces
+    d = F[:, pt, b] - F[:, pt, a]                       # (len(ADDITIVE), pieces)
+    out = np.zeros((n_paths, len(ADDITIVE)))
+    np.add.at(out, pp, d.T)
+    return np.column_stack([out, counts])
+
+
+def path_rows(pieces, rows: np.ndarray, n_paths: int) -> np.ndarray:
+    """(K, W) boundary row of each path at every column, from the track rows (N + 2, W)."""
+    pp, pt, a, b, _ = pieces
+    W = rows.shape[1]
+    out = np.empty((n_paths, W))
+    for i, t, k0, k1 in zip(pp.tolist(), pt.tolist(), a.tolist(), b.tolist()):
+        out[i, k0:k1] = rows[t, k0:k1]
     return out

@@ -1,0 +1,62 @@
+"""Helpers shared by the benchmarks: one-core pinning, timing, and statistics."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+EVAL_DIR = Path(os.environ.get("FINDME_EVAL_DIR",
+                               Path(__file__).resolve().parents[2] / "shared" / "data" / "findme-eval"))
+
+
+def pin_one_core() -> str:
+    """Run on one CPU core with OpenCV single-threaded; returns a description."""
+    import cv2
+    cv2.setNumThreads(1)
+    try:
+        core = sorted(os.sched_getaffinity(0))[-1]
+        os.sched_setaffinity(0, {core})
+        return f"pinned to core {core}, cv2 threads 1"
+    except (AttributeError, OSError):
+        return "cv2 threads 1 (no affinity control)"
+
+
+def timed(fn, *args, repeat: int = 1) -> tuple[float, object]:
+    """(best-of-``repeat`` milliseconds, result) of fn(*args)."""
+    best, out = float("inf"), None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn(*args)
+        best = min(best, time.perf_counter() - t0)
+    return best * 1e3, out
+
+
+def stats(ms) -> dict:
+    a = np.asarray(ms, float)
+    return {"n": int(len(a)), "median": float(np.median(a)), "p10": float(np.percentile(a, 10)),
+            "p90": float(np.percentile(a, 90)), "iqr": float(np.subtract(*np.percentile(a, [75, 25])))}
+
+
+def fmt(name: str, s: dict, unit: str = "ms") -> str:
+    return (f"{name:34s} median {s['median']:7.2f} {unit}   p10 {s['p10']:7.2f}   "
+            f"p90 {s['p90']:7.2f}   IQR {s['iqr']:6.2f}   (n={s['n']})")
+
+
+def dev_views(size=(640, 480)):
+    """(view id, meta) of every dev view of the given image size, or [] without the data."""
+    idx_path = EVAL_DIR / "index.json"
+    if not idx_path.exists():
+        return []
+    index = json.loads(idx_path.read_text())
+    vids = sorted({v for s in index["subsets"].values() for v in s.get("views", [])})
+    out = []
+    for v in vids:
+        meta = json.loads((EVAL_DIR / "views" / f"{v}.json").read_text())
+        k = meta["intrinsics"]
+        if (k["width"], k["height"]) == size:
+            out.append((v, meta))
+    return out

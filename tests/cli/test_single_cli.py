@@ -1,0 +1,99 @@
+import json
+
+import numpy as np
+import pytest
+
+from findme_core.synth import FLOOR
+from tests.cli.conftest import as_json, intrinsics_flag, run_findme
+from tests.conftest import floor_pixel_error
+
+
+def test_hypotheses_json_contract(level_jpg, level_view, tmp_path):
+    cam = level_view.camera
+    overlay = tmp_path / "sel.png"
+    out = as_json(run_findme("hypotheses", level_jpg, "--intrinsics", intrinsics_flag(cam),
+                             "--max", 4, "--json", "--overlay", overlay))
+    assert (out["width"], out["height"]) == (640, 480)
+    hyps = out["hypotheses"]
+    assert 1 <= len(hyps) <= 4 and [h["rank"] for h in hyps] == list(range(1, len(hyps) + 1))
+    assert [h["score"] for h in hyps] == sorted((h["score"] for h in hyps), reverse=True)
+    for h in hyps:
+        poly = np.array(h["polyline"])
+        assert poly[0, 0] == 0 and poly[-1, 0] == 639 and (np.diff(poly[:, 0]) >= 0).all()
+        assert len(h["segments"]) == len(poly) - 1
+    assert floor_pixel_error(np.array(hyps[0]["polyline"]), level_view.labels) < 0.03
+    assert set(out["timing_ms"]) >= {"lines", "total"}
+    assert overlay.stat().st_size > 1000
+
+
+def test_paper_method_and_text_output(level_jpg, level_view):
+    p = run_findme("hypotheses", level_jpg, "--intrinsics", intrinsics_flag(level_view.camera),
+                   "--method", "paper")
+    assert "hypotheses for" in p.stdout and "edge support" in p.stdout
+
+
+def test_locate_matches_the_rendered_scene(level_jpg, level_view, tmp_path):
+    cam = level_view.camera
+    lab = level_view.labels
+    vs, us = np.nonzero(lab == FLOOR)
+    pick = [(int(us[i]), int(vs[i])) for i in np.linspace(0, len(us) - 1, 3).astype(int)]
+    pts = tmp_path / "p.json"
+    pts.write_text(json.dumps({"points": pick + [[320, 50]]}))
+    out = as_json(run_findme("locate", level_jpg, "--intrinsics", intrinsics_flag(cam),
+                             "--camera-height", level_view.camera_height, "--points", pts,
+                             "--json"))
+    assert out["metric"] is True and len(out["points"]) == 4 and len(out["distances_m"]) == 3
+    for (u, v), p in zip(pick, out["points"]):
+        assert p["surface"] == "floor" and p["error"] is None
+        assert np.allclose(p["xyz_m"], level_view.points_cam[v, u], atol=2e-3)
+    wall = out["points"][3]
+    assert wall["surface"] == "wall" and wall["sigma_m"] > 0
+    d01 = np.linalg.norm(np.subtract(out["points"][0]["xyz_m"], out["points"][1]["xyz_m"]))
+    assert out["distances_m"][0] == pytest.approx(d01, abs=1e-5)
+
+
+def test_locate_without_height_is_up_to_scale(level_jpg, level_view):
+    out = as_json(run_findme("locate", level_jpg, "--intrinsics",
+                             intrinsics_flag(level_view.camera), "--point", "320,470",
+                             "--point=-4,2", "--json"))
+    assert out["metric"] is False and out["camera_height_m"] == 1.0
+    assert out["points"][0]["xyz_m"][1] == pytest.approx(1.0)      # on the floor, y = h = 1
+    assert "outside" in out["points"][1]["error"] and out["distances_m"] == [None]
+
+
+BAD = [
+    (["hypotheses", "{missing}"], "no such file"),
+    (["hypotheses", "{text}"], "not an image"),
+    (["hypotheses", "{corrupt}"], "corrupt"),
+    (["hypotheses", "{huge}"], "over the"),
+    (["hypotheses", "{jpg}", "--intrinsics", "1,2,3"], "4 comma-separated numbers"),
+    (["hypotheses", "{jpg}", "--gravity", "0,0,0"], "zero vector"),
+    (["hypotheses", "{jpg}", "--hfov", "200"], "field of view"),
+    (["hypotheses", "{jpg}", "--method", "surf"], "invalid choice"),
+    (["hypotheses", "{jpg}", "--max", "0"], "at least 1"),
+    (["locate", "{jpg}", "--point", "1,x"], "2 comma-separated numbers"),
+    (["locate", "{jpg}", "--points", "{badpoints}"], "point 1"),
+    (["locate", "{jpg}", "--points", "{text}"], "not valid JSON"),
+    (["locate", "{jpg}", "--point", "3,3", "--hypothesis", "99"], "does not exist"),
+    (["locate", "{jpg}", "--point", "3,3", "--camera-height", "-1"], "camera-height"),
+    (["locate", "{jpg}"], "required"),
+]
+
+
+@pytest.mark.parametrize("argv,msg", BAD)
+def test_bad_input_is_one_line_and_exit_2(argv, msg, level_jpg, tmp_path):
+    text = tmp_path / "notes.txt"
+    text.write_text("hello, not an image")
+    corrupt = tmp_path / "corrupt.jpg"
+    corrupt.write_bytes(level_jpg.read_bytes()[:400])
+    huge = tmp_path / "huge.png"   # a valid PNG header claiming 100000 x 100000 pixels
+    huge.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\x00\x00\x00\rIHDR" + (100000).to_bytes(4, "big") * 2
+                     + b"\x08\x02\x00\x00\x00" + b"\x00" * 64)
+    badpoints = tmp_path / "bp.json"
+    badpoints.write_text(json.dumps([[1, 2], ["a", 3]]))
+    subst = dict(missing=tmp_path / "nope.jpg", text=text, corrupt=corrupt, huge=huge,
+                 jpg=level_jpg, badpoints=badpoints)
+    p = run_findme(*[a.format(**subst) for a in argv], check=False)
+    assert p.returncode == 2, p.stderr
+    assert msg in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1, p.stderr

@@ -1,0 +1,66 @@
+"""Shared fixtures: synthetic rooms rendered once per test session (exact ground truth)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from findme_core.synth import Box, Pose, Room, render
+
+SHARED = Path(__file__).resolve().parents[2] / "shared"
+EVAL_DIR = Path(os.environ.get("FINDME_EVAL_DIR", SHARED / "data" / "findme-eval"))
+SCORER = Path(os.environ.get("FINDME_SCORER", SHARED / "eval" / "score.py"))
+
+
+def needs_eval_data():
+    """Skip (with the reason) when the real evaluation set is not next to the checkout."""
+    if not (EVAL_DIR / "index.json").exists():
+        pytest.skip(f"real evaluation set not found at {EVAL_DIR} (set FINDME_EVAL_DIR); "
+                    "it is not redistributed with the project")
+
+
+@pytest.fixture(scope="session")
+def room():
+    return Room.rectangle(5.0, 6.0, floor_style="carpet")
+
+
+@pytest.fixture(scope="session")
+def level_view(room):
+    """Level camera, 80 deg hfov, looking into a corner of a 5 x 6 m room."""
+    return render(room, Pose(0.3, -1.5, 1.45, yaw_deg=25.0), 640, 480, hfov_deg=80.0, seed=1)
+
+
+@pytest.fixture(scope="session")
+def tilted_view(room):
+    """Phone-like: pitched 30 deg down and rolled 4 deg."""
+    return render(room, Pose(-0.4, -1.8, 1.4, yaw_deg=-20.0, pitch_deg=30.0, roll_deg=4.0),
+                  640, 480, hfov_deg=70.0, seed=2)
+
+
+@pytest.fixture(scope="session")
+def box_view():
+    """A cabinet stands on the floor in front of the far wall."""
+    r = Room.rectangle(5.0, 6.0, floor_style="wood",
+                       boxes=(Box(0.2, 1.2, 0.8, 0.5, 0.7, yaw_deg=15.0),))
+    return render(r, Pose(0.0, -1.6, 1.3, yaw_deg=5.0, pitch_deg=25.0), 640, 480,
+                  hfov_deg=70.0, seed=3)
+
+
+@pytest.fixture(scope="session")
+def l_view():
+    """A non-convex (L-shaped) room: one wall corner occludes another wall."""
+    return render(Room.l_shape(), Pose(-1.5, -1.5, 1.5, yaw_deg=30.0, pitch_deg=20.0), 640, 480,
+                  hfov_deg=70.0, seed=4)
+
+
+def floor_pixel_error(polyline, labels):
+    """Fraction of pixels whose floor / not-floor label the polyline gets wrong (as the
+    evaluation's scorer: floor = pixel centres at or below the polyline)."""
+    import numpy as np
+    H, W = labels.shape
+    vp = np.interp(np.arange(W, dtype=float), polyline[:, 0], polyline[:, 1])
+    pred = np.arange(H, dtype=float)[:, None] >= vp[None, :] - 1e-6
+    valid = labels != 255
+    return float(((pred != (labels == 0)) & valid).sum() / valid.sum())

@@ -1,0 +1,83 @@
+import cv2
+import numpy as np
+import pytest
+
+from findme_core import hypotheses as H
+from findme_core.camera import Camera
+from findme_core.errors import InputError
+from findme_core.methods import hypothesize
+from findme_core.search import SegKind
+from tests.conftest import floor_pixel_error
+
+VIEWS = ["level_view", "tilted_view", "box_view", "l_view"]
+
+
+@pytest.mark.parametrize("fixture", VIEWS)
+def test_top_hypothesis_matches_the_rendered_floor(fixture, request):
+    view = request.getfixturevalue(fixture)
+    hs = hypothesize(view.image, view.camera, "findme", 5)
+    errs = [floor_pixel_error(h.polyline, view.labels) for h in hs.hypotheses]
+    assert errs[0] < 0.03, errs
+    assert min(errs) < 0.025
+
+
+@pytest.mark.parametrize("fixture", VIEWS)
+def test_polyline_contract(fixture, request):
+    view = request.getfixturevalue(fixture)
+    hs = hypothesize(view.image, view.camera, "findme", 10)
+    assert 1 <= len(hs.hypotheses) <= 10
+    scores = [h.score for h in hs.hypotheses]
+    assert scores == sorted(scores, reverse=True)
+    for h in hs.hypotheses:
+        u = h.polyline[:, 0]
+        assert u[0] == 0 and u[-1] == view.camera.width - 1 and (np.diff(u) >= 0).all()
+        assert len(h.kinds) == len(h.polyline) - 1 and np.isfinite(h.polyline).all()
+
+
+def test_occluding_box_gives_steps(box_view):
+    hs = hypothesize(box_view.image, box_view.camera, "findme", 10)
+    best = min(hs.hypotheses, key=lambda h: floor_pixel_error(h.polyline, box_view.labels))
+    assert (best.kinds == SegKind.STEP).sum() == 2  # down at one side of the box, up at the other
+
+
+def test_paper_method_needs_a_level_camera(level_view, tilted_view):
+    lv = hypothesize(level_view.image, level_view.camera, "paper", 5)
+    assert min(floor_pixel_error(h.polyline, level_view.labels) for h in lv.hypotheses) < 0.02
+    tv = hypothesize(tilted_view.image, tilted_view.camera, "paper", 5)
+    errs = [floor_pixel_error(h.polyline, tilted_view.labels) for h in tv.hypotheses] or [1.0]
+    assert min(errs) > 0.05  # it assumes the horizon through the principal point
+
+
+def test_deterministic(level_view):
+    a = hypothesize(level_view.image, level_view.camera)
+    b = hypothesize(level_view.image, level_view.camera)
+    assert all(np.array_equal(x.polyline, y.polyline) for x, y in zip(a.hypotheses, b.hypotheses))
+
+
+def test_blank_image_answers_no_floor():
+    cam = Camera.from_hfov(70, 320, 240)
+    hs = H.generate(np.full((240, 320, 3), 128, np.uint8), cam)
+    assert hs.reason == "no straight lines found in the image"
+    (h,) = hs.hypotheses
+    assert h.kinds.tolist() == [SegKind.NONE] and (h.polyline[:, 1] == 239.5).all()
+
+
+def test_bad_image_inputs():
+    cam = Camera.from_hfov(70, 320, 240)
+    with pytest.raises(InputError, match="320x200 but the camera is 320x240"):
+        H.generate(np.zeros((200, 320, 3), np.uint8), cam)
+    with pytest.raises(InputError, match="uint8"):
+        H.generate(np.zeros((240, 320, 3), np.float32), cam)
+    with pytest.raises(InputError, match="unknown method"):
+        hypothesize(np.zeros((240, 320, 3), np.uint8), cam, "surf")
+    with pytest.raises(InputError, match="at least 1"):
+        hypothesize(np.zeros((240, 320, 3), np.uint8), cam, max_n=0)
+
+
+def test_large_photo_is_processed_at_working_size(level_view):
+    big = cv2.resize(level_view.image, (1280, 960), interpolation=cv2.INTER_LINEAR)
+    cam = level_view.camera.scaled(2.0)
+    hs = hypothesize(big, cam, "findme", 3)
+    lab = cv2.resize(level_view.labels, (1280, 960), interpolation=cv2.INTER_NEAREST)
+    assert hs.width == 1280 and hs.hypotheses[0].polyline[-1, 0] == 1279
+    assert floor_pixel_error(hs.hypotheses[0].polyline, lab) < 0.03

@@ -1,0 +1,88 @@
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from findme_core.camera import Camera
+from findme_core.errors import InputError
+from findme_core.lines import LineKind, Lines, classify, detect_segments, merge_collinear
+
+
+def _img_with_lines(segs, size=(480, 640)):
+    img = np.full(size, 40, np.uint8)
+    for u1, v1, u2, v2 in segs:
+        cv2.line(img, (u1, v1), (u2, v2), 220, 3, cv2.LINE_AA)
+    return cv2.GaussianBlur(img, (0, 0), 0.8)
+
+
+@pytest.mark.parametrize("method", ["lsd", "hough"])
+def test_detect_finds_drawn_lines(method):
+    truth = [(50, 400, 600, 350), (100, 50, 100, 300)]
+    segs = detect_segments(_img_with_lines(truth), method)
+    assert len(segs) >= 2
+    for u1, v1, u2, v2 in truth:
+        n = np.array([v2 - v1, u1 - u2], float)
+        n /= np.linalg.norm(n)
+        # some detected segment lies on this line (both ends within 3 px of it)
+        d = np.abs(np.stack([segs[:, :2] - (u1, v1), segs[:, 2:] - (u1, v1)]) @ n).max(0)
+        assert (d < 3.0).any()
+
+
+def test_detect_drops_image_frame_and_rejects_bad_method():
+    img = np.full((480, 640), 150, np.uint8)
+    img[-1, :] = 20  # a dark bottom row, as left by depth registration
+    img[:, -1] = 20
+    assert len(detect_segments(img)) == 0
+    with pytest.raises(InputError, match="unknown segment method"):
+        detect_segments(img, "surf")
+    with pytest.raises(InputError, match="HxW"):
+        detect_segments(np.zeros((4, 4, 3, 1), np.uint8))
+
+
+def test_merge_collinear_joins_and_separates():
+    segs = np.array([[0, 100, 200, 110], [260, 113, 500, 125],   # collinear, gap between
+                     [0, 130, 500, 155],                          # parallel, 20 px lower
+                     [300, 0, 310, 200]], float)                  # another direction
+    L = merge_collinear(segs)
+    assert len(L) == 3
+    i = int(np.argmin(np.abs(L.coef @ [250, 112.5, 1])))
+    top = L.coef[i]
+    assert abs(top @ [0, 100, 1]) < 0.5 and abs(top @ [500, 125, 1]) < 0.5
+    assert np.allclose(np.hypot(L.coef[:, 0], L.coef[:, 1]), 1.0)
+    assert (L.coef[:, 1] >= 0).all()
+    # support is the total member length; lines come heaviest first
+    assert L.support[i] == pytest.approx(np.hypot(200, 10) + np.hypot(240, 12), rel=1e-6)
+    assert (np.diff(L.support) <= 0).all()
+    assert merge_collinear(np.zeros((0, 4))).coef.shape == (0, 3)
+
+
+def _project(cam, P1, P2):
+    """Image segment of the 3D level-frame segment P1-P2."""
+    R = cam.R_level_from_cam
+    uv, front = cam.project_cam(np.array([P1, P2], float) @ R)
+    assert front.all()
+    return uv.reshape(-1)
+
+
+@pytest.mark.parametrize("pitch,roll", [(0, 0), (30, 5), (20, -8)])
+def test_classify_in_level_frame(pitch, roll):
+    p, r = math.radians(pitch), math.radians(roll)
+    g = [math.sin(r) * math.cos(p), math.cos(r) * math.cos(p), math.sin(p)]
+    cam = Camera.from_hfov(80, 640, 480, g)
+    h = 1.4
+    segs = {
+        LineKind.FRONT: _project(cam, (-1.0, h, 5.0), (1.0, h, 5.0)),
+        LineKind.LEFT: _project(cam, (-1.6, h, 3.0), (-1.6, h, 6.0)),
+        LineKind.RIGHT: _project(cam, (1.6, h, 3.0), (1.6, h, 6.0)),
+        LineKind.VERTICAL: _project(cam, (0.6, h, 4.0), (0.6, h - 1.0, 4.0)),
+        LineKind.ABOVE_HORIZON: _project(cam, (-1.0, -1.0, 6.0), (1.0, -1.0, 6.0)),
+    }
+    coef = []
+    for s in segs.values():
+        d = s[2:] - s[:2]
+        n = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+        n = n if n[1] >= 0 else -n
+        coef.append([n[0], n[1], -n @ s[:2]])
+    lines = Lines(np.array(list(segs.values())), np.array(coef), np.ones(len(segs)))
+    assert classify(lines, cam).tolist() == [int(k) for k in segs]

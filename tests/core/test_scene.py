@@ -1,0 +1,129 @@
+import numpy as np
+import pytest
+
+from findme_core.camera import Camera
+from findme_core.errors import GeometryError, HypothesisError
+from findme_core.scene import Scene, distances
+from findme_core.search import SegKind
+from findme_core.synth import FLOOR, WALL_BASE
+
+
+def _pixels(view, label_test, n=60, seed=0, margin=6):
+    """Random pixels whose label passes ``label_test``, away from label changes."""
+    lab = view.labels.astype(int)
+    ok = label_test(lab)
+    # stay clear of boundaries (the polyline is piecewise linear between columns)
+    for dv in range(-margin, margin + 1):
+        ok &= np.roll(lab, dv, axis=0) == lab
+    for du in (-2, 2):
+        ok &= np.roll(lab, du, axis=1) == lab
+    vs, us = np.nonzero(ok)
+    i = np.random.default_rng(seed).choice(len(us), size=min(n, len(us)), replace=False)
+    return np.column_stack([us[i], vs[i]]).astype(float)
+
+
+@pytest.mark.parametrize("fixture", ["level_view", "tilted_view"])
+def test_floor_points_exact(fixture, request):
+    view = request.getfixturevalue(fixture)
+    scene = Scene(view.camera, view.camera_height, view.ground_truth_boundary_polyline())
+    px = _pixels(view, lambda l: l == FLOOR)
+    for p, q in zip(scene.locate(px), px):
+        assert p.surface == "floor" and p.error is None
+        truth = view.points_cam[int(q[1]), int(q[0])]
+        assert np.allclose(p.xyz, truth, atol=1e-4)              # eq. 2, generalised
+        assert p.sigma_parts["boundary"] == 0.0                   # the boundary does not move it
+        assert p.sigma_parts["height"] == pytest.approx(np.linalg.norm(truth) * 0.03 /
+                                                        view.camera_height, rel=1e-3)
+
+
+@pytest.mark.parametrize("fixture", ["level_view", "tilted_view"])
+def test_wall_points_on_the_wall(fixture, request):
+    view = request.getfixturevalue(fixture)
+    scene = Scene(view.camera, view.camera_height, view.ground_truth_boundary_polyline())
+    px = _pixels(view, lambda l: (l >= WALL_BASE) & (l < 50))
+    rel = []
+    for p, q in zip(scene.locate(px), px):
+        assert p.surface == "wall", (q, p.error)
+        truth = view.points_cam[int(q[1]), int(q[0])]
+        rel.append(np.linalg.norm(p.xyz - truth) / np.linalg.norm(truth))
+        assert p.sigma_parts["boundary"] > 0
+    assert np.max(rel) < 0.005  # eqs. 3-4: only the boundary's per-column sampling differs
+
+
+def test_floor_point_above_horizon_is_an_error():
+    cam = Camera.from_hfov(70, 640, 480)
+    scene = Scene(cam, 1.5, [[0, 400], [639, 400]])
+    with pytest.raises(GeometryError, match="horizon"):
+        scene.floor_point((320, 200))
+    assert scene.floor_point((320, 400))[1] == pytest.approx(1.5)
+    p = scene.locate([(320, 100)])[0]            # above the horizon: on the front wall
+    assert p.surface == "wall" and p.xyz[2] == pytest.approx(1.5 * cam.fy / (400 - cam.cy))
+
+
+def _right_wall_scene(cam, h=1.5):
+    """A single wall along the camera's forward axis, 1 m to the right (x = 1)."""
+    pts = []
+    for z in (2.0, 10.0):
+        uv, _ = cam.project_cam([[1.0, h, z]])
+        pts.append(uv[0])
+    return Scene(cam, h, np.array(pts))
+
+
+def test_ray_parallel_to_the_wall():
+    cam = Camera.from_hfov(70, 640, 480)
+    p = _right_wall_scene(cam).locate([(cam.cx, 100.0)])[0]   # straight ahead, above horizon
+    assert p.xyz is None and "parallel" in p.error
+
+
+def test_wall_behind_the_camera():
+    cam = Camera.from_hfov(70, 640, 480)
+    p = _right_wall_scene(cam).locate([(50.0, 100.0)])[0]     # looking left, above horizon
+    assert p.xyz is None and "behind the camera" in p.error
+
+
+def test_outside_image_and_nan():
+    cam = Camera.from_hfov(70, 640, 480)
+    scene = Scene(cam, 1.5, [[0, 400], [639, 400]])
+    out = scene.locate([(-5, 10), (700, 10), (float("nan"), 3)])
+    assert [p.xyz for p in out] == [None] * 3
+    assert "outside the 640x480 image" in out[0].error and "not finite" in out[2].error
+
+
+def test_open_and_none_segments():
+    cam = Camera.from_hfov(70, 640, 480, (0, np.cos(0.6), np.sin(0.6)))  # looking down
+    poly = [[0, -0.5], [300, -0.5], [300.5, 300], [639, 300]]
+    kinds = [SegKind.OPEN, SegKind.STEP, SegKind.WALL]
+    scene = Scene(cam, 1.2, poly, kinds)
+    left, right_wall = scene.locate([(100, 50), (500, 100)])
+    assert left.surface == "floor"                     # the floor continues past the top
+    assert right_wall.surface == "wall"
+    none = Scene(cam, 1.2, [[0, 479.5], [639, 479.5]], [SegKind.NONE])
+    p = none.locate([(320, 200)])[0]
+    assert p.xyz is None and "no floor is visible" in p.error
+
+
+@pytest.mark.parametrize("args,exc,msg", [
+    ((0.0, [[0, 400], [639, 400]]), GeometryError, "camera height"),
+    ((float("nan"), [[0, 400], [639, 400]]), GeometryError, "camera height"),
+    ((1.5, [[0, 400]]), HypothesisError, "at least 2"),
+    ((1.5, [[0, 100], [639, 100]]), HypothesisError, "horizon"),
+])
+def test_degenerate_scenes(args, exc, msg):
+    cam = Camera.from_hfov(70, 640, 480)
+    with pytest.raises(exc, match=msg):
+        Scene(cam, *args)
+    with pytest.raises(HypothesisError, match="segment kinds"):
+        Scene(cam, 1.5, [[0, 400], [639, 400]], [SegKind.WALL, SegKind.WALL])
+
+
+def test_distances_and_sigmas(level_view):
+    scene = Scene(level_view.camera, level_view.camera_height,
+                  level_view.ground_truth_boundary_polyline())
+    a, b, c = scene.locate([(320, 470), (200, 440), (-9, 0)])
+    d = distances([a, b, c], scene.height, scene.height_sigma)
+    assert d[0][0] == pytest.approx(np.linalg.norm(a.xyz - b.xyz))
+    assert d[0][1] >= d[0][0] * scene.height_sigma / scene.height
+    assert d[1] == (None, None, "an end point has no 3D position")
+    # a point further away is less certain (one pixel covers more floor)
+    near, far = scene.locate([(320, 470), (320, 420)])
+    assert far.sigma_m > near.sigma_m
