@@ -23,18 +23,25 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import demo, evaluate, single
+    from . import demo, deploy, evaluate, single
     p = _Parser(prog="findme", description=__doc__)
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for mod in (demo, single, evaluate):
+    for mod in (demo, single, evaluate, deploy):
         mod.register(sub)
     return p
 
 
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    # argparse cannot take positional photos after options (``serve capture --session s
+    # a.jpg``): leftover non-option words go to the command's photo list, if it has one
+    if extra:
+        if isinstance(getattr(args, "photos", None), list) and not any(e.startswith("-") for e in extra):
+            args.photos.extend(extra)
+        else:
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return int(args.func(args) or 0)
     except FindmeError as e:

@@ -94,3 +94,12 @@ def encode_png(image: np.ndarray) -> bytes:
     if not ok:
         raise ImageError("PNG encoding failed")
     return buf.tobytes()
+
+
+def image_size(data: bytes, name: str = "image") -> tuple[int, int]:
+    """(width, height) of encoded image bytes, from the header when possible."""
+    w, h = _declared_size(data)
+    if w and h:
+        return w, h
+    img = decode_image(data, name)
+    return img.shape[1], img.shape[0]

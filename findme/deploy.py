@@ -1,0 +1,351 @@
+"""``findme run | serve | router | status``: the services on a Zenoh bus.
+
+* ``run``: every service in this process on one Zenoh session (the default deployment):
+  photos (default: the bundled example) -> hypotheses -> selection -> scenes, motion and
+  trajectory, printed as they arrive; then a measurement query.
+* ``serve SERVICE``: one service in this process, joining a bus (``--connect``/``--listen``).
+* ``router``: a Zenoh router for services and phones on other processes / machines.
+* ``status``: which services are alive and their counters.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import threading
+import time
+import uuid
+from importlib import resources
+from pathlib import Path
+
+import zenoh
+
+import schemas
+from findme_core.errors import BusError, InputError
+from services import bus
+from services.capture import CaptureHandler, Lens, publish_frames, sources
+from services.registry import add_service_args, make_handler, service_names, wait_for_signal
+from services.runtime import Group, Service
+
+from .options import add_camera_args, floats
+
+PIPELINE = ("hypotheses", "selection", "measurement", "odometry")
+
+
+def _bus_args(p, default_listen=()):
+    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                   help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    p.add_argument("--listen", action="append", default=list(default_listen), metavar="ENDPOINT",
+                   help="Zenoh endpoint to listen on (repeatable)")
+    p.add_argument("--mode", choices=("peer", "client"),
+                   help="Zenoh mode (default: client of the router with --connect, else peer)")
+    p.add_argument("--config", metavar="FILE.json5", help="a full Zenoh configuration file")
+
+
+def register(sub) -> None:
+    r = sub.add_parser("run", help="all services in one process on the example or your photos",
+                       description=__doc__)
+    r.add_argument("photos", nargs="*", help="image files, folders, a video or camera:N "
+                                             "(default: the bundled example)")
+    r.add_argument("--session", help="session id (default: a new one)")
+    add_camera_args(r)
+    r.add_argument("--camera-height", type=float, metavar="M")
+    r.add_argument("--measure", action="append", metavar="U,V",
+                   help="pixels of photo 0 to measure at the end (repeatable)")
+    add_service_args(r)
+    _bus_args(r)
+    r.set_defaults(func=cmd_run, out="findme-run")
+
+    s = sub.add_parser("serve", help="run one service, joining a bus")
+    s.add_argument("service", choices=service_names())
+    s.add_argument("photos", nargs="*", help="capture: image files, folders, a video or camera:N")
+    s.add_argument("--session", help="capture: session id")
+    s.add_argument("--instance", help="instance id (default: random)")
+    add_camera_args(s)
+    s.add_argument("--camera-height", type=float, metavar="M")
+    s.add_argument("--wait-for", action="append", default=[], metavar="SERVICE",
+                   help="capture: publish only once these services are alive")
+    add_service_args(s)
+    _bus_args(s)
+    s.set_defaults(func=cmd_serve)
+
+    t = sub.add_parser("router", help="a Zenoh router for services on other processes/machines")
+    _bus_args(t, default_listen=())
+    t.set_defaults(func=cmd_router)
+
+    st = sub.add_parser("status", help="which services are alive, with their counters")
+    _bus_args(st)
+    st.add_argument("--json", action="store_true")
+    st.set_defaults(func=cmd_status)
+
+
+def bus_config(args, mode: str | None = None) -> bus.BusConfig:
+    mode = mode or args.mode or ("client" if args.connect else "peer")
+    if getattr(args, "config", None):
+        return bus.BusConfig(mode=mode, extra={"__file__": args.config})
+    return bus.BusConfig(mode=mode, listen=tuple(args.listen), connect=tuple(args.connect))
+
+
+def _open(args, mode=None) -> zenoh.Session:
+    cfg = bus_config(args, mode)
+    if "__file__" in cfg.extra:
+        try:
+            return zenoh.open(zenoh.Config.from_file(cfg.extra["__file__"]))
+        except zenoh.ZError as e:
+            raise BusError(f"cannot open the Zenoh session from {cfg.extra['__file__']}: {e}") from None
+    return bus.open_session(cfg)
+
+
+def _lens(args) -> Lens:
+    return Lens(intrinsics=floats(args.intrinsics, 4, "--intrinsics") if args.intrinsics else None,
+                hfov_deg=args.hfov,
+                gravity=floats(args.gravity, 3, "--gravity") if args.gravity else None,
+                camera_height_m=args.camera_height)
+
+
+def _logging(level=logging.INFO):
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+                        stream=sys.stderr)
+
+
+# ------------------------------------------------------------------------------ run
+class Printer:
+    """Prints a session's results as they arrive on the bus."""
+
+    def __init__(self, session: str, out=sys.stdout):
+        self.session, self.out = session, out
+        self.cv = threading.Condition()
+        self.seen: dict[str, object] = {}
+
+    def __call__(self, sample: zenoh.Sample) -> None:
+        k = str(sample.key_expr)
+        try:
+            msg = schemas.decode_any(sample.payload.to_bytes())
+        except Exception:  # noqa: BLE001 - a foreign payload: nothing to print
+            return
+        with self.cv:
+            self.seen[k] = msg
+            self.cv.notify_all()
+
+    ORDER = ("frame", "hypotheses", "selection", "scene", "motion", "pose")
+
+    def report(self, n: int) -> None:
+        """Print photo n's results in pipeline order (they arrive in any order)."""
+        p = f"findme/{self.session}/"
+        with self.cv:
+            items = list(self.seen.items())
+        lines = []
+        for kind in self.ORDER:
+            for k, m in items:
+                if (k.startswith(p + kind + "/") and k.endswith(f"/{n}")) or \
+                        (kind == "frame" and type(m).__name__ == "Error" and k.endswith("/error")
+                         and f"/{n}" in m.key):
+                    line = self.describe(k, m)
+                    if line and line not in lines:
+                        lines.append(line)
+        print("\n".join(lines), file=self.out, flush=True)
+
+    def wait(self, done, timeout: float) -> bool:
+        """Until ``done(seen)`` is true (results arrived), or the timeout."""
+        with self.cv:
+            return self.cv.wait_for(lambda: done(self.seen), timeout)
+
+    def photo_done(self, n: int, odometry: bool):
+        """Photo n's results are all in: its scene (or an error about it), and its pose or
+        motion when odometry runs."""
+        def errors_about(seen, what):
+            return any(type(m).__name__ == "Error" and f"/{what}/{n}" in m.key for m in seen.values())
+
+        def done(seen):
+            p = f"findme/{self.session}/"
+            scene = (p + f"scene/{n}" in seen and p + f"hypotheses/{n}" in seen) or \
+                errors_about(seen, "frame") or \
+                errors_about(seen, "hypotheses") or errors_about(seen, "selection")
+            if not odometry or not scene:
+                return scene
+            return p + f"pose/{n}" in seen or any(k.startswith(p + "motion/") and
+                                                   k.endswith(f"/{n}") for k in seen)
+        return done
+
+    @staticmethod
+    def describe(k: str, m) -> str | None:
+        name = type(m).__name__
+        if name == "Frame":
+            return f"photo {m.index}: {m.device or 'frame'} ({len(m.image.data) // 1024} kB)"
+        if name == "HypothesisSet":
+            t = sum(m.timing_ms.values())
+            return (f"photo {m.index}: {len(m.hypotheses)} hypotheses in {t:.0f} ms"
+                    + (f" ({m.reason})" if m.reason else ""))
+        if name == "Selection":
+            return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
+        if name == "Scene":
+            return f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m" \
+                   f"{'' if m.metric else ', up to scale'})"
+        if name == "Motion":
+            if m.error:
+                return f"motion {m.index_a} -> {m.index_b}: no estimate: {m.error}"
+            return (f"motion {m.index_a} -> {m.index_b}: x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, yaw "
+                    f"{__import__('math').degrees(m.yaw_rad):+.2f} deg ({m.inliers}/{m.matches} inliers)")
+        if name == "Pose":
+            return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
+                    f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
+        if name == "Error":
+            return f"error on {m.key}: {m.message}"
+        return None
+
+
+def _example_paths() -> list[str]:
+    base = resources.files("findme") / "examples"
+    return [str(base / "room_a.jpg"), str(base / "room_b.jpg")]
+
+
+def cmd_run(args) -> int:
+    _logging(logging.WARNING)
+    session_id = args.session or f"run-{uuid.uuid4().hex[:6]}"
+    photos = args.photos or _example_paths()
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    srcs = list(sources(photos))  # read and validate every photo before starting
+    session = _open(args)
+    group = Group(session)
+    printer = Printer(session_id)
+    sub = session.declare_subscriber(f"findme/{session_id}/**", printer)
+    try:
+        capture = group.add(CaptureHandler())
+        names = []
+        for name in PIPELINE:
+            try:
+                names.append(group.add(make_handler(name, args)).handler.name)
+            except ImportError:  # a service whose module is not installed
+                continue
+        t0 = time.perf_counter()
+        n = publish_frames(capture, session_id, srcs, _lens(args))
+        for i in range(n):
+            if not printer.wait(printer.photo_done(i, "odometry" in names), 600):
+                raise BusError(f"no result for photo {i} within 10 minutes")
+            printer.report(i)
+        print(f"session {session_id}: {n} photos processed in {time.perf_counter() - t0:.2f} s")
+        _measure(session, session_id, args, photos)
+    finally:
+        sub.undeclare()
+        group.stop()
+        session.close()
+    return 0
+
+
+def _measure(session, session_id, args, photos) -> None:
+    pixels = [floats(p, 2, "--measure") for p in args.measure or []]
+    if not pixels and not args.photos:  # the example: its ground-truth floor points
+        import json
+        meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())
+        pixels = [tuple(q["px"]) for q in meta["ground_truth"]["floor_points"][1:3]]
+    if not pixels:
+        return
+    req = schemas.MeasureRequest(session=session_id, index=0)
+    req.pixels.extend(schemas.pixels_to_msg(pixels))
+    for reply in session.get(bus.key(session_id, "measure"), payload=schemas.encode(req), timeout=10):
+        if reply.ok is None:
+            err = schemas.decode(schemas.Error, reply.err.payload.to_bytes())
+            print(f"measure: {err.message}")
+            continue
+        rep = schemas.decode(schemas.MeasureReply, reply.ok.payload.to_bytes())
+        unit = "m" if rep.metric else "camera heights"
+        for p in rep.points:
+            where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "
+                     f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
+                     if not p.error else p.error)
+            print(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): {where}")
+        for d in rep.distances:
+            if not d.error:
+                print(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} {unit} ± {d.sigma_m:.3f}")
+        return
+
+
+# ------------------------------------------------------------------------------ serve
+def cmd_serve(args) -> int:
+    _logging()
+    session = _open(args)
+    svc = Service(make_handler(args.service, args), session, instance=args.instance).start()
+    try:
+        if args.service == "capture":
+            if not args.photos or not args.session:
+                raise InputError("capture needs --session and at least one photo")
+            for name in args.wait_for:
+                wait_alive(session, name)
+            n = publish_frames(svc, args.session, sources(args.photos), _lens(args))
+            logging.getLogger("findme.services").info("capture: published %d frames", n)
+        wait_for_signal()
+    finally:
+        svc.stop()
+        session.close()
+    return 0
+
+
+def wait_alive(session: zenoh.Session, name: str, timeout: float = 60.0) -> None:
+    """Until a liveliness token of service ``name`` exists (no polling sleep: a liveliness
+    subscriber with history signals it)."""
+    ev = threading.Event()
+    sub = session.liveliness().declare_subscriber(
+        f"{bus.SERVICES}/{name}/*", lambda s: s.kind == zenoh.SampleKind.PUT and ev.set(),
+        history=True)
+    try:
+        if not ev.wait(timeout):
+            raise BusError(f"no {name} service appeared on the bus within {timeout:.0f} s")
+    finally:
+        sub.undeclare()
+
+
+# ------------------------------------------------------------------------------ router
+def cmd_router(args) -> int:
+    _logging()
+    if not args.listen and not args.config:
+        raise InputError("router needs --listen ENDPOINT (e.g. tcp/127.0.0.1:7447)")
+    session = _open(args, mode="router")
+    logging.getLogger("findme.services").info("router %s listening on %s", session.zid(),
+                                              ", ".join(args.listen) or args.config)
+    try:
+        wait_for_signal()
+    finally:
+        session.close()
+    return 0
+
+
+# ------------------------------------------------------------------------------ status
+def service_statuses(session: zenoh.Session, timeout: float = 3.0) -> list:
+    """ServiceStatus of every live service instance (liveliness tokens + status queries)."""
+    tokens = [str(r.ok.key_expr) for r in session.liveliness().get(f"{bus.SERVICES}/**",
+                                                                     timeout=timeout) if r.ok]
+    out = []
+    for tok in sorted(tokens):
+        status = None
+        for r in session.get(tok + "/status", timeout=timeout):
+            if r.ok is not None:
+                status = schemas.decode(schemas.ServiceStatus, r.ok.payload.to_bytes())
+        if status is None:
+            name, inst = tok.split("/")[-2:]
+            status = schemas.ServiceStatus(service=name, instance=inst)
+        out.append(status)
+    return out
+
+
+def cmd_status(args) -> int:
+    session = _open(args)
+    try:
+        st = service_statuses(session)
+    finally:
+        session.close()
+    if args.json:
+        import json
+        from google.protobuf.json_format import MessageToDict
+        print(json.dumps([MessageToDict(s, preserving_proto_field_name=True) for s in st]))
+        return 0
+    if not st:
+        print("no Find Me services are alive on this bus")
+        return 0
+    now = time.time_ns()
+    print(f"{'service':12s} {'instance':10s} {'up':>8s} {'in':>7s} {'out':>7s} {'errors':>7s} "
+          f"{'dropped':>8s} {'queue':>6s}")
+    for s in st:
+        up = f"{(now - s.started_ns) / 1e9:.0f} s" if s.started_ns else "?"
+        print(f"{s.service:12s} {s.instance:10s} {up:>8s} {s.frames_in:7d} {s.results_out:7d} "
+              f"{s.errors:7d} {s.dropped:8d} {s.queue_depth:6d}")
+    return 0

@@ -1,0 +1,128 @@
+"""Converters between bus messages (``schemas``) and core objects (``findme_core``).
+
+Angles: the bus carries radians (``yaw_rad``), the core works in radians; degrees appear only
+in ``Frame.hfov_deg`` (a user-facing lens setting) and on the command line.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+import schemas
+from findme.imageio import decode_image
+from findme.options import DEFAULT_HFOV_DEG
+from findme_core.camera import Camera
+from findme_core.errors import CameraError, ImageError, InputError
+from findme_core.hypotheses import Hypothesis, HypothesisSet
+from findme_core.scene import Located, distances
+
+_FORMATS = {b"\xff\xd8\xff": "jpeg", b"\x89PNG": "png", b"RIFF": "webp"}
+
+
+def image_format(data: bytes) -> str:
+    for magic, fmt in _FORMATS.items():
+        if data.startswith(magic):
+            return fmt
+    raise ImageError("image bytes are not JPEG, PNG or WebP")
+
+
+def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
+               hfov_deg: float | None = None, gravity=None, camera_height_m=None,
+               camera_height_sigma_m=None, device: str = "", time_ns: int | None = None):
+    """A Frame message; ``intrinsics`` is (fx, fy, cx, cy, width, height) or None."""
+    t = time.time_ns() if time_ns is None else int(time_ns)
+    f = schemas.Frame(session=session, index=int(index), capture_time_ns=t, device=device)
+    f.image.data = image_bytes
+    f.image.format = image_format(image_bytes)
+    f.image.frame_id = f"{session}/camera/{index}"
+    f.image.timestamp.CopyFrom(schemas.ns_to_timestamp(t))
+    if intrinsics is not None:
+        fx, fy, cx, cy, w, h = intrinsics
+        f.intrinsics.CopyFrom(schemas.Intrinsics(fx=fx, fy=fy, cx=cx, cy=cy, width=int(w),
+                                                 height=int(h)))
+    elif hfov_deg is not None:
+        f.hfov_deg = float(hfov_deg)
+    if gravity is not None:
+        f.gravity.CopyFrom(schemas.vec3_to_msg(gravity))
+    if camera_height_m is not None:
+        f.camera_height_m = float(camera_height_m)
+    if camera_height_sigma_m is not None:
+        f.camera_height_sigma_m = float(camera_height_sigma_m)
+    return f
+
+
+def frame_camera(frame, width: int, height: int) -> Camera:
+    """The Camera of a Frame whose image is ``width`` x ``height``."""
+    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+    try:
+        lens = frame.WhichOneof("lens")
+        if lens == "intrinsics":
+            k = frame.intrinsics
+            if (k.width, k.height) != (width, height):
+                raise InputError(f"frame {frame.index}: intrinsics are for {k.width}x{k.height} "
+                                 f"but the image is {width}x{height}")
+            return Camera(k.fx, k.fy, k.cx, k.cy, width, height, g)
+        hfov = frame.hfov_deg if lens == "hfov_deg" else DEFAULT_HFOV_DEG
+        return Camera.from_hfov(hfov, width, height, g)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+
+
+def frame_inputs(frame) -> tuple[np.ndarray, Camera]:
+    """(BGR image, Camera) of a Frame."""
+    image = decode_image(frame.image.data, f"frame {frame.index}")
+    return image, frame_camera(frame, image.shape[1], image.shape[0])
+
+
+def camera_msg(cam: Camera):
+    return schemas.Camera(
+        intrinsics=schemas.Intrinsics(fx=cam.fx, fy=cam.fy, cx=cam.cx, cy=cam.cy,
+                                      width=cam.width, height=cam.height),
+        gravity=schemas.vec3_to_msg(cam.gravity))
+
+
+def msg_camera(msg) -> Camera:
+    k = msg.intrinsics
+    g = schemas.msg_to_vec3(msg.gravity) if msg.HasField("gravity") else None
+    return Camera(k.fx, k.fy, k.cx, k.cy, k.width, k.height, g)
+
+
+def hypothesis_set_msg(session: str, index: int, hs: HypothesisSet, method: str):
+    m = schemas.HypothesisSet(session=session, index=index, width=hs.width, height=hs.height,
+                              reason=hs.reason or "", method=method,
+                              timing_ms={k: float(v) for k, v in hs.timing_ms.items()})
+    if not hs.hypotheses and not m.reason:
+        m.reason = "no hypotheses"
+    for i, h in enumerate(hs.hypotheses):
+        m.hypotheses.add(rank=i + 1, score=float(h.score), support=float(np.clip(h.support, 0, 1)),
+                         polyline=schemas.polyline_to_msg(h.polyline, h.kinds))
+    return m
+
+
+def msg_hypotheses(msg) -> list[Hypothesis]:
+    out = []
+    for h in msg.hypotheses:
+        poly, kinds = schemas.msg_to_polyline(h.polyline)
+        out.append(Hypothesis(poly, kinds, h.score, h.support))
+    return out
+
+
+_SURFACE = {"floor": schemas.SURFACE_FLOOR, "wall": schemas.SURFACE_WALL, None: schemas.SURFACE_NONE}
+
+
+def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
+                      located: list[Located], height: float, height_sigma: float):
+    r = schemas.MeasureReply(session=session, index=index, rank=rank, metric=metric)
+    for p in located:
+        mp = r.points.add(pixel=schemas.Pixel(u=float(p.pixel[0]), v=float(p.pixel[1])),
+                          surface=_SURFACE[p.surface], error=p.error or "")
+        if p.xyz is not None:
+            mp.xyz.CopyFrom(schemas.vec3_to_msg(p.xyz))
+            mp.sigma_m = float(p.sigma_m)
+    for i, (d, s, err) in enumerate(distances(located, height, height_sigma)):
+        dm = r.distances.add(a=i, b=i + 1, error=err or "")
+        if d is not None:
+            dm.distance_m, dm.sigma_m = float(d), float(s)
+    return r

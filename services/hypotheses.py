@@ -1,0 +1,51 @@
+"""The hypotheses service: a frame in, its ranked ground-wall boundary hypotheses out.
+
+    findme/<session>/frame/<n>  ->  findme/<session>/hypotheses/<n>
+
+Several instances share the load (``shard``): each handles the frames that hash to it.
+Frames are never dropped by default; ``policy="latest"`` keeps only the newest ones (live
+video) and counts every frame it skips.
+"""
+
+from __future__ import annotations
+
+import time
+
+import schemas
+from findme_core.errors import InputError
+from findme_core.methods import hypothesize
+
+from . import bus
+from .convert import frame_inputs, hypothesis_set_msg
+from .runtime import Handler, Input, Output
+
+
+def check_frame_key(key: str, frame) -> bus.Key:
+    """The key's session and n must be the frame's own."""
+    k = bus.parse_key(key)
+    if frame.session != k.session or str(frame.index) != (k.parts[0] if k.parts else ""):
+        raise InputError(f"{key} carries frame {frame.index} of session {frame.session!r}")
+    return k
+
+
+class HypothesesHandler(Handler):
+    name = "hypotheses"
+    cache_keys = ("findme/*/hypotheses/*",)
+    shard = True
+
+    def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
+                 depth: int = 64):
+        self.method, self.max_n = method, max_n
+        self.inputs = (Input("findme/*/frame/*", schemas.Frame, policy, depth),)
+        self.done = 0
+
+    def on_message(self, key, frame):
+        k = check_frame_key(key, frame)
+        image, cam = frame_inputs(frame)
+        hs = hypothesize(image, cam, self.method, self.max_n, clock=time.perf_counter)
+        self.done += 1
+        msg = hypothesis_set_msg(k.session, frame.index, hs, f"{self.method}/findme.v1")
+        return [Output(bus.key(k.session, "hypotheses", frame.index), msg)]
+
+    def counters(self):
+        return {"hypothesis_sets": self.done}

@@ -1,0 +1,87 @@
+"""Service names -> handlers, the command-line options each takes, and the shared main loop
+(SIGTERM/SIGINT stop it) used by ``findme serve`` and ``findme run``."""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+
+from findme_core.errors import InputError
+
+from .runtime import Handler
+
+log = logging.getLogger("findme.services")
+
+
+def add_service_args(p) -> None:
+    """Options of every service (unused ones are ignored by the others)."""
+    p.add_argument("--method", default="findme", help="hypotheses: findme or paper")
+    p.add_argument("--max", type=int, default=10, help="hypotheses: at most N per photo")
+    p.add_argument("--latest", type=int, metavar="N",
+                   help="hypotheses: keep only the newest N frames (live video); every skipped "
+                        "frame is counted as dropped. Default: never drop a frame")
+    sel = p.add_mutually_exclusive_group()
+    sel.add_argument("--auto", action="store_true", help="selection: take rank 1 (default)")
+    sel.add_argument("--interactive", action="store_true",
+                     help="selection: show the numbered image and ask in the terminal")
+    p.add_argument("--out", default=".", metavar="DIR",
+                   help="where selection images (and recordings) are written")
+
+
+def make_handler(name: str, args) -> Handler:
+    """The handler of service ``name`` configured from parsed ``args``."""
+    if name == "hypotheses":
+        from .hypotheses import HypothesesHandler
+        if args.latest is not None and args.latest < 1:
+            raise InputError(f"--latest must be at least 1, got {args.latest}")
+        return HypothesesHandler(args.method, args.max,
+                                 "latest" if args.latest else "all", args.latest or 64)
+    if name == "selection":
+        from .selection import SelectionHandler, TerminalChooser
+        return SelectionHandler(TerminalChooser(args.out) if args.interactive else None)
+    if name == "measurement":
+        from .measurement import MeasurementHandler
+        return MeasurementHandler()
+    if name == "odometry":
+        from .odometry import OdometryHandler
+        return OdometryHandler()
+    if name == "capture":
+        from .capture import CaptureHandler
+        return CaptureHandler()
+    extra = _extra_services()
+    if name in extra:
+        return extra[name](args)
+    raise InputError(f"unknown service {name!r}; choose one of {', '.join(service_names())}")
+
+
+def _extra_services() -> dict:
+    """Services defined in other modules (recorder, viewer, gateway), if present."""
+    out = {}
+    try:
+        from .recorder import make_recorder
+        out["recorder"] = make_recorder
+    except ImportError:
+        pass
+    return out
+
+
+def service_names() -> list[str]:
+    return ["capture", "hypotheses", "selection", "measurement", "odometry", *_extra_services()]
+
+
+def wait_for_signal(stop: threading.Event | None = None) -> None:
+    """Block until SIGTERM or SIGINT (or ``stop`` is set)."""
+    stop = stop or threading.Event()
+
+    def handler(signum, frame):
+        log.info("signal %s: stopping", signal.Signals(signum).name)
+        stop.set()
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        while not stop.wait(0.5):
+            pass
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
