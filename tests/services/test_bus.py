@@ -1,0 +1,150 @@
+"""Services on an in-process Zenoh session: errors on the error key, no crash, flow control,
+status, liveliness, the output cache and sharding. Waits on messages, never sleeps."""
+
+import threading
+
+import pytest
+import zenoh
+
+import schemas
+from findme_core.errors import BusError
+from services.hypotheses import HypothesesHandler
+from services.measurement import MeasurementHandler
+from services.runtime import Group, Handler, Input, Output, Service
+from services.selection import SelectionHandler
+from tests.services.conftest import Collector, frame_of
+
+GOOD_SELECTION = schemas.Selection(session="t1", index=0, rank=1, by=schemas.SELECTED_BY_USER)
+
+
+@pytest.mark.parametrize("handler,key,good", [
+    ("hypotheses", "findme/t1/frame/0", "frame"),
+    ("selection", "findme/t1/hypotheses/0", "hset"),
+    ("measurement", "findme/t1/selection/0", "selection"),
+])
+def test_malformed_then_good(handler, key, good, zsession, level_view):
+    """Garbage, a wrong type and a valid message in the wrong place each give an Error on
+    findme/t1/error; the service then still answers a good message."""
+    group = Group(zsession)
+    frame = frame_of(level_view)
+    (hs,) = HypothesesHandler().on_message("findme/t1/frame/0", frame)
+    cache = {"findme/t1/frame/0": schemas.encode(frame), "findme/t1/hypotheses/0": schemas.encode(hs.msg)}
+    h = {"hypotheses": HypothesesHandler, "selection": SelectionHandler,
+         "measurement": MeasurementHandler}[handler]()
+    svc = group.add(h)
+    h.fetch = cache.get
+    errors = Collector(zsession, "findme/t1/error")
+    outs = Collector(zsession, {"hypotheses": "findme/t1/hypotheses/*",
+                                "selection": "findme/t1/selection/*",
+                                "measurement": "findme/t1/scene/*"}[handler])
+    zsession.put(key, b"\x00garbage")
+    zsession.put(key, schemas.encode(schemas.Error(session="t1", key="k", code=1, message="m")))
+    wrong_place = {"frame": frame_of(level_view, index=5), "hset": schemas.HypothesisSet(
+        session="t1", index=0, width=640, height=480, reason="none"),
+        "selection": schemas.Selection(session="t1", index=0, rank=42,
+                                       by=schemas.SELECTED_BY_USER)}[good]
+    zsession.put(key, schemas.encode(wrong_place))
+    errs = [schemas.decode(schemas.Error, p) for _, p in errors.wait(3)]
+    codes = [e.code for e in errs]
+    assert codes[:2] == [schemas.ErrorCode.ERROR_CODE_MALFORMED, schemas.ErrorCode.ERROR_CODE_WRONG_TYPE]
+    assert all(e.key == key and e.session == "t1" and e.message for e in errs)
+    good_msg = {"frame": frame, "hset": hs.msg, "selection": GOOD_SELECTION}[good]
+    zsession.put(key, schemas.encode(good_msg))
+    assert len(outs.wait(1)) == 1
+    assert svc.status().errors == 3
+    group.stop()
+
+
+class Gate(Handler):
+    """Test handler: blocks on an event, counts what it handled."""
+
+    name = "gate"
+
+    def __init__(self, policy="all", depth=1, shard=False):
+        self.inputs = (Input("t/in/*", schemas.Selection, policy, depth),)
+        self.shard = shard
+        self.release = threading.Event()
+        self.handled = []
+
+    def on_message(self, key, msg):
+        self.release.wait(30)
+        self.handled.append(key)
+        return [Output(key.replace("t/in", "t/out"), msg)]
+
+
+def test_latest_policy_counts_every_drop(zsession):
+    g = Gate("latest", depth=1)
+    svc = Service(g, zsession).start()
+    outs = Collector(zsession, "t/out/*")
+    for i in range(6):
+        zsession.put(f"t/in/{i}", schemas.encode(GOOD_SELECTION))
+    with svc._cv:  # all six arrived (counted on arrival)
+        assert svc._cv.wait_for(lambda: svc.counters.frames_in == 6, 10)
+    g.release.set()
+    handled = len(outs.wait(1))
+    assert svc.wait_idle(10)
+    st = svc.status()
+    assert st.dropped >= 4 and len(g.handled) + st.dropped == 6   # nothing vanishes uncounted
+    assert handled >= 1
+    svc.stop()
+
+
+def test_all_policy_never_drops(zsession):
+    g = Gate("all")
+    g.release.set()
+    svc = Service(g, zsession, fifo_depth=2).start()
+    outs = Collector(zsession, "t/out/*")
+    for i in range(40):
+        zsession.put(f"t/in/{i}", schemas.encode(GOOD_SELECTION))
+    assert len(outs.wait(40)) == 40 and svc.status().dropped == 0
+    svc.stop()
+
+
+def test_size_limit_refuses_loudly(zsession):
+    svc = Service(Gate(), zsession, max_message_bytes=100).start()
+    big = schemas.Frame(session="t1", index=0)
+    big.image.data = b"\xff\xd8\xff" + b"0" * 1000
+    big.image.format = "jpeg"
+    with pytest.raises(BusError, match="over the 0 MB limit"):
+        svc.publish(Output("findme/t1/frame/0", big))
+    svc.stop()
+
+
+def test_status_liveliness_and_cache(zsession):
+    g = Gate()
+    g.cache_keys = ("t/out/*",)
+    g.release.set()
+    svc = Service(g, zsession, instance="abc").start()
+    tokens = [str(r.ok.key_expr) for r in zsession.liveliness().get("findme/@services/**", timeout=2)]
+    assert tokens == ["findme/@services/gate/abc"]
+    outs = Collector(zsession, "t/out/*")
+    zsession.put("t/in/1", schemas.encode(GOOD_SELECTION))
+    outs.wait(1)
+    cached = [r.ok.payload.to_bytes() for r in zsession.get("t/out/1", timeout=2) if r.ok]
+    assert schemas.decode(schemas.Selection, cached[0]).rank == 1
+    (st,) = [schemas.decode(schemas.ServiceStatus, r.ok.payload.to_bytes())
+             for r in zsession.get("findme/@services/gate/abc/status", timeout=2) if r.ok]
+    assert (st.service, st.instance, st.frames_in, st.results_out) == ("gate", "abc", 1, 1)
+    gone = threading.Event()
+    sub = zsession.liveliness().declare_subscriber(
+        "findme/@services/gate/*", lambda s: s.kind == zenoh.SampleKind.DELETE and gone.set())
+    svc.stop()
+    assert gone.wait(5)
+    sub.undeclare()
+
+
+def test_sharded_instances_split_the_work(zsession):
+    a, b = Gate(shard=True), Gate(shard=True)
+    a.release.set(), b.release.set()
+    sa, sb = Service(a, zsession, instance="a").start(), Service(b, zsession, instance="b").start()
+    with sa._cv:  # each sees the other's liveliness token before work starts
+        assert sa._cv.wait_for(lambda: sa._peers == {"a", "b"}, 5)
+    with sb._cv:
+        assert sb._cv.wait_for(lambda: sb._peers == {"a", "b"}, 5)
+    outs = Collector(zsession, "t/out/*")
+    for i in range(30):
+        zsession.put(f"t/in/{i}", schemas.encode(GOOD_SELECTION))
+    outs.wait(30)
+    assert sorted(a.handled + b.handled) == sorted(f"t/in/{i}" for i in range(30))
+    assert a.handled and b.handled
+    sa.stop(), sb.stop()

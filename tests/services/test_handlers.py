@@ -1,0 +1,106 @@
+"""Each service's pure handler, driven directly: no bus."""
+
+import io
+
+import numpy as np
+import pytest
+
+import schemas
+from findme.imageio import decode_image
+from findme_core.errors import HypothesisError, ImageError, InputError
+from findme_core.methods import hypothesize
+from findme_core.scene import Scene
+from services.hypotheses import HypothesesHandler
+from services.measurement import MeasurementHandler
+from services.runtime import UnknownSession
+from services.selection import AutoChooser, SelectionHandler, TerminalChooser
+from tests.services.conftest import frame_of
+
+
+@pytest.fixture(scope="module")
+def pipeline(request):
+    view = request.getfixturevalue("level_view")
+    frame = frame_of(view)
+    (out,) = HypothesesHandler().on_message("findme/t1/frame/0", frame)
+    (sel,) = SelectionHandler().on_message(out.key, out.msg)
+    return view, frame, out.msg, sel.msg
+
+
+def test_hypotheses_handler_matches_the_core(pipeline):
+    view, frame, hset, _ = pipeline
+    assert (hset.session, hset.index, hset.width, hset.height) == ("t1", 0, 640, 480)
+    assert [h.rank for h in hset.hypotheses] == list(range(1, len(hset.hypotheses) + 1))
+    image = decode_image(frame.image.data)       # the very bytes the service decoded
+    core = hypothesize(image, view.camera)
+    assert len(hset.hypotheses) == len(core.hypotheses)
+    for m, c in zip(hset.hypotheses, core.hypotheses):
+        poly, kinds = schemas.msg_to_polyline(m.polyline)
+        assert np.array_equal(poly, c.polyline) and np.array_equal(kinds, c.kinds)
+
+
+def test_hypotheses_handler_bad_frames(level_view):
+    h = HypothesesHandler()
+    f = frame_of(level_view)
+    with pytest.raises(InputError, match="carries frame 0"):
+        h.on_message("findme/t1/frame/3", f)
+    f.image.data = b"\xff\xd8\xff" + b"\x00" * 100
+    with pytest.raises(ImageError, match="corrupt"):
+        h.on_message("findme/t1/frame/0", f)
+    g = frame_of(level_view)
+    g.intrinsics.width = 320
+    with pytest.raises(InputError, match="intrinsics are for 320x480"):
+        h.on_message("findme/t1/frame/0", g)
+
+
+def test_selection_auto_and_terminal(pipeline):
+    _, frame, hset, sel = pipeline
+    assert (sel.rank, sel.by) == (1, schemas.SELECTED_BY_AUTO)
+    out = io.StringIO()
+    term = TerminalChooser(out_dir="/tmp", stdin=io.StringIO("x\n99\n2\n"), stdout=out)
+    assert term(hset) == 2
+    assert "'x' is not a number" in out.getvalue() and "'99' is not a number" in out.getvalue()
+    assert AutoChooser()(hset) == 1
+    empty = schemas.HypothesisSet(session="t1", index=4, width=640, height=480, reason="blank")
+    with pytest.raises(HypothesisError, match="photo 4 has no hypothesis to select: blank"):
+        SelectionHandler().on_message("findme/t1/hypotheses/4", empty)
+
+
+def test_measurement_scene_and_query(pipeline):
+    view, frame, hset, sel = pipeline
+    m = MeasurementHandler()
+    assert m.on_message("findme/t1/frame/0", frame) == []
+    assert m.on_message("findme/t1/hypotheses/0", hset) == []
+    (scene_out,) = m.on_message("findme/t1/selection/0", sel)
+    assert scene_out.key == "findme/t1/scene/0" and scene_out.msg.metric
+    req = schemas.MeasureRequest(session="t1", index=0)
+    req.pixels.extend(schemas.pixels_to_msg([[320, 470], [100, 450], [-3, 0]]))
+    rep = m.on_query("findme/t1/measure", req)
+    poly, kinds = schemas.msg_to_polyline(hset.hypotheses[0].polyline)
+    truth = Scene(view.camera, view.camera_height, poly, kinds).locate([[320, 470], [100, 450]])
+    for p, t in zip(rep.points, truth):
+        assert p.surface == schemas.SURFACE_FLOOR
+        assert np.allclose(schemas.msg_to_vec3(p.xyz), t.xyz, atol=1e-4)
+    assert "outside" in rep.points[2].error and rep.distances[1].error
+    assert rep.distances[0].distance_m == pytest.approx(np.linalg.norm(truth[0].xyz - truth[1].xyz))
+
+
+def test_measurement_errors_and_fetch(pipeline):
+    _, frame, hset, sel = pipeline
+    m = MeasurementHandler()
+    req = schemas.MeasureRequest(session="nobody", index=0)
+    req.pixels.extend(schemas.pixels_to_msg([[1, 1]]))
+    with pytest.raises(UnknownSession, match="'nobody' is not known"):
+        m.on_query("findme/nobody/measure", req)
+    # a selection first: the handler fetches the frame and hypotheses it missed from the bus
+    store = {"findme/t1/frame/0": schemas.encode(frame),
+             "findme/t1/hypotheses/0": schemas.encode(hset)}
+    m.fetch = store.get
+    (out,) = m.on_message("findme/t1/selection/0", sel)
+    assert out.key == "findme/t1/scene/0"
+    bad = schemas.Selection(session="t1", index=0, rank=99, by=schemas.SELECTED_BY_USER)
+    with pytest.raises(HypothesisError, match="hypothesis 99 of photo 0"):
+        m.on_message("findme/t1/selection/0", bad)
+    m2 = MeasurementHandler()
+    m2.fetch = {}.get
+    with pytest.raises(HypothesisError, match="is not known"):
+        m2.on_message("findme/t1/selection/0", sel)
