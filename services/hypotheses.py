@@ -40,11 +40,15 @@ class HypothesesHandler(Handler):
         self.done = 0
 
     def on_message(self, key, frame):
+        t0 = time.perf_counter()
         k = check_frame_key(key, frame)
         image, cam = frame_inputs(frame)
+        t1 = time.perf_counter()
         hs = hypothesize(image, cam, self.method, self.max_n, clock=time.perf_counter)
         self.done += 1
         msg = hypothesis_set_msg(k.session, frame.index, hs, f"{self.method}/findme.v1")
+        msg.timing_ms["decode"] = 1e3 * (t1 - t0)
+        msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)
         return [Output(bus.key(k.session, "hypotheses", frame.index), msg)]
 
     def counters(self):
