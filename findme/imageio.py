@@ -97,9 +97,11 @@ def encode_png(image: np.ndarray) -> bytes:
 
 
 def image_size(data: bytes, name: str = "image") -> tuple[int, int]:
-    """(width, height) of encoded image bytes, from the header when possible."""
+    """(width, height) of encoded image bytes as ``decode_image`` returns them: from the
+    header when possible; a JPEG with EXIF data may be stored rotated (decode_image applies
+    the orientation, as every viewer does), so it is decoded to be sure."""
     w, h = _declared_size(data)
-    if w and h:
+    if w and h and not (data.startswith(b"\xff\xd8") and b"Exif\x00\x00" in data[:65536]):
         return w, h
     img = decode_image(data, name)
     return img.shape[1], img.shape[0]

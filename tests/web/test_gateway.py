@@ -1,0 +1,191 @@
+"""The gateway without a browser: its pure parts, and one page's WebSocket on an
+in-process bus (isolation between sessions, refusals, cross-origin)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import struct
+from importlib import resources
+
+import cv2
+import numpy as np
+import pytest
+
+import schemas
+from services import bus
+from services.gateway import (Gateway, GatewayError, build_frame, parse_command, parse_http,
+                              parse_upload, to_page)
+
+CODE = schemas.ErrorCode
+ROOM_A = (resources.files("findme") / "examples" / "room_a.jpg").read_bytes()
+
+
+def upload_bytes(header: dict, image: bytes) -> bytes:
+    h = json.dumps(header).encode()
+    return struct.pack(">I", len(h)) + h + image
+
+
+def code_of(fn, *a):
+    with pytest.raises(GatewayError) as e:
+        fn(*a)
+    return CODE.Name(e.value.code).removeprefix("ERROR_CODE_"), str(e.value)
+
+
+def test_parse_upload_refuses_malformed_and_oversized():
+    assert parse_upload(upload_bytes({"a": 1}, b"xyz")) == ({"a": 1}, b"xyz")
+    assert code_of(parse_upload, b"\x00\x00")[0] == "MALFORMED"
+    assert code_of(parse_upload, struct.pack(">I", 99) + b"{}")[0] == "MALFORMED"
+    assert code_of(parse_upload, struct.pack(">I", 2) + b"[]" + b"x")[0] == "MALFORMED"
+    assert code_of(parse_upload, upload_bytes({}, b""))[0] == "BAD_IMAGE"
+    code, text = code_of(parse_upload, upload_bytes({}, b"x" * 101), 100)
+    assert code == "TOO_LARGE" and "limit" in text
+
+
+def test_build_frame_lenses_gravity_height():
+    f, info = build_frame("s1", 0, {"lens": {"kind": "intrinsics", "fx": 500, "fy": 501, "cx": 320,
+                                             "cy": 240, "width": 640, "height": 480},
+                                    "gravity": [0, 0.9, 0.4], "camera_height_m": 1.42,
+                                    "device": "Pixel 7"}, ROOM_A)
+    assert f.image.data == ROOM_A and f.image.format == "jpeg"
+    assert (f.intrinsics.fx, f.intrinsics.fy, f.intrinsics.width) == (500, 501, 640)
+    assert f.camera_height_m == 1.42 and f.device == "web: Pixel 7"
+    assert info["gravity"] == pytest.approx(np.array([0, 0.9, 0.4]) / math.hypot(0.9, 0.4))
+    f, info = build_frame("s1", 1, {"lens": {"kind": "focal35", "focal35_mm": 26}}, ROOM_A)
+    f_px = 26 * math.hypot(640, 480) / math.hypot(36, 24)
+    assert f.hfov_deg == pytest.approx(math.degrees(2 * math.atan(320 / f_px)))
+    assert info["fx"] == pytest.approx(f_px)
+    f, _ = build_frame("s1", 2, {}, ROOM_A)
+    assert f.WhichOneof("lens") is None and not f.HasField("camera_height_m")
+
+
+@pytest.mark.parametrize("header, code, words", [
+    ({"lens": {"kind": "intrinsics", "fx": 500, "fy": 500, "cx": 1, "cy": 1, "width": 480,
+               "height": 640}}, "BAD_CAMERA", "480x640"),
+    ({"lens": {"kind": "intrinsics", "fx": 500}}, "BAD_CAMERA", "fx, fy, cx and cy"),
+    ({"lens": {"kind": "hfov", "hfov_deg": 190}}, "BAD_CAMERA", "field of view"),
+    ({"lens": {"kind": "fisheye"}}, "BAD_CAMERA", "fisheye"),
+    ({"gravity": [0, 0, 0]}, "BAD_CAMERA", "zero"),
+    ({"gravity": [0, 0, 1]}, "BAD_CAMERA", "straight down"),
+    ({"gravity": [0, "1", 0]}, "BAD_CAMERA", "3 finite numbers"),
+    ({"camera_height_m": -1}, "BAD_CAMERA", "camera height"),
+    ({"camera_height_m": True}, "BAD_CAMERA", "camera height"),
+])
+def test_build_frame_refuses_bad_camera_values(header, code, words):
+    c, text = code_of(build_frame, "s1", 0, header, ROOM_A)
+    assert c == code and words in text, text
+
+
+def _png(w, h):
+    import zlib
+
+    def chunk(t, d):
+        return struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+    raw = zlib.compress(b"".join(b"\x00" + bytes((w + 7) // 8) for _ in range(h)))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 1, 0, 0, 0, 0))
+            + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
+
+
+def test_build_frame_refuses_bad_images():
+    assert code_of(build_frame, "s", 0, {}, b"hello, not an image")[0] == "BAD_IMAGE"
+    assert code_of(build_frame, "s", 0, {}, ROOM_A[:300])[0] == "BAD_IMAGE"
+    code, text = code_of(build_frame, "s", 0, {}, _png(10000, 6000))
+    assert code == "TOO_LARGE" and "60 MP" in text
+
+
+def test_exif_rotated_jpeg_is_sent_upright():
+    """A portrait photo stored landscape with EXIF orientation 6: the frame carries the
+    upright pixels the browser shows (and taps refer to)."""
+    tiff = (b"MM\x00\x2a\x00\x00\x00\x08" + b"\x00\x01" + b"\x01\x12\x00\x03\x00\x00\x00\x01"
+            + b"\x00\x06\x00\x00" + b"\x00\x00\x00\x00")
+    app1 = b"\xff\xe1" + struct.pack(">H", 2 + 6 + len(tiff)) + b"Exif\x00\x00" + tiff
+    rotated = ROOM_A[:2] + app1 + ROOM_A[2:]
+    f, info = build_frame("s", 0, {}, rotated)
+    assert info["reencoded"] and (info["width"], info["height"]) == (480, 640)
+    img = cv2.imdecode(np.frombuffer(f.image.data, np.uint8), cv2.IMREAD_COLOR)
+    assert img.shape[:2] == (640, 480)
+    assert not build_frame("s", 0, {}, ROOM_A)[1]["reencoded"]
+
+
+def test_parse_command():
+    assert parse_command('{"type": "select", "index": 0, "rank": 2}')["rank"] == 2
+    m = parse_command('{"type": "measure", "id": 1, "index": 0, "pixels": [[1, 2], [3.5, 4]]}')
+    assert m["pixels"] == [(1.0, 2.0), (3.5, 4.0)]
+    bad = [("nope", "MALFORMED"), ('{"type": "delete"}', "MALFORMED"),
+           ('{"type": "select", "index": -1, "rank": 1}', "NO_SUCH_FRAME"),
+           ('{"type": "select", "index": 0, "rank": 0}', "NO_SUCH_HYPOTHESIS"),
+           ('{"type": "select", "index": 0, "rank": 1, "camera_height_m": 0}', "BAD_CAMERA"),
+           ('{"type": "measure", "index": 0, "pixels": []}', "MALFORMED"),
+           ('{"type": "measure", "index": 0, "pixels": [[1, "x"]]}', "BAD_CAMERA"),
+           ('{"type": "measure", "index": 0, "pixels": ' + json.dumps([[1, 1]] * 65) + "}",
+            "TOO_LARGE"),
+           (" " * 70000, "TOO_LARGE")]
+    for text, code in bad:
+        assert code_of(parse_command, text)[0] == code, text
+
+
+def test_to_page_messages():
+    e = schemas.Error(session="s", key="findme/s/frame/3", code=CODE.ERROR_CODE_BAD_IMAGE,
+                      message="corrupt", service="hypotheses/1")
+    assert to_page("s", e) == {"type": "error", "code": "BAD_IMAGE", "message": "corrupt",
+                               "key": "frame/3", "service": "hypotheses/1"}
+    m = schemas.Motion(session="s", index_a=0, index_b=1, x_m=0.1, z_m=0.2, yaw_rad=-0.3)
+    d = to_page("s", m)
+    assert (d["a"], d["b"], d["x_m"], d["yaw_rad"], d["sigma_x_m"]) == (0, 1, 0.1, -0.3, None)
+    t = to_page("s", schemas.Trajectory(session="s", poses=[schemas.Pose(index=1, x_m=1)]))
+    assert t["poses"][0]["x_m"] == 1
+    assert to_page("s", schemas.Frame(session="s")) is None
+
+
+def test_parse_http():
+    assert parse_http("127.0.0.1:0") == ("127.0.0.1", 0)
+    assert parse_http("8080") == ("127.0.0.1", 8080)
+    assert parse_http("[::1]:9000") == ("::1", 9000)
+    with pytest.raises(Exception):
+        parse_http("localhost:http")
+
+
+def test_one_page_sees_only_its_own_session():
+    """On a live bus: the page's session id is made by the server; another session's error
+    does not reach it, its own does; a forged select and an undecodable photo are refused
+    with an Error on its own error key; a cross-origin upgrade is refused."""
+    import aiohttp
+
+    zs = bus.open_session()
+    gw = Gateway(zs, "127.0.0.1", 0)
+    url = gw.start()
+    ws_url = url.replace("http", "ws") + "ws"
+
+    async def run():
+        async with aiohttp.ClientSession() as http:
+            with pytest.raises(aiohttp.WSServerHandshakeError) as e:
+                await http.ws_connect(ws_url, headers={"Origin": "http://evil.example"})
+            assert e.value.status == 403
+            async with http.ws_connect(ws_url, headers={"Origin": url.rstrip("/")}) as ws:
+                hello = await ws.receive_json(timeout=10)
+                sid = hello["session"]
+                assert hello["type"] == "hello" and sid.startswith("web-")
+                other = schemas.Error(session="someone-else", key="findme/someone-else/x",
+                                      code=CODE.ERROR_CODE_INTERNAL, message="not yours")
+                mine = schemas.Error(session=sid, key=f"findme/{sid}/x",
+                                     code=CODE.ERROR_CODE_INTERNAL, message="yours")
+                bus.put(zs, "findme/someone-else/error", schemas.encode(other))
+                bus.put(zs, f"findme/{sid}/error", schemas.encode(mine))
+                assert (await ws.receive_json(timeout=10))["message"] == "yours"
+                await ws.send_str(json.dumps({"type": "select", "index": 0, "rank": 1}))
+                got = await ws.receive_json(timeout=10)
+                assert (got["code"], got["key"]) == ("NO_SUCH_FRAME", "selection/0")
+                await ws.send_bytes(upload_bytes({"id": "x"}, b"GIF89a..."))
+                refused = await ws.receive_json(timeout=10)
+                err = await ws.receive_json(timeout=10)
+                assert refused == {"type": "refused", "id": "x", "key": "frame/0"}
+                assert err["code"] == "BAD_IMAGE" and err["key"] == "frame/0"
+                await ws.send_str(json.dumps({"type": "ping"}))
+                assert (await ws.receive_json(timeout=10))["type"] == "pong"
+
+    try:
+        asyncio.run(run())
+    finally:
+        gw.stop()
+        zs.close()
