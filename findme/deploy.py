@@ -53,6 +53,8 @@ def register(sub) -> None:
     r.add_argument("--measure", action="append", metavar="U,V",
                    help="pixels of photo 0 to measure at the end (repeatable)")
     add_service_args(r)
+    r.add_argument("--no-record", action="store_true",
+                   help="do not record the session (default: <out>/<session>.mcap)")
     _bus_args(r)
     r.set_defaults(func=cmd_run, out="findme-run")
 
@@ -112,8 +114,8 @@ def _logging(level=logging.INFO):
 class Printer:
     """Prints a session's results as they arrive on the bus."""
 
-    def __init__(self, session: str, out=sys.stdout):
-        self.session, self.out = session, out
+    def __init__(self, session: str, out=None):
+        self.session, self.out = session, out or sys.stdout
         self.cv = threading.Condition()
         self.seen: dict[str, object] = {}
 
@@ -209,7 +211,11 @@ def cmd_run(args) -> int:
     group = Group(session)
     printer = Printer(session_id)
     sub = session.declare_subscriber(f"findme/{session_id}/**", printer)
+    recorder = None
     try:
+        if not args.no_record:  # first in, so stopped last: it records everything
+            from services.recorder import RecorderHandler
+            recorder = group.add(RecorderHandler(args.out)).handler
         capture = group.add(CaptureHandler())
         names = []
         for name in PIPELINE:
@@ -229,6 +235,8 @@ def cmd_run(args) -> int:
         sub.undeclare()
         group.stop()
         session.close()
+    if recorder is not None and recorder.path_of(session_id):
+        print(f"recording: {recorder.path_of(session_id)}")
     return 0
 
 
@@ -248,6 +256,7 @@ def _measure(session, session_id, args, photos) -> None:
             print(f"measure: {err.message}")
             continue
         rep = schemas.decode(schemas.MeasureReply, reply.ok.payload.to_bytes())
+        bus.put(session, bus.key(session_id, "measured", rep.index), reply.ok.payload.to_bytes())  # for the record
         unit = "m" if rep.metric else "camera heights"
         for p in rep.points:
             where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "

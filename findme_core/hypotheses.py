@@ -67,7 +67,7 @@ class HypothesisParams:
     lsd_scale: float = 0.5
     min_segment_px: float = 12.0
     min_line_support_px: float = 25.0
-    max_lines: int = 40
+    max_lines: int = 30
     horizon_margin: float = 0.01
     rerank_top: int = 120
     seed_top: int = 120

@@ -63,6 +63,16 @@ def _extra_services() -> dict:
         out["recorder"] = make_recorder
     except ImportError:
         pass
+    try:
+        from .viewer import make_viewer
+        out["viewer"] = make_viewer
+    except ImportError:
+        pass
+    try:
+        from .gateway import make_gateway
+        out["gateway"] = make_gateway
+    except ImportError:  # aiohttp not installed
+        pass
     return out
 
 

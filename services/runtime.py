@@ -45,7 +45,8 @@ log = logging.getLogger("findme.services")
 class Input:
     """One subscription or queryable of a handler.
 
-    key: key expression, e.g. ``findme/*/frame/*``; type: expected message class;
+    key: key expression, e.g. ``findme/*/frame/*``; type: expected message class, or None
+    for raw payloads of any type (``on_message`` gets the bytes undecoded: recorder, viewer);
     policy: "all" (never dropped) or "latest" (newest ``depth`` kept, drops counted).
     """
 
@@ -77,6 +78,8 @@ class Handler:
     queries: tuple[Input, ...] = ()
     cache_keys: tuple[str, ...] = ()
     shard = False
+    #: handle everything already received before stopping (Service.stop waits for idle)
+    drain_on_stop = False
     #: fetch(key) -> payload bytes or None: ask the bus for a message this handler missed
     #: (set by Service; tests set a dict lookup). None = no way to ask.
     fetch = None
@@ -105,6 +108,9 @@ class Handler:
     def counters(self) -> dict[str, int]:
         """Service-specific counters for the status report."""
         return {}
+
+    def close(self) -> None:
+        """Called once by Service.stop after the worker has stopped (release files etc.)."""
 
 
 CODES = [  # most specific first
@@ -198,6 +204,8 @@ class Service:
         return self
 
     def stop(self, timeout: float = 5.0) -> None:
+        if self.handler.drain_on_stop:
+            self.wait_idle(timeout)
         self._stop.set()
         with self._cv:
             self._cv.notify_all()
@@ -209,6 +217,7 @@ class Service:
             except zenoh.ZError:
                 pass  # the session may already be closed
         self._decls.clear()
+        self.handler.close()
         log.info("%s stopped", self.ident)
 
     def wait_idle(self, timeout: float | None = None) -> bool:
@@ -329,7 +338,7 @@ class Service:
         """Decode, handle and publish one input (runs on the worker thread)."""
         inp = self.handler.inputs[i]
         try:
-            msg = schemas.decode(inp.type, payload)
+            msg = payload if inp.type is None else schemas.decode(inp.type, payload)
             if not self._mine(key, msg):
                 return
             outputs = self.handler.on_message(key, msg)

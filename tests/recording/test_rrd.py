@@ -1,0 +1,146 @@
+"""A recording in Rerun: ``findme view --rrd`` (our adapters and blueprint), the viewer
+service, and Rerun's own MCAP loader on the view channels; every .rrd is read back."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+from services.recorder import read_recording
+
+from .conftest import PAIR
+
+SID = "golden-examples-pair"
+
+
+def rrd_contents(path) -> dict[str, set[str]]:
+    """entity path -> component columns (e.g. "EncodedImage:blob") of the first recording."""
+    import rerun.chunk as rc
+    out: dict[str, set[str]] = defaultdict(set)
+    for chunk in rc.RrdReader(str(path)).stream():
+        out[chunk.entity_path] |= {f.name for f in chunk.to_record_batch().schema if ":" in f.name}
+    return out
+
+
+def column(path, entity: str, col: str) -> list:
+    import rerun.chunk as rc
+    vals = []
+    for chunk in rc.RrdReader(str(path)).stream():
+        if chunk.entity_path == entity:
+            rb = chunk.to_record_batch()
+            if col in rb.schema.names:
+                vals += rb.column(col).to_pylist()
+    return vals
+
+
+def test_findme_view_writes_images_hypotheses_and_poses(full_recording, tmp_path, cli):
+    out = tmp_path / "session.rrd"
+    rc, text, err = cli("view", full_recording, "--rrd", out)
+    assert rc == 0, err
+    assert str(out) in text
+    c = rrd_contents(out)
+    img = "/world/photo/0/camera/image"
+    assert {"EncodedImage:blob", "EncodedImage:media_type", "Pinhole:image_from_camera"} <= c[img]
+    assert {"EncodedImage:blob"} <= c["/world/photo/1/camera/image"]
+    assert "LineStrips2D:strips" in c[f"{img}/hypotheses"]
+    assert column(out, f"{img}/hypotheses", "LineStrips2D:labels")[0] == [str(i) for i in range(1, 11)]
+    assert "LineStrips2D:strips" in c[f"{img}/boundary"]
+    # poses: photo 1 placed by its pose, the trajectory through both camera centres
+    assert "Transform3D:translation" in c["/world/photo/1"]
+    tr = column(out, "/world/photo/1", "Transform3D:translation")
+    assert tr[-1][0] == pytest.approx([0.3851, 0.0, 0.593], abs=1e-6)
+    assert "LineStrips3D:strips" in c["/world/trajectory"]
+    assert "Transform3D:mat3x3" in c["/world/photo/0/camera"]
+    # floor and walls in 3D, measured points and distances, the log
+    assert "Mesh3D:vertex_positions" in c["/world/photo/0/floor"]
+    assert "Mesh3D:vertex_positions" in c["/world/photo/0/walls"]
+    assert "Points3D:positions" in c["/world/photo/0/camera/measure/0/points"]
+    assert "LineStrips3D:labels" in c["/world/photo/0/camera/measure/0/distances"]
+    assert "TextLog:text" in c["/log"]
+    import rerun.chunk as rcc
+    assert rcc.RrdReader(str(out)).blueprints(), "the layout (blueprint) is in the file"
+
+
+def test_view_defaults_to_rrd_beside_the_mcap_when_headless(tmp_path, cli, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    src = tmp_path / "pair.mcap"
+    src.write_bytes(PAIR.read_bytes())
+    rc, text, err = cli("view", src)
+    assert rc == 0, err
+    assert (tmp_path / "pair.rrd").exists()
+    assert "EncodedImage:blob" in rrd_contents(tmp_path / "pair.rrd")["/world/photo/0/camera/image"]
+
+
+def test_viewer_service_shows_the_bus_live_into_rrd(full_recording, tmp_path):
+    from services.viewer import Sink, ViewerHandler
+    h = ViewerHandler(Sink("rrd", path=str(tmp_path)))
+    for r in read_recording(full_recording):
+        h.on_message(r.key, r.payload)
+    h.close()
+    c = rrd_contents(tmp_path / f"{SID}.rrd")
+    assert "EncodedImage:blob" in c["/world/photo/1/camera/image"]
+    assert "LineStrips2D:strips" in c["/world/photo/1/camera/image/hypotheses"]
+    assert "Transform3D:translation" in c["/world/photo/1"]
+    assert h.counters()["shown"] == 12 and h.counters()["not_shown"] == 0
+
+
+def test_rerun_own_mcap_loader_sees_images_poses_and_transforms(full_recording, tmp_path):
+    from services.viewer import _rerun_cli
+    out = tmp_path / "converted.rrd"
+    r = subprocess.run([*_rerun_cli(), "mcap", "convert", str(full_recording), "-o", str(out)],
+                       capture_output=True, text=True, timeout=120, env=dict(os.environ))
+    assert r.returncode == 0, r.stderr
+    c = rrd_contents(out)
+    base = f"/findme/{SID}/foxglove"
+    assert {"EncodedImage:blob", "EncodedImage:media_type"} <= c[f"{base}/image"]
+    assert "Pinhole:image_from_camera" in c[f"{base}/calibration"]
+    assert "Transform3D:quaternion" in c[f"{base}/tf"]
+    assert "InstancePoses3D:translations" in c[f"{base}/pose"]
+    assert "InstancePoses3D:translations" in c[f"{base}/trajectory"]
+    # our own messages stay as decoded protobuf (the loader reads the embedded schemas)
+    assert "findme.v1.HypothesisSet:message" in c[f"/findme/{SID}/hypotheses"]
+
+
+def _listening(pid: int) -> set[str]:
+    """ip:port of the TCP sockets process ``pid`` listens on (from /proc)."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            target = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    out = set()
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            f = line.split()
+            if f[3] == "0A" and f[9] in inodes:   # 0A = LISTEN
+                ip_hex, port_hex = f[1].split(":")
+                ip = ".".join(str(int(ip_hex[i:i + 2], 16)) for i in (6, 4, 2, 0)) \
+                    if len(ip_hex) == 8 else ip_hex
+                out.add(f"{ip}:{int(port_hex, 16)}")
+    return out
+
+
+def test_viewer_servers_bind_localhost_by_default():
+    from services.viewer import Sink, _free_port
+    sink = Sink("web")
+    port, wport = _free_port("127.0.0.1"), _free_port("127.0.0.1")
+    proc = subprocess.Popen(sink.command(port, wport), stderr=subprocess.PIPE, text=True,
+                            stdout=subprocess.DEVNULL, env=dict(os.environ))
+    try:
+        for line in proc.stderr:          # wait for the viewer to say it is serving
+            if "Hosting a web-viewer" in line:
+                break
+        addrs = _listening(proc.pid)
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    assert f"127.0.0.1:{port}" in addrs and f"127.0.0.1:{wport}" in addrs
+    assert all(a.startswith("127.0.0.1:") for a in addrs), addrs
