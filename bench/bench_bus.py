@@ -32,7 +32,7 @@ from bench.common import EVAL_DIR, dev_views  # noqa: E402
 from findme.evaluate import view_inputs  # noqa: E402
 from findme.imageio import decode_image  # noqa: E402
 from findme_core.methods import hypothesize  # noqa: E402
-from services.bus import BusConfig, open_session  # noqa: E402
+from services.bus import BusConfig, open_session, wait_alive  # noqa: E402
 from services.convert import make_frame  # noqa: E402
 from services.hypotheses import HypothesesHandler  # noqa: E402
 from services.runtime import Service  # noqa: E402
@@ -133,7 +133,6 @@ def main(argv=None):
                               stderr=subprocess.DEVNULL, env=env)]
     try:
         c = open_session(BusConfig(mode="client", connect=(ep,)))
-        from findme.deploy import wait_alive
         wait_alive(c, "hypotheses")
         round_trips(c, items[:5], "warm2")
         rt, hd = round_trips(c, items, "mp")

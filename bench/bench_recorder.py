@@ -179,19 +179,6 @@ def publish(session, frames, fps) -> dict:
     return {"frames": len(frames), "seconds": time.monotonic() - t0, "late_ms": stats(late)}
 
 
-def wait_token(session, name: str, timeout: float = 60.0) -> None:
-    ev = threading.Event()
-    import zenoh
-    sub = session.liveliness().declare_subscriber(
-        f"findme/@services/{name}/*", lambda s: s.kind == zenoh.SampleKind.PUT and ev.set(),
-        history=True)
-    try:
-        if not ev.wait(timeout):
-            raise SystemExit(f"no {name} appeared within {timeout:.0f} s")
-    finally:
-        sub.undeclare()
-
-
 def run_recorder(frames, fps, tmp: Path) -> dict:
     from services import bus
     port = free_port()
@@ -202,7 +189,7 @@ def run_recorder(frames, fps, tmp: Path) -> dict:
                              str(out), "--mode", "peer", "--connect", f"tcp/127.0.0.1:{port}"],
                             env=env, stderr=subprocess.DEVNULL)
     try:
-        wait_token(session, "recorder")
+        bus.wait_alive(session, "recorder")
         cpu = CpuSampler(proc.pid).start()
         c0, w0 = cpu_ticks(proc.pid), time.monotonic()
         pub = publish(session, frames, fps)

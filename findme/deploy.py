@@ -279,7 +279,7 @@ def cmd_serve(args) -> int:
             if not args.photos or not args.session:
                 raise InputError("capture needs --session and at least one photo")
             for name in args.wait_for:
-                wait_alive(session, name)
+                bus.wait_alive(session, name)
             n = publish_frames(svc, args.session, sources(args.photos), _lens(args))
             logging.getLogger("findme.services").info("capture: published %d frames", n)
         wait_for_signal()
@@ -287,20 +287,6 @@ def cmd_serve(args) -> int:
         svc.stop()
         session.close()
     return 0
-
-
-def wait_alive(session: zenoh.Session, name: str, timeout: float = 60.0) -> None:
-    """Until a liveliness token of service ``name`` exists (no polling sleep: a liveliness
-    subscriber with history signals it)."""
-    ev = threading.Event()
-    sub = session.liveliness().declare_subscriber(
-        f"{bus.SERVICES}/{name}/*", lambda s: s.kind == zenoh.SampleKind.PUT and ev.set(),
-        history=True)
-    try:
-        if not ev.wait(timeout):
-            raise BusError(f"no {name} service appeared on the bus within {timeout:.0f} s")
-    finally:
-        sub.undeclare()
 
 
 # ------------------------------------------------------------------------------ router

@@ -286,7 +286,9 @@ def ask_measure(session: zenoh.Session, session_id: str, req, timeout: float = 1
 
 # ------------------------------------------------------------------------------ replay
 def cmd_replay(args) -> int:
-    from .deploy import _logging, _open, wait_alive
+    from services.bus import wait_alive
+
+    from .deploy import _logging, _open
     _logging()
     if args.rate <= 0 or not math.isfinite(args.rate):
         raise InputError(f"--rate must be a positive number, got {args.rate}")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import re
+import threading
 from dataclasses import dataclass, field
 
 import zenoh
@@ -137,3 +138,21 @@ def put(session: zenoh.Session, k: str, payload: bytes,
                        f"{max_bytes / 1e6:.0f} MB limit; it was not sent")
     session.put(k, payload, congestion_control=zenoh.CongestionControl.BLOCK,
                 encoding=zenoh.Encoding.APPLICATION_PROTOBUF)
+
+
+def wait_alive(session: zenoh.Session, name: str, timeout: float = 60.0) -> None:
+    """Until a liveliness token of service ``name`` is on the bus (no polling: a liveliness
+    subscriber with history signals it).
+
+    Raises:
+        BusError: none appeared within ``timeout`` seconds.
+    """
+    ev = threading.Event()
+    sub = session.liveliness().declare_subscriber(
+        f"{SERVICES}/{name}/*", lambda s: s.kind == zenoh.SampleKind.PUT and ev.set(),
+        history=True)
+    try:
+        if not ev.wait(timeout):
+            raise BusError(f"no {name} service appeared on the bus within {timeout:.0f} s")
+    finally:
+        sub.undeclare()

@@ -125,12 +125,6 @@ class Arrivals:
 
 def wait_service(session, name: str, timeout: float = 60.0) -> None:
     """Until a liveliness token of service ``name`` is on the bus."""
-    import zenoh
-    ev = threading.Event()
-    sub = session.liveliness().declare_subscriber(
-        f"{bus.SERVICES}/{name}/*", lambda s: s.kind == zenoh.SampleKind.PUT and ev.set(),
-        history=True)
-    try:
-        assert ev.wait(timeout), f"no {name} service appeared within {timeout} s"
-    finally:
-        sub.undeclare()
+    bus.wait_alive(session, name, timeout)
+
+

@@ -201,7 +201,7 @@ def test_motion_messages_are_drawn(browser, app, shots):
     """Motion, pose and trajectory messages on the page's session keys (published here by a
     peer on the app's bus, as odometry would) reach the page: text and floor map."""
     import schemas
-    from findme.deploy import wait_alive
+    from services.bus import wait_alive
     from services import bus
 
     page = open_page(browser, app)
