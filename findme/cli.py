@@ -23,11 +23,11 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import app_cli, demo, deploy, evaluate, record_cli, single
+    from . import app_cli, demo, deploy, evaluate, motion_cli, record_cli, single
     p = _Parser(prog="findme", description=__doc__)
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for mod in (demo, single, evaluate, deploy, app_cli, record_cli):
+    for mod in (demo, single, evaluate, motion_cli, deploy, app_cli, record_cli):
         mod.register(sub)
     return p
 

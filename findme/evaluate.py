@@ -2,13 +2,16 @@
 the format ``shared/eval/score.py`` reads.
 
 Only inputs are used: the image, ``intrinsics``, ``gravity_cam``, ``camera_height_m`` and the
-query pixels (``px`` of ``floor_points`` / ``wall_points`` / ``nonfloor_points``); the
-result is the same on a copy of the dataset with its ground truth removed.
+query pixels (``px`` of ``floor_points`` / ``wall_points`` / ``nonfloor_points``); of a pair
+only its two view ids (``a``, ``b``): the motion comes from the two views' images and inputs
+(rank-1 hypothesis of each). The result is the same on a copy of the dataset with its ground
+truth removed.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -21,9 +24,11 @@ from tqdm import tqdm
 from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.methods import METHODS, hypothesize
+from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.scene import Scene
 
 from .imageio import read_image
+from .motion_cli import motion_pair, scene_of
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 
@@ -35,6 +40,10 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="PREDICTIONS.json")
     p.add_argument("--method", default="findme", choices=METHODS)
     p.add_argument("--max", type=int, default=10, metavar="N", help="hypotheses per view (10)")
+    p.add_argument("--motion-method", default="findme", metavar="NAME[,NAME...]",
+                   help="pair motion estimator(s): " + ", ".join(MOTION_METHODS) + " (default "
+                        "findme); with several, the first goes to --out and each other one to "
+                        "OUT.<name>.json, from the same features and hypotheses")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
     p.set_defaults(func=cmd_eval)
 
@@ -71,7 +80,48 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
         return vid, None, str(e)
 
 
+def predict_pair(args) -> tuple[str, dict, dict]:
+    """Motion of one pair by each method: ({method: {x_m, z_m, yaw_deg, ...}}, {method: error})."""
+    pair_dir, view_dir, pid, hyp_method, methods = args
+    cv2.setNumThreads(1)
+    preds, errs = {}, {}
+    try:
+        with open(os.path.join(pair_dir, pid + ".json")) as f:
+            pair = json.load(f)
+        inputs = []
+        for which in ("a", "b"):
+            with open(os.path.join(view_dir, pair[which] + ".json")) as f:
+                meta = json.load(f)
+            cam, h, _ = view_inputs(meta)
+            image = read_image(os.path.join(view_dir, meta["image"]))
+            inputs.append((image, cam, h, scene_of(image, cam, h, 1, hyp_method, which.upper())[0]))
+        (ia, ca, ha, sa), (ib, cb, hb, sb) = inputs
+        for method, r in motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods).items():
+            if isinstance(r, FindmeError):
+                errs[method] = str(r)
+                continue
+            m = r.motion
+            preds[method] = {"x_m": round(m.x, 6), "z_m": round(m.z, 6),
+                             "yaw_deg": round(math.degrees(m.yaw), 6),
+                             "sigma_x_m": round(m.sigma_x, 6), "sigma_z_m": round(m.sigma_z, 6),
+                             "sigma_yaw_deg": round(math.degrees(m.sigma_yaw), 6),
+                             "inliers": m.n_inliers, "matches": r.matches}
+    except (FindmeError, OSError, KeyError, ValueError) as e:   # a broken pair, not a crash
+        errs = {method: str(e) for method in methods}
+    return pid, preds, errs
+
+
+def _motion_methods(text: str) -> list[str]:
+    methods = [m.strip() for m in text.split(",") if m.strip()]
+    bad = [m for m in methods if m not in MOTION_METHODS]
+    if not methods or bad or len(set(methods)) != len(methods):
+        raise InputError(f"--motion-method must be distinct names among "
+                         f"{', '.join(MOTION_METHODS)}, got {text!r}")
+    return methods
+
+
 def cmd_eval(args) -> int:
+    motion_methods = _motion_methods(args.motion_method)
     idx_path = os.path.join(args.dataset, "index.json")
     try:
         with open(idx_path) as f:
@@ -94,12 +144,43 @@ def cmd_eval(args) -> int:
             _collect(preds, failures, *predict_view(job))
             bar.update()
     bar.close()
-    with open(args.out, "w") as f:
-        json.dump(preds, f)
-    print(f"wrote {args.out}: {len(preds['views'])} views"
-          + (f", {len(failures)} failed" if failures else ""))
+    pair_dir = os.path.join(args.dataset, index.get("pairs_dir", "pairs"))
+    pairs = sorted({p for ss in index["subsets"].values() for p in ss.get("pairs", [])})
+    by_method = {m: {} for m in motion_methods}
+    pair_failures = {m: [] for m in motion_methods}
+    jobs = [(pair_dir, view_dir, p, args.method, motion_methods) for p in pairs]
+    bar = tqdm(total=len(jobs), desc=f"pairs ({','.join(motion_methods)})", unit="pair",
+               file=sys.stderr)
+
+    def collect(pid, pred, err):
+        for m in motion_methods:
+            if m in pred:
+                by_method[m][pid] = pred[m]
+            else:
+                pair_failures[m].append((pid, err.get(m, "no estimate")))
+        bar.update()
+
+    if args.jobs > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(args.jobs, mp_context=mp.get_context("spawn")) as ex:
+            for res in ex.map(predict_pair, jobs, chunksize=2):
+                collect(*res)
+    else:
+        for job in jobs:
+            collect(*predict_pair(job))
+    bar.close()
+    stem, ext = os.path.splitext(args.out)
+    for i, m in enumerate(motion_methods):
+        out = args.out if i == 0 else f"{stem}.{m}{ext or '.json'}"
+        with open(out, "w") as f:
+            json.dump({**preds, "pairs": by_method[m], "motion_method": m}, f)
+        print(f"wrote {out}: {len(preds['views'])} views"
+              + (f", {len(failures)} failed" if failures else "")
+              + (f"; {len(by_method[m])} of {len(pairs)} pairs ({m})" if pairs else ""))
     for vid, err in failures[:10]:
         print(f"  {vid}: {err}", file=sys.stderr)
+    for m in motion_methods:
+        for pid, err in pair_failures[m][:10]:
+            print(f"  {pid} ({m}): {err}", file=sys.stderr)
     return 0
 
 

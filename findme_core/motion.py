@@ -1,36 +1,43 @@
 """Planar camera motion between two photos (paper step 5, eqs. 5-8, and a robust default).
 
 Frames and units (DESIGN.md): each photo has a level frame (y down along gravity, z the
-optical axis projected on the horizontal plane, x right); the motion of a pair (A, B) is
-the pose of camera B in A's level frame: ``X_A = R_y(yaw) X_B + t`` for level-frame points,
-R_y(yaw) = [[c, 0, s], [0, 1, 0], [-s, 0, c]], t = (x, dy, z) metres, yaw in radians
-(> 0: B turned right of A). ``dy = h_A - h_B`` is known from the two camera heights, so
-the unknowns are (yaw, x, z): 3 DOF.
-
-Inputs per match i: unit level bearings a_i (A), b_i (B) and, where a photo's scene
-(chosen hypothesis) gives one, the lifted 3D point P_A,i / P_B,i in that photo's level
-frame with its 1-sigma radius (``features.Lifted``).
+optical axis projected on the horizontal plane, x right). The motion of a pair (A, B) is
+the pose of camera B in A's level frame: X_A = R_y(yaw) X_B + t for level-frame points,
+R_y(yaw) = [[c, 0, s], [0, 1, 0], [-s, 0, c]], t = (x, dy, z) metres, yaw radians (> 0: B
+turned right of A); dy is expected near h_A - h_B (the heights are inputs). Per match i:
+unit level bearings a_i (A), b_i (B) and, where a photo's chosen hypothesis gives one, its
+lifted 3D point in that photo's level frame (``features.Lifted``; paper eqs. 2-4).
 
 Estimators (``METHODS``):
 
-* ``findme`` (default): gravity-aware epipolar RANSAC (2-point planar solver when dy = 0,
-  3-point solver with a free vertical baseline otherwise) gives yaw and the baseline
-  direction; the metric scale comes from the lifted points (1-D consensus); both scored
-  together, then a robust Gauss-Newton refinement of (yaw, x, z) on the epipolar residuals
-  of all inliers and the transfer residuals of the lifted inliers.
-* ``lifted``: 2-point RANSAC on matches lifted in both photos and projected to the floor,
+* ``findme`` (default). (1) Verification: adaptive RANSAC over minimal samples of the
+  gravity-aware epipolar constraint a^T [t]x R_y b = 0 (2-point planar solver when
+  h_A = h_B, 3-point solver with a free vertical baseline otherwise, and 1-point pure
+  rotations), locally optimised: yaw and the baseline direction. With equal heights the
+  camera moved parallel to the floor, so a significant elevation of that baseline is the
+  given gravity's tilt along the motion: floor points are re-lifted on the corrected floor.
+  (2) Metric candidates: that motion scaled by the 1-D consensus of the lifted points, and
+  the best closed-form 2-point floor alignment of matches lifted in both photos (another
+  model when the epipolar consensus is spurious: few correct matches in white rooms); the
+  better by MSAC score (epipolar residuals of all matches + transfer residuals of the
+  lifted points, pixels over their sigma) is refined by robust Levenberg-Marquardt of
+  (yaw, x, dy, z). Floor points first: wall points (right only when the hypothesis is)
+  count only when fewer than ``min_floor`` floor points agree.
+* ``lifted``: 2-point RANSAC on the matches lifted in both photos projected to the floor,
   weighted closed-form 2-D rigid alignment (Kabsch), refit on the inliers.
-* ``paper``: the paper's estimator as written: yaw = 1/Z-weighted mean of the bearing
-  differences (eq. 5), translation = 1/Z-weighted mean of the differences P_A - R P_B
-  (eqs. 6-8), on the geometrically verified matches lifted in both photos.
+* ``paper``: the paper's estimator as written, on the matches verified in (1) and lifted in
+  both photos: yaw = 1/Z-weighted mean of the bearing differences (eq. 5), translation =
+  1/Z-weighted mean of P_A - R_y P_B on the floor (eqs. 6-8).
 
-Every estimate carries its inliers and a 1-sigma uncertainty. Degenerate input raises
-``MotionError`` naming the cause. Pure: numpy in, numbers out (randomness is seeded).
+Every estimate carries its inliers and 1-sigma uncertainties (covariance of the fit, inflated
+by the robust chi^2 per degree of freedom). Degenerate input raises ``MotionError`` naming
+the cause. Pure: numpy in, numbers out; randomness is seeded by ``MotionParams.seed``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
@@ -39,28 +46,42 @@ from .errors import InputError, MotionError
 from .features import Lifted, Matches
 
 METHODS = ("findme", "lifted", "paper")
+Lifter = Callable[[np.ndarray], Lifted]  # match indices -> Lifted of all matches (NaN = not)
 
 
 @dataclass(frozen=True)
 class MotionParams:
-    """Thresholds (pixels, metres) and RANSAC settings.
+    """Thresholds (pixels) and RANSAC settings.
 
     Attributes:
-        thr_px: epipolar inlier threshold, pixels (converted to angle with the focal length).
-        iters: RANSAC samples.
-        min_matches: fewer putative matches than this: no common view.
-        min_inliers: fewer geometrically consistent matches than this: no common view.
-        min_parallax_px: median match displacement below this: the photos are identical.
-        lift_floor_m: 2-D inlier threshold floor of the ``lifted`` estimator, metres.
-        seed: RANSAC random seed (results are reproducible).
+        thr_px: inlier threshold of epipolar and transfer residuals, pixels.
+        max_iters: most RANSAC samples of each kind (fewer when the inliers allow).
+        confidence: RANSAC stops when a better sample is this unlikely.
+        min_matches / min_inliers: fewer matches / consistent ones: no common view.
+        min_parallax_px: 80 % of the matches moved less: the photos are identical.
+        min_floor: with fewer floor points agreeing, wall points fix the scale too.
+        max_lift: at most this many matches are lifted to 3D per photo (verified first).
+        gravity_sigma_deg: error of the given gravity: a point lifted at horizontal distance
+            d moves by ~ d^2 / h * error, added to its sigma.
+        scale_sigma, direction_sigma_deg, yaw_sigma_deg: model errors the fit cannot see
+            (camera height and gravity errors, a floor that is not flat, a hand-held phone
+            that does not move in a plane), added to every estimate's covariance: relative
+            along the baseline, across it (degrees of its direction) and on the yaw.
+        seed: RANSAC seed.
     """
 
-    thr_px: float = 2.0
-    iters: int = 400
+    thr_px: float = 3.0
+    max_iters: int = 500
+    confidence: float = 0.999
     min_matches: int = 8
     min_inliers: int = 6
     min_parallax_px: float = 0.3
-    lift_floor_m: float = 0.05
+    min_floor: int = 6
+    max_lift: int = 60
+    gravity_sigma_deg: float = 1.0
+    scale_sigma: float = 0.03
+    direction_sigma_deg: float = 1.0
+    yaw_sigma_deg: float = 0.5
     seed: int = 0
 
 
@@ -71,9 +92,9 @@ class PlanarMotion:
     Attributes:
         x, z: B's centre, metres (x right, z forward of A's level frame).
         yaw: heading of B relative to A, radians (> 0 turned right).
-        dy: vertical offset h_A - h_B used (metres, > 0: B lower); an input, not estimated.
+        dy: B's centre below A's, metres (estimated by ``findme``, else h_A - h_B).
         sigma_x, sigma_z, sigma_yaw: 1-sigma of x, z (m) and yaw (rad).
-        inliers: (M,) bool over the matches given: consistent with the estimate.
+        inliers: (M,) bool over the matches: consistent with the estimate.
         n_scale: lifted points that fixed the metric scale.
         method: the estimator.
     """
@@ -94,10 +115,34 @@ class PlanarMotion:
         return int(np.count_nonzero(self.inliers))
 
 
-def rot_y(yaw: float) -> np.ndarray:
-    """(3, 3) level_A <- level_B rotation R_y(yaw)."""
+# ---------------------------------------------------------------------------- geometry
+def rot_y(yaw) -> np.ndarray:
+    """(3, 3) level_A <- level_B rotation R_y(yaw); (C, 3, 3) for C yaws."""
     c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    z, o = np.zeros_like(c), np.ones_like(c)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
+                     np.stack([-s, z, c], -1)], -2)
+
+
+def _rotate(yaw, v, inverse: bool = False) -> np.ndarray:
+    """R_y(yaw) v (or R_y^T v) for C yaws (C,) and vectors (N, 3) or (C, N, 3): (C, N, 3)."""
+    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None] * (-1.0 if inverse else 1.0)
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([c * x + s * z, np.broadcast_to(y, np.broadcast_shapes(c.shape, y.shape)),
+                     c * z - s * x], -1)
+
+
+def _rot2(yaw, B):
+    """R_y(yaw) on floor points (..., 2) = (x, z)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.stack([c * B[..., 0] + s * B[..., 1], -s * B[..., 0] + c * B[..., 1]], -1)
+
+
+def _cross(u, v):
+    """np.cross over the last axis with broadcasting, without its overhead."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], -1)
 
 
 def bearings(camera: Camera, pixels) -> np.ndarray:
@@ -106,107 +151,175 @@ def bearings(camera: Camera, pixels) -> np.ndarray:
     return r / np.linalg.norm(r, axis=1, keepdims=True)
 
 
-# ---------------------------------------------------------------------------- minimal solvers
-def solve_planar_2pt(a: np.ndarray, b: np.ndarray) -> list[tuple[float, np.ndarray]]:
-    """Yaw and unit horizontal baseline from 2 matches (dy = 0; Ortin & Montiel 2001).
+def solve_planar_2pt(a: np.ndarray, b: np.ndarray):
+    """Yaw and unit horizontal baseline from S samples of 2 matches, a, b (S, 2, 3).
 
     With t = (sin phi, 0, cos phi) and psi = phi - yaw, a^T [t]x R_y b = 0 is linear in
-    v = (cos phi, sin phi, cos psi, sin psi): row (-a_x b_y, a_z b_y, a_y b_x, -a_y b_z).
-    v lies in the 2-D null space of the 2 rows; |v_01| = |v_23| = 1 gives a quadratic.
-    The sign of t is left to the caller (cheirality). Returns up to 2 (yaw, t).
-    """
-    A = np.column_stack([-a[:, 0] * b[:, 1], a[:, 2] * b[:, 1], a[:, 1] * b[:, 0],
-                         -a[:, 1] * b[:, 2]])
-    n1, n2 = np.linalg.svd(A)[2][2:]
-    quad = lambda u, w: np.array([u @ u, 2 * u @ w, w @ w])  # noqa: E731
-    d = quad(n1[:2], n2[:2]) - quad(n1[2:], n2[2:])
-    if abs(d[0]) > 1e-12:
-        ratios = [(r.real, 1.0) for r in np.roots(d) if abs(r.imag) < 1e-9]
-    else:
-        ratios = [(1.0, 0.0)] + ([(-d[2] / d[1], 1.0)] if abs(d[1]) > 1e-12 else [])
-    out = []
-    for al, be in ratios:
-        v = al * n1 + be * n2
-        if np.linalg.norm(v[:2]) < 1e-12:
-            continue
-        phi, psi = np.arctan2(v[1], v[0]), np.arctan2(v[3], v[2])
-        out.append((float(np.angle(np.exp(1j * (phi - psi)))),
-                    np.array([np.sin(phi), 0.0, np.cos(phi)])))
-    return out
+    v = (cos phi, sin phi, cos psi, sin psi): row (-a_x b_y, a_z b_y, a_y b_x, -a_y b_z)
+    (Ortin & Montiel 2001). v = x n1 + n2 in the null space of the 2 rows, and
+    |v_01| = |v_23| = 1 gives a quadratic in x. Returns yaw (C,), t (C, 3) up to sign and
+    the sample of each (C,)."""
+    A = np.stack([-a[..., 0] * b[..., 1], a[..., 2] * b[..., 1], a[..., 1] * b[..., 0],
+                  -a[..., 1] * b[..., 2]], -1)
+    V = np.linalg.svd(A)[2]
+    n1, n2 = V[:, 2], V[:, 3]
+    d = [np.sum(u[:, :2] * w[:, :2], 1) - np.sum(u[:, 2:] * w[:, 2:], 1)
+         for u, w in ((n1, n1), (n1, n2), (n2, n2))]
+    disc = (2 * d[1]) ** 2 - 4 * d[0] * d[2]
+    ok = (disc >= 0) & (np.abs(d[0]) > 1e-12)
+    yaws, ts = [], []
+    for sgn in (-1.0, 1.0):
+        x = (-2 * d[1][ok] + sgn * np.sqrt(disc[ok])) / (2 * d[0][ok])
+        v = x[:, None] * n1[ok] + n2[ok]
+        phi, psi = np.arctan2(v[:, 1], v[:, 0]), np.arctan2(v[:, 3], v[:, 2])
+        yaws.append(phi - psi)
+        ts.append(np.stack([np.sin(phi), np.zeros_like(phi), np.cos(phi)], 1))
+    src = np.tile(np.flatnonzero(ok), 2)
+    return np.angle(np.exp(1j * np.concatenate(yaws))), np.concatenate(ts), src
 
 
-def solve_gravity_3pt(a: np.ndarray, b: np.ndarray) -> list[tuple[float, np.ndarray]]:
-    """Yaw and unit 3-D baseline from 3 matches (known vertical, free dy).
+_BASIS = ([-1.0, 0.0, 1.0], [2.0, 0.0], [1.0, 0.0, 1.0])  # cos, sin, 1 times (1 + x^2)
+_POLY = np.array([np.pad(p, (7 - len(p), 0)) for p in (
+    np.polymul(np.polymul(_BASIS[i], _BASIS[j]), _BASIS[k]) for i, j, k in np.ndindex(3, 3, 3))])
 
-    Each match gives t . m_i = 0 with m_i = (R_y b_i) x a_i = c p_i + s q_i + r_i, so
-    det[m_1, m_2, m_3] = 0: a cubic in (c, s) = (cos, sin yaw), a sextic in tan(yaw / 2).
-    Returns up to 6 (yaw, t), t up to sign.
-    """
-    z = np.zeros(3)
-    K = np.stack([np.cross(np.column_stack([b[:, 0], z, b[:, 2]]), a),     # p (cos)
-                  np.cross(np.column_stack([b[:, 2], z, -b[:, 0]]), a),    # q (sin)
-                  np.cross(np.column_stack([z, b[:, 1], z]), a)])          # r (1)
-    basis = ([-1.0, 0.0, 1.0], [2.0, 0.0], [1.0, 0.0, 1.0])  # c, s, 1 times (1 + x^2)
-    coeffs = np.zeros(7)
-    for ks in np.ndindex(3, 3, 3):
-        det = np.linalg.det(np.stack([K[ks[0], 0], K[ks[1], 1], K[ks[2], 2]]))
-        term = np.polymul(np.polymul(basis[ks[0]], basis[ks[1]]), basis[ks[2]])
-        coeffs[7 - len(term):] += det * term
-    coeffs = np.trim_zeros(coeffs, "f")
-    out = []
-    for x in (np.roots(coeffs) if len(coeffs) > 1 else []):
-        if abs(x.imag) < 1e-7:
-            yaw = 2.0 * np.arctan(x.real)
-            t = np.linalg.svd(np.cross(b @ rot_y(yaw).T, a))[2][2]
-            out.append((float(yaw), t / np.linalg.norm(t)))
-    return out
+
+def solve_gravity_3pt(a: np.ndarray, b: np.ndarray):
+    """Yaw and unit 3-D baseline from S samples of 3 matches, a, b (S, 3, 3) (known vertical,
+    free dy). Each match gives t . m_i = 0 with m_i = (R_y b_i) x a_i = c p_i + s q_i + r_i,
+    so det[m_1, m_2, m_3] = 0: a cubic in (c, s) = (cos, sin yaw), a sextic in tan(yaw / 2)
+    (roots: companion matrices). Returns yaw (C,), t (C, 3) up to sign, the sample (C,)."""
+    z = np.zeros(b.shape[:2])
+    K = np.stack([_cross(np.stack([b[..., 0], z, b[..., 2]], -1), a),
+                  _cross(np.stack([b[..., 2], z, -b[..., 0]], -1), a),
+                  _cross(np.stack([z, b[..., 1], z], -1), a)], 1)      # (S, kind, point, 3)
+    dets = np.stack([np.sum(K[:, i, 0] * _cross(K[:, j, 1], K[:, k, 2]), -1)
+                     for i, j, k in np.ndindex(3, 3, 3)], 1)
+    coeffs = dets @ _POLY
+    ok = np.abs(coeffs[:, 0]) > 1e-9 * np.abs(coeffs).max(1)  # else a root at yaw = pi: skip
+    comp = np.zeros((int(ok.sum()), 6, 6))
+    comp[:, 0, :] = -coeffs[ok, 1:] / coeffs[ok, :1]
+    comp[:, np.arange(1, 6), np.arange(5)] = 1.0
+    x = np.linalg.eigvals(comp)
+    real = np.abs(x.imag) < 1e-7 * np.maximum(1.0, np.abs(x.real))
+    src = np.repeat(np.flatnonzero(ok), 6).reshape(-1, 6)[real]
+    yaw = 2.0 * np.arctan(x.real[real])
+    m = _cross(_rotate(yaw, b[src]), a[src])
+    t = _cross(m[:, 0], m[:, 1])
+    return yaw, t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300), src
+
+
+def kabsch_2d(A: np.ndarray, B: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+    """Weighted 2-D rigid alignment of floor points (x, z), A ~ R_y(yaw) B + t, closed form.
+    Returns (yaw, t (2,))."""
+    ca, cb = w @ A / w.sum(), w @ B / w.sum()
+    a, b = A - ca, B - cb
+    yaw = float(np.arctan2(w @ (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                           w @ (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    return yaw, ca - _rot2(yaw, cb)
+
+
+def _kabsch_pairs(A, B, j):
+    """``kabsch_2d`` of the 2-point samples j (S, 2): yaw (S,), t (S, 2)."""
+    dA, dB = A[j[:, 1]] - A[j[:, 0]], B[j[:, 1]] - B[j[:, 0]]
+    yaw = np.arctan2(dA[:, 0] * dB[:, 1] - dA[:, 1] * dB[:, 0], np.sum(dA * dB, 1))
+    return yaw, A[j].mean(1) - _rot2(yaw[:, None], B[j]).mean(1)
 
 
 # ---------------------------------------------------------------------------- residuals
-def epipolar_residuals(yaw: float, t: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N,) signed angle (rad, Sampson-like) of each match from its epipolar plane."""
-    Rb = b @ rot_y(yaw).T
-    n1, n2 = np.cross(t, Rb), np.cross(t, a)
-    den = np.sqrt(0.5 * (np.einsum("ij,ij->i", n1, n1) + np.einsum("ij,ij->i", n2, n2)))
-    return np.einsum("ij,ij->i", a, n1) / np.maximum(den, 1e-12)
+def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Signed angle (rad, Sampson-like) of each match from its epipolar plane,
+    a . (t x R b) / rms(|t x R b|, |t x a|): (M,) for one motion, (C, M) for C yaws (C,)
+    and baselines (C, 3)."""
+    T = np.atleast_2d(t)[:, None, :]
+    n1, n2 = _cross(T, _rotate(np.atleast_1d(yaw), b)), _cross(T, a[None])
+    den = np.sqrt(0.5 * (np.sum(n1 * n1, -1) + np.sum(n2 * n2, -1)))
+    r = np.sum(a[None] * n1, -1) / np.maximum(den, 1e-12)
+    return r[0] if np.ndim(yaw) == 0 else r
 
 
-def depths(yaw: float, t: np.ndarray, a: np.ndarray, b: np.ndarray):
-    """Least-squares depths (la, lb) along a and b with la a = t + lb R b."""
-    Rb = b @ rot_y(yaw).T
-    ab, at, bt = np.einsum("ij,ij->i", a, Rb), a @ t, Rb @ t
+def depths(yaw, t, a: np.ndarray, b: np.ndarray):
+    """Least-squares depths (la, lb) along a and b with la a = t + lb R_y b; shapes as in
+    ``epipolar_residuals``."""
+    Rb, T = _rotate(np.atleast_1d(yaw), b), np.atleast_2d(t)
+    ab, at, bt = np.sum(a[None] * Rb, -1), T @ a.T, np.sum(Rb * T[:, None, :], -1)
     det = np.maximum(1.0 - ab * ab, 1e-12)
-    return (at - ab * bt) / det, (ab * at - bt) / det
+    la, lb = (at - ab * bt) / det, (ab * at - bt) / det
+    return (la[0], lb[0]) if np.ndim(yaw) == 0 else (la, lb)
+
+
+def _moved(yaw, t, pts, into_b: bool):
+    """Lifted points (N, 3) of one photo in the other photo's level frame: (C, N, 3)."""
+    T = np.atleast_2d(t)[:, None, :]
+    return _rotate(yaw, pts[None] - T, True) if into_b else _rotate(yaw, pts) + T
+
+
+def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float):
+    """hypot(1, each point's sigma (N,) along its own ray, seen across the observed ray of
+    the other photo, in pixels): (C, N)."""
+    y1 = np.atleast_1d(yaw)
+    own = _rotate(y1, pts / np.maximum(np.linalg.norm(pts, axis=1), 1e-12)[:, None], into_b)
+    dist = np.maximum(np.linalg.norm(_moved(y1, t, pts, into_b), axis=-1), 1e-9)
+    return np.hypot(1.0, sig * np.linalg.norm(_cross(own, rays[None]), axis=-1) / dist / pix)
+
+
+def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None):
+    """Lifted points (N, 3) of one photo moved into the other: angle to the observed rays
+    (N, 3) in pixels over their ``_spread`` (computed when None); 1000 for a point behind
+    the camera. (N,) for one motion, (C, N) for C."""
+    y1 = np.atleast_1d(yaw)
+    Q = _moved(y1, t, pts, into_b)
+    dist = np.maximum(np.sqrt(np.sum(Q * Q, -1)), 1e-9)
+    spread = _spread(y1, t, pts, sig, rays, into_b, pix) if spread is None else spread
+    sin_ray = np.linalg.norm(_cross(Q, rays[None]), axis=-1) / dist
+    r = np.where(np.sum(Q * rays[None], -1) > 0, sin_ray / pix / spread, 1000.0)
+    return r[0] if np.ndim(yaw) == 0 else r
+
+
+def _epipolar_terms(a, b, yaw, t, pix):
+    """(C, M) epipolar residuals in pixels, and masks: in front of both cameras, behind
+    both, no parallax (a ~ R b within 1 px: at infinity or a pure rotation, in front
+    whatever the sign of t)."""
+    yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
+    r = np.abs(epipolar_residuals(yaw, t, a, b)) / pix
+    la, lb = depths(yaw, t, a, b)
+    far = np.linalg.norm(_cross(a[None], _rotate(yaw, b)), axis=-1) / pix < 1.0
+    return r, ~far & (la > 0) & (lb > 0), ~far & (la < 0) & (lb < 0), far
 
 
 # ---------------------------------------------------------------------------- estimation
 @dataclass(frozen=True)
 class _Pair:
-    """Bearings (M, 3), lifted points of both photos, dy and the angular pixel sigma."""
+    """Bearings (M, 3), lifted points (sigma with the gravity error), dy, h_A, 1 px (rad)."""
 
     a: np.ndarray
     b: np.ndarray
     la: Lifted
     lb: Lifted
     dy: float
-    sig: float  # one pixel in radians
+    h_a: float
+    pix: float
+
+    def usable(self, walls: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Lifted points that may fix the scale: floor points, and wall points if asked."""
+        return (self.la.valid & (self.la.floor | walls), self.lb.valid & (self.lb.floor | walls))
 
 
 def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: float,
-             lifted_a: Lifted | None, lifted_b: Lifted | None, method: str = "findme",
+             lift_a: Lifter | None, lift_b: Lifter | None, method: str = "findme",
              params: MotionParams = MotionParams()) -> PlanarMotion:
-    """Planar motion of B in A's level frame from matches and the lifted points.
+    """Planar motion of B in A's level frame from matches and their lifted points.
 
     Args:
         matches: putative matches (pixels of A and B).
         cam_a, cam_b: intrinsics and gravity of each photo.
-        h_a, h_b: camera heights above the floor, metres (dy = h_a - h_b).
-        lifted_a, lifted_b: 3D of each match in each photo (``features.lift``), None for a
-            photo without a usable hypothesis.
+        h_a, h_b: camera heights above the floor, metres.
+        lift_a, lift_b: match indices -> ``Lifted`` of all matches (3D where computed), e.g.
+            ``lambda i: features.lift(scene_a, matches.ua, i)``; None for a photo without
+            a usable hypothesis. At most ``params.max_lift`` matches are asked for.
         method: one of ``METHODS``.
 
     Raises:
-        MotionError: too few matches, no common view, identical photos, no 3D for scale.
+        MotionError: too few matches, identical photos, no common view, no 3D for scale.
     """
     if method not in METHODS:
         raise InputError(f"unknown motion method {method!r}; choose one of {', '.join(METHODS)}")
@@ -214,22 +327,72 @@ def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: fl
     if n < params.min_matches:
         raise MotionError(f"only {n} feature matches between the photos ({matches.n_a} and "
                           f"{matches.n_b} keypoints; need {params.min_matches}): they show "
-                          "too little common texture")
-    disp = np.linalg.norm(matches.ua - matches.ub, axis=1)
-    if np.mean(disp < params.min_parallax_px) > 0.8:
+                          "too little common texture or no common view")
+    if np.mean(np.linalg.norm(matches.ua - matches.ub, axis=1) < params.min_parallax_px) > 0.8:
         raise MotionError("the two photos are identical (their features did not move), so "
                           "there is no motion to measure")
-    P = _Pair(bearings(cam_a, matches.ua), bearings(cam_b, matches.ub),
-              lifted_a if lifted_a is not None else Lifted.empty(n),
-              lifted_b if lifted_b is not None else Lifted.empty(n),
-              float(h_a - h_b), 1.0 / np.sqrt(cam_a.fx * cam_b.fx))
+    a, b = bearings(cam_a, matches.ua), bearings(cam_b, matches.ub)
+    pix, planar = 1.0 / np.sqrt(cam_a.fx * cam_b.fx), abs(h_a - h_b) < 1e-6
     rng = np.random.default_rng(params.seed)
+
+    def pair(e_in, normal=None):
+        sel = _lift_order(a, matches.ratio, e_in, params.max_lift)
+        return _Pair(a, b, _inflate(lift_a, sel, n, h_a, params, normal, a),
+                     _inflate(lift_b, sel, n, h_b, params,
+                              None if normal is None else rot_y(yaw).T @ normal, b),
+                     float(h_a - h_b), float(h_a), pix)
+
     if method == "lifted":
-        return _lifted(P, params, rng)
-    yaw, d, inl = _epipolar_ransac(P, params, rng)
+        return _model_error(_lifted(pair(np.ones(n, bool)), params, rng), params)
+    yaw, t, e_in = _epipolar_ransac(a, b, planar, pix, params, rng)
     if method == "paper":
-        return _paper(P, yaw, inl)
-    return _findme(P, yaw, d, inl, params)
+        return _model_error(_paper(pair(e_in), e_in), params)
+    for _ in range(2):   # local optimisation: refine on the inliers, take them again
+        yaw, t, sig_elev = _refine_dir(a, b, yaw, t, e_in, planar, pix)
+        r, front, _, far = _epipolar_terms(a, b, yaw, t, pix)
+        e_in = ((r < params.thr_px) & (front | far))[0]
+    normal = None
+    if planar and abs(t[1]) > 3.0 * np.sin(sig_elev):   # moved parallel to the floor: the
+        normal = np.array([0.0, 1.0, 0.0]) - t[1] * t      # floor normal is orthogonal to t
+        normal /= np.linalg.norm(normal)
+    return _model_error(_findme(pair(e_in, normal), yaw, t, e_in, params, rng), params)
+
+
+def _model_error(m: PlanarMotion, params: MotionParams) -> PlanarMotion:
+    """``m`` with the model errors of ``params`` added to its sigmas (along / across the
+    baseline rotated into x, z)."""
+    base = np.hypot(m.x, m.z)
+    u = np.array([m.x, m.z]) / max(base, 1e-12)
+    along, across = params.scale_sigma * base, np.radians(params.direction_sigma_deg) * base
+    C = np.diag([m.sigma_x ** 2, m.sigma_z ** 2]) + along ** 2 * np.outer(u, u) \
+        + across ** 2 * np.outer([-u[1], u[0]], [-u[1], u[0]])
+    return replace(m, sigma_x=float(np.sqrt(C[0, 0])), sigma_z=float(np.sqrt(C[1, 1])),
+                   sigma_yaw=float(np.hypot(m.sigma_yaw, np.radians(params.yaw_sigma_deg))))
+
+
+def _lift_order(a, ratio, first, k: int) -> np.ndarray:
+    """At most k match indices to lift: of the ``first`` ones, half the steepest below the
+    horizon (likely floor, nearest first), then the most distinctive; then the others."""
+    steep = [i for i in np.argsort(-a[:, 1]) if first[i] and a[i, 1] > 0][:k // 2]
+    taken = set(steep)
+    rest = [i for i in np.lexsort((ratio, ~first)) if i not in taken]
+    return np.array((steep + rest)[:k], int)
+
+
+def _inflate(lift: Lifter | None, sel, n: int, h: float, params: MotionParams,
+             normal=None, rays=None) -> Lifted:
+    """The lifted matches ``sel`` with the gravity error added to their sigma; floor points
+    re-lifted on the plane normal . X = h (eq. 2 with a corrected normal) if given."""
+    if lift is None:
+        return Lifted.empty(n)
+    L = lift(sel)
+    pts = L.points.copy()
+    if normal is not None:
+        f = np.flatnonzero(L.floor & L.valid & (rays @ normal > 1e-3))
+        pts[f] = h / (rays[f] @ normal)[:, None] * rays[f]
+    d2 = pts[:, 0] ** 2 + pts[:, 2] ** 2
+    return Lifted(pts, np.hypot(L.sigma, d2 / h * np.radians(params.gravity_sigma_deg)),
+                  L.floor & L.valid)
 
 
 def _no_common_view(k: int, n: int) -> MotionError:
@@ -237,134 +400,220 @@ def _no_common_view(k: int, n: int) -> MotionError:
                        "one camera motion")
 
 
-def _epipolar_ransac(P: _Pair, params: MotionParams, rng):
-    """(yaw, unit baseline t, inlier mask) maximising the MSAC score of the epipolar
-    residuals plus the 1-D scale consensus of the lifted points."""
-    n, thr = len(P.a), params.thr_px * P.sig
-    planar = abs(P.dy) < 1e-6
-    k = 2 if planar else 3
-    solver = solve_planar_2pt if planar else solve_gravity_3pt
-    best, best_score = None, -1.0
-    for _ in range(params.iters):
-        idx = rng.choice(n, k, replace=False)
-        for yaw, t in solver(P.a[idx], P.b[idx]):
-            r = np.abs(epipolar_residuals(yaw, t, P.a, P.b))
-            inl = r < thr
-            la, lb = depths(yaw, t, P.a[inl], P.b[inl])
-            if np.sum((la > 0) & (lb > 0)) < np.sum((la < 0) & (lb < 0)):
-                t = -t
-                la, lb = -la, -lb
-            front = np.zeros(n, bool)
-            front[np.flatnonzero(inl)] = (la > 0) & (lb > 0)
-            score = np.sum(np.maximum(0.0, 1.0 - (r[front] / thr) ** 2))
-            if score > best_score:
-                best, best_score = (yaw, t, front), score
-    if best is None or best[2].sum() < params.min_inliers:
+def _msac(r, thr):
+    """MSAC score per row (truncated quadratic): sum of max(0, 1 - (r / thr)^2)."""
+    return np.sum(np.maximum(0.0, 1.0 - (r / thr) ** 2), axis=-1)
+
+
+def _samples(rng, n: int, k: int, count: int) -> np.ndarray:
+    """(<= count, k) index samples without repetition inside a sample."""
+    s = rng.integers(0, n, (count, k))
+    return s[np.all(np.diff(np.sort(s, 1), axis=1) > 0, axis=1)]
+
+
+def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
+    """Scale-free (yaw, unit t, inliers) with the best MSAC score, t signed so that the
+    inliers are in front of both cameras; stops adaptively (``confidence``)."""
+    n, thr = len(a), params.thr_px
+    k, solver = (2, solve_planar_2pt) if planar else (3, solve_gravity_3pt)
+    best, best_score, done, need = None, -1.0, 0, params.max_iters
+    while done < need:
+        j = _samples(rng, n, k, 64)
+        done += 64
+        yaw, t, _ = solver(a[j], b[j])
+        j0 = j[:, 0]   # and the pure rotation through each first match (no solver answer)
+        yaw = np.r_[yaw, np.arctan2(a[j0, 0], a[j0, 2]) - np.arctan2(b[j0, 0], b[j0, 2])]
+        t = np.vstack([t, np.tile([1.0, 0.0, 0.0], (len(j0), 1))])
+        # cheirality only removes inliers: the residuals' score bounds the full one, so only
+        # the best 8 candidates of the batch get the depths
+        top = np.argsort(-_msac(np.abs(epipolar_residuals(yaw, t, a, b)) / pix, thr))[:8]
+        yaw, t = yaw[top], t[top]
+        r, front, back, far = _epipolar_terms(a, b, yaw, t, pix)
+        flip = (back & (r < thr)).sum(1) > (front & (r < thr)).sum(1)
+        t[flip] = -t[flip]
+        inl = (r < thr) & (far | np.where(flip[:, None], back, front))
+        score = _msac(np.where(inl, r, thr), thr)
+        i = int(np.argmax(score))
+        if score[i] > best_score:
+            best, best_score = (float(yaw[i]), t[i], inl[i]), score[i]
+            w = max(inl[i].sum(), k) / n
+            need = min(params.max_iters,
+                       int(np.log(1 - params.confidence) / np.log(max(1e-12, 1 - w ** k))) + 1)
+    if best is None or best[2].sum() < min(params.min_inliers, n):
         raise _no_common_view(0 if best is None else int(best[2].sum()), n)
     return best
 
 
-def _scale_obs(P: _Pair, yaw, h, inl):
-    """Per lifted inlier: the baseline length s along the unit horizontal h that puts the
-    point on the other photo's ray, and its 1-sigma (relative error = relative depth error
-    of the point (+) triangulation error of the pixel). Returns (idx_a, idx_b, s, sigma)."""
-    R, y = rot_y(yaw), np.array([0.0, P.dy, 0.0])
-    out = []
-    for L, into_b in ((P.la, True), (P.lb, False)):
-        idx = np.flatnonzero(inl & L.valid)
-        pts, sig = L.points[idx], L.sigma[idx]
-        if into_b:  # P_A - dy y = s h + mu R b
-            c, v = pts - y, P.b[idx] @ R.T
-        else:       # -(R P_B + dy y) = s h + mu (-a)
-            c, v = -(pts @ R.T + y), P.a[idx]
-        hv = v @ h
-        den = np.maximum(1.0 - hv ** 2, 1e-9)
-        s = (c @ h - hv * np.einsum("ij,ij->i", v, c)) / den
-        rel = np.hypot(sig / np.linalg.norm(pts, axis=1), 2.0 * P.sig / np.sqrt(den))
-        out.append((idx, s, rel * np.abs(s) + 1e-3))
-    return out
+def _score(P: _Pair, yaw, t, use, thr: float):
+    """MSAC score of C metric motions, yaw (C,), t (C, 3): epipolar residuals of all matches
+    plus transfer residuals of the lifted points in ``use`` (masks of A, B). Returns (score
+    (C,), epipolar inliers (C, M), lifted-A inliers (C, M), lifted-B inliers (C, M))."""
+    yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
+    r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t, P.pix)
+    e_in = (r < thr) & (front | far)
+    score, ins = _msac(np.where(e_in, r, thr), thr), []
+    for L, u, rays, into_b in ((P.la, use[0], P.b, True), (P.lb, use[1], P.a, False)):
+        i, m = np.flatnonzero(u), np.zeros(e_in.shape, bool)
+        if len(i):
+            rt = transfer_residuals(yaw, t, L.points[i], L.sigma[i], rays[i], into_b, P.pix)
+            m[:, i] = rt < thr
+            score = score + _msac(rt, thr)
+        ins.append(m)
+    return score, e_in, ins[0], ins[1]
 
 
-def _consensus_scale(obs) -> tuple[float, np.ndarray, np.ndarray]:
-    """1-D MSAC over the scale observations: (s, inlier idx of A, inlier idx of B)."""
-    s = np.concatenate([o[1] for o in obs])
-    sg = np.concatenate([o[2] for o in obs])
+def _scale(P: _Pair, yaw, t, e_in, use) -> float | None:
+    """Baseline length along the unit t on which most lifted epipolar inliers agree (1-D
+    consensus; each point's s puts it on the other photo's ray; relative sigma = relative
+    depth sigma (+) one pixel over the parallax); None without a lifted inlier."""
+    s, sg = [], []
+    for L, u, into_b in ((P.la, use[0], True), (P.lb, use[1], False)):
+        i = np.flatnonzero(e_in & u)
+        pts = L.points[i]
+        c, v = (pts, _rotate(np.atleast_1d(yaw), P.b[i])[0]) if into_b else \
+            (-_rotate(np.atleast_1d(yaw), pts)[0], P.a[i])
+        tv = v @ t
+        den = np.maximum(1.0 - tv ** 2, 1e-9)
+        si = (c @ t - tv * np.sum(v * c, 1)) / den
+        rel = np.hypot(L.sigma[i] / np.linalg.norm(pts, axis=1), 2.0 * P.pix / np.sqrt(den))
+        s.append(si)
+        sg.append(rel * np.abs(si) + 1e-3)
+    s, sg = np.concatenate(s), np.concatenate(sg)
+    s, sg = s[s > 0], sg[s > 0]
     if len(s) == 0:
-        raise MotionError("no matched point lies on the floor or on a chosen wall in either "
-                          "photo, so the distance between the photos cannot be measured")
+        return None
     score = np.maximum(0.0, 1.0 - ((s[None, :] - s[:, None]) / (2.5 * sg[None, :])) ** 2).sum(1)
-    s0 = s[np.argmax(score)]
-    ok = np.abs(s - s0) < 2.5 * sg
-    s1 = float(np.sum(s[ok] / sg[ok] ** 2) / np.sum(1.0 / sg[ok] ** 2))
-    na = len(obs[0][0])
-    return s1, obs[0][0][ok[:na]], obs[1][0][ok[na:]]
+    ok = np.abs(s - s[np.argmax(score)]) < 2.5 * sg
+    return float(np.sum(s[ok] / sg[ok] ** 2) / np.sum(1.0 / sg[ok] ** 2))
 
 
-def _findme(P: _Pair, yaw, t, inl, params: MotionParams) -> PlanarMotion:
-    h = np.array([t[0], 0.0, t[2]])
-    h = h / max(np.linalg.norm(h), 1e-12)
-    s, ia, ib = _consensus_scale(_scale_obs(P, yaw, h, inl))
-    p = np.array([yaw, s * h[0], s * h[2]])
-    e_idx = np.flatnonzero(inl)
+def _refine_dir(a, b, yaw, t, e_in, planar: bool, pix: float, sigma_elev=np.radians(3.0)):
+    """Robust LM of (yaw, azimuth, elevation) of the unit baseline on the inliers' epipolar
+    residuals (pixels); a level prior on the elevation when h_A = h_B. Returns (yaw, unit
+    t, sigma of the elevation)."""
+    e = np.flatnonzero(e_in)
+    unit = lambda q: np.stack([np.sin(q[..., 1]) * np.cos(q[..., 2]), np.sin(q[..., 2]),  # noqa
+                               np.cos(q[..., 1]) * np.cos(q[..., 2])], -1)
 
-    def resid(q):
-        tq = np.array([q[1], P.dy, q[2]])
-        r = [epipolar_residuals(q[0], tq, P.a[e_idx], P.b[e_idx]) / P.sig]
-        for idx, L, rays, into_b in ((ia, P.la, P.b, True), (ib, P.lb, P.a, False)):
-            r.append(_transfer(q[0], tq, L.points[idx], L.sigma[idx], rays[idx], into_b, P.sig))
-        return np.concatenate(r)
+    def resid(q):  # (C, 3) -> (C, R)
+        r = epipolar_residuals(q[:, 0], unit(q), a[e], b[e]) / pix
+        return np.concatenate([r, q[:, 2:3] / sigma_elev], 1) if planar else r
 
-    p, cov = _gauss_newton(resid, p)
-    tq = np.array([p[1], P.dy, p[2]])
-    r = np.abs(epipolar_residuals(p[0], tq, P.a, P.b))
-    la, lb = depths(p[0], tq, P.a, P.b)
-    final = (r < params.thr_px * P.sig) & (la > 0) & (lb > 0)
-    return _result(p, P.dy, cov, final, len(ia) + len(ib), "findme")
+    q0 = np.array([yaw, np.arctan2(t[0], t[2]), np.arcsin(np.clip(t[1], -1.0, 1.0))])
+    q, cov = _levenberg_marquardt(resid, q0, n_prior=int(planar))
+    return float(q[0]), unit(q), float(np.sqrt(cov[2, 2]))
 
 
-def _transfer(yaw, t, pts, sig, rays, into_b, pix):
-    """Angle (rad) between each observed ray and its lifted point moved into the other
-    photo, divided by its sigma: the pixel part (+) the point's depth error seen across."""
-    R = rot_y(yaw)
-    Q = (pts - t) @ R if into_b else pts @ R.T + t
-    dist = np.maximum(np.linalg.norm(Q, axis=1), 1e-9)
-    Qn = Q / dist[:, None]
-    sin_ang = np.linalg.norm(np.cross(Qn, rays), axis=1)
-    ang = np.where(np.einsum("ij,ij->i", Qn, rays) > 0, np.arcsin(np.minimum(sin_ang, 1.0)), np.pi)
-    own = pts / np.linalg.norm(pts, axis=1, keepdims=True)  # the lifting ray's direction
-    own = own @ R if into_b else own @ R.T
-    sin_par = np.linalg.norm(np.cross(own, rays), axis=1)  # the depth error's lever arm
-    return ang / np.hypot(pix, sig * sin_par / dist)
+def _refine(P: _Pair, yaw, t, e_in, ta_in, tb_in):
+    """Robust LM of p = (yaw, tx, ty, tz) (radians, metres) on the epipolar residuals of the
+    inliers ``e_in`` and the transfer residuals of the lifted inliers (``ta_in`` A into B,
+    ``tb_in`` B into A), pixels; Gaussian prior ty = dy, 2 cm + 3 % of the baseline (a floor
+    or road that is not quite level, a hand-held phone). Returns (p, covariance)."""
+    e, ia, ib = np.flatnonzero(e_in), np.flatnonzero(ta_in), np.flatnonzero(tb_in)
+    lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
+              (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
+    spread = [_spread(yaw, t, *x, P.pix) for x in lifted]   # at the start: barely changes
+
+    def resid(p):  # (C, 4) -> (C, R)
+        y, tq = p[:, 0], p[:, 1:4]
+        return np.concatenate(
+            [epipolar_residuals(y, tq, P.a[e], P.b[e]) / P.pix]
+            + [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)]
+            + [((tq[:, 1] - P.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None]], 1)
+
+    return _levenberg_marquardt(resid, np.array([yaw, *t]), n_prior=1)
 
 
-def _gauss_newton(resid, p, iters: int = 15, c: float = 2.5):
-    """Robust (Cauchy, c sigmas) Gauss-Newton with a numeric Jacobian. Returns the
-    parameters and their covariance (inflated by the robust chi^2 per dof when > 1)."""
-    step = np.array([1e-6, 1e-6, 1e-6])
-    for _ in range(iters):
-        r = resid(p)
-        J = np.column_stack([(resid(p + np.eye(3)[j] * step[j]) - r) / step[j] for j in range(3)])
+def _levenberg_marquardt(resid, p, n_prior: int = 0, iters: int = 8, c: float = 2.5):
+    """LM with a forward-difference Jacobian (``resid`` maps (C, k) parameters to (C, R)
+    residuals); Cauchy loss (scale c) on all residuals but the last ``n_prior`` (Gaussian
+    priors). Returns the parameters and their covariance, inflated by the robust chi^2 per
+    degree of freedom when > 1."""
+    k, h = len(p), 1e-7
+
+    def weights(r):
         w = 1.0 / (1.0 + (r / c) ** 2)
-        H = J.T @ (w[:, None] * J)
-        dp = -np.linalg.lstsq(H, J.T @ (w * r), rcond=None)[0]
-        p = p + dp
-        if np.max(np.abs(dp)) < 1e-9:
+        w[len(r) - n_prior:] = 1.0
+        return w
+
+    def cost(r):
+        d, q = r[:len(r) - n_prior], r[len(r) - n_prior:]
+        return float(c * c * np.sum(np.log1p((d / c) ** 2)) + q @ q)
+
+    def eval_jac(p):
+        R = resid(np.vstack([p, p + h * np.eye(k)]))
+        return R[0], (R[1:] - R[0]).T / h
+
+    lam, (r, J) = 1e-3, eval_jac(p)
+    for _ in range(iters):
+        w = weights(r)
+        H, g = J.T @ (w[:, None] * J), J.T @ (w * r)
+        while lam < 1e8:
+            dp = -np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-12), g)
+            if cost(resid((p + dp)[None])[0]) < cost(r):
+                p, lam = p + dp, lam * 0.3
+                r, J = eval_jac(p)
+                break
+            lam *= 10.0
+        if lam >= 1e8 or np.max(np.abs(dp)) < 1e-8:
             break
-    r = resid(p)
-    w = 1.0 / (1.0 + (r / c) ** 2)
-    H = J.T @ (w[:, None] * J)
-    chi = float(np.sum(w * r * r)) / max(len(r) - 3, 1)
-    cov = np.linalg.pinv(H) * max(chi, 1.0)
-    return p, cov
+    w = weights(r)
+    chi = float(np.sum(w * r * r)) / max(len(r) - k, 1)
+    return p, np.linalg.pinv(J.T @ (w[:, None] * J)) * max(chi, 1.0)
+
+
+def _kabsch_candidate(P: _Pair, use, params: MotionParams, rng):
+    """Best 2-point floor alignment of matches lifted in both photos: cheap 2-D agreement of
+    the lifted pairs first, then the full score of the best 32. None if fewer than 2."""
+    both = np.flatnonzero(use[0] & use[1])
+    if len(both) < 2:
+        return None
+    A, B = P.la.points[both][:, [0, 2]], P.lb.points[both][:, [0, 2]]
+    yaw, t2 = _kabsch_pairs(A, B, _samples(rng, len(both), 2, params.max_iters))
+    sig = np.maximum(np.hypot(P.la.sigma[both], P.lb.sigma[both]), 0.02)
+    d = np.linalg.norm(A - _rot2(yaw[:, None], B) - t2[:, None], axis=-1) / sig
+    top = np.argsort(-_msac(d, 3.0))[:32]
+    t = np.column_stack([t2[top, 0], np.full(len(top), P.dy), t2[top, 1]])
+    i = int(np.argmax(_score(P, yaw[top], t, use, params.thr_px)[0]))
+    return float(yaw[top][i]), t[i]
+
+
+def _findme(P: _Pair, yaw, t, e_in, params: MotionParams, rng) -> PlanarMotion:
+    """The better (full score) of the scaled epipolar motion and the best lifted alignment,
+    refined twice (inliers re-taken). Floor points first; wall points too when fewer than
+    ``min_floor`` floor points agree with it (wrong matches on a repetitive carpet are
+    floor points too, so they are counted after the fit)."""
+    for walls in (False, True):
+        use = P.usable(walls)
+        s = _scale(P, yaw, t, e_in, use)
+        cands = ([(yaw, s * t)] if s is not None else []) + \
+            [c for c in [_kabsch_candidate(P, use, params, rng)] if c is not None]
+        if not cands:
+            continue
+        scores = _score(P, [c[0] for c in cands], [c[1] for c in cands], use, params.thr_px)[0]
+        p = np.array([cands[int(np.argmax(scores))][0], *cands[int(np.argmax(scores))][1]])
+        for _ in range(2):
+            _, e2, ta, tb = (m[0] for m in _score(P, p[0], p[1:], use, params.thr_px))
+            if e2.sum() < params.min_inliers or not (ta.any() or tb.any()):
+                break
+            p, cov = _refine(P, p[0], p[1:], e2, ta, tb)
+        else:
+            _, e2, ta, tb = (m[0] for m in _score(P, p[0], p[1:], use, params.thr_px))
+            if e2.sum() >= params.min_inliers and (walls or (ta | tb).sum() >= params.min_floor):
+                return _result(p[[0, 1, 3]], p[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
+                               e2 | ta | tb, int(ta.sum() + tb.sum()), "findme")
+    raise MotionError("no matched point lies on the floor or on a chosen wall consistently "
+                      "with the motion in either photo, so the distance between the photos "
+                      "cannot be measured")
 
 
 def _result(p, dy, cov, inliers, n_scale, method) -> PlanarMotion:
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    return PlanarMotion(float(p[1]), float(p[2]), float(np.angle(np.exp(1j * p[0]))), dy,
+    return PlanarMotion(float(p[1]), float(p[2]), float(np.angle(np.exp(1j * p[0]))), float(dy),
                         float(sd[1]), float(sd[2]), float(sd[0]), inliers, int(n_scale), method)
 
 
-def _paper(P: _Pair, yaw0, inl) -> PlanarMotion:
+def _paper(P: _Pair, inl) -> PlanarMotion:
     """Eqs. 5-8 on the verified matches lifted in both photos (floor projection x, z)."""
     idx = np.flatnonzero(inl & P.la.valid & P.lb.valid)
     if len(idx) == 0:
@@ -374,62 +623,38 @@ def _paper(P: _Pair, yaw0, inl) -> PlanarMotion:
     w = 2.0 / (A[:, 1] + B[:, 1])                                   # 1 / Z
     d = np.angle(np.exp(1j * (np.arctan2(A[:, 0], A[:, 1]) - np.arctan2(B[:, 0], B[:, 1]))))
     yaw = float(np.sum(w * d) / np.sum(w))                          # eq. 5
-    c, s = np.cos(yaw), np.sin(yaw)
-    T = A - np.column_stack([c * B[:, 0] + s * B[:, 1], -s * B[:, 0] + c * B[:, 1]])
-    t = (w[:, None] * T).sum(0) / np.sum(w)                         # eqs. 6-8
-    neff = np.sum(w) ** 2 / np.sum(w ** 2)
-    sd = lambda x, m: np.sqrt(np.sum(w * (x - m) ** 2) / np.sum(w) / neff)  # noqa: E731
-    cov = np.diag([sd(d, yaw), sd(T[:, 0], t[0]), sd(T[:, 1], t[1])]) ** 2
-    mask = np.zeros(len(P.a), bool)
-    mask[idx] = True
-    return _result([yaw, t[0], t[1]], P.dy, cov, mask, len(idx), "paper")
-
-
-def _kabsch2(A, B, w):
-    """Weighted 2-D rigid alignment A ~ R B + t: (yaw, t (2,)), R = R_y(yaw) on (x, z)."""
-    ca, cb = (w[:, None] * A).sum(0) / w.sum(), (w[:, None] * B).sum(0) / w.sum()
-    a, b = A - ca, B - cb
-    # R_y on (x, z): x' = c x + s z, z' = -s x + c z -> maximise sum w a.(R b)
-    num = np.sum(w * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]))
-    den = np.sum(w * (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]))
-    yaw = float(np.arctan2(num, den))
-    c, s = np.cos(yaw), np.sin(yaw)
-    return yaw, ca - np.array([c * cb[0] + s * cb[1], -s * cb[0] + c * cb[1]])
+    T = A - _rot2(yaw, B)
+    t = w @ T / np.sum(w)                                           # eqs. 6-8
+    var = lambda x, m: np.sum(w * (x - m) ** 2) * np.sum(w ** 2) / np.sum(w) ** 3  # noqa: E731
+    cov = np.diag([var(d, yaw), var(T[:, 0], t[0]), var(T[:, 1], t[1])])
+    return _result([yaw, *t], P.dy, cov, np.isin(np.arange(len(P.a)), idx), len(idx), "paper")
 
 
 def _lifted(P: _Pair, params: MotionParams, rng) -> PlanarMotion:
-    """2-point RANSAC + weighted Kabsch on matches lifted in both photos (floor plane)."""
+    """2-point RANSAC + weighted Kabsch on the matches lifted in both photos, projected on
+    the floor; inliers within 3 sigma (both points' sigmas combined, at least 5 cm)."""
     idx = np.flatnonzero(P.la.valid & P.lb.valid)
     if len(idx) < 2:
         raise MotionError(f"only {len(idx)} matches have a 3D point in both photos (floor or "
                           "chosen wall); the lifted estimator needs 2")
     A, B = P.la.points[idx][:, [0, 2]], P.lb.points[idx][:, [0, 2]]
-    sig = np.maximum(np.hypot(P.la.sigma[idx], P.lb.sigma[idx]), params.lift_floor_m)
-    w = 1.0 / sig ** 2
-
-    def res(yaw, t):
-        c, s = np.cos(yaw), np.sin(yaw)
-        RB = np.column_stack([c * B[:, 0] + s * B[:, 1], -s * B[:, 0] + c * B[:, 1]])
-        return np.linalg.norm(A - RB - t, axis=1) / sig
-
-    best, best_score = None, -1.0
-    for _ in range(params.iters):
-        k = rng.choice(len(idx), 2, replace=False)
-        yaw, t = _kabsch2(A[k], B[k], np.ones(2))
-        score = np.sum(np.maximum(0.0, 1.0 - (res(yaw, t) / 3.0) ** 2))
-        if score > best_score:
-            best, best_score = (yaw, t), score
-    for _ in range(3):
+    sig = np.maximum(np.hypot(P.la.sigma[idx], P.lb.sigma[idx]), 0.05)
+    res = lambda yaw, t: np.linalg.norm(A - _rot2(yaw, B) - t, axis=-1) / sig  # noqa: E731
+    yaw, t = _kabsch_pairs(A, B, _samples(rng, len(idx), 2, params.max_iters))
+    i = int(np.argmax(_msac(res(yaw[:, None], t[:, None]), 3.0)))
+    best = (float(yaw[i]), t[i])
+    for _ in range(4):
         ok = res(*best) < 3.0
-        best = _kabsch2(A[ok], B[ok], w[ok])
-    ok = res(*best) < 3.0
-    if ok.sum() < 2:
-        raise _no_common_view(int(ok.sum()), len(idx))
-    neff = max(ok.sum() - 1.0, 1.0)
-    sx = np.sqrt(1.0 / np.sum(w[ok])) * np.sqrt(max(np.mean(res(*best)[ok] ** 2), 1.0))
-    spread = np.sqrt(np.sum(w[ok] * np.sum((B[ok] - B[ok].mean(0)) ** 2, 1)))
-    cov = np.diag([(sx * np.sqrt(np.sum(w[ok])) / max(spread, 1e-9)) ** 2, sx ** 2, sx ** 2])
-    mask = np.zeros(len(P.a), bool)
-    mask[idx[ok]] = True
-    del neff
-    return _result([best[0], best[1][0], best[1][1]], P.dy, cov, mask, int(ok.sum()), "lifted")
+        if ok.sum() < 2:
+            raise _no_common_view(int(ok.sum()), len(idx))
+        best = kabsch_2d(A[ok], B[ok], 1.0 / sig[ok] ** 2)
+    # covariance of (yaw, tx, tz) from the Jacobian of the weighted 2-D residuals
+    c, s, Bo = np.cos(best[0]), np.sin(best[0]), B[ok]
+    J = np.zeros((2 * len(Bo), 3))
+    J[0::2, 0], J[1::2, 0] = -s * Bo[:, 0] + c * Bo[:, 1], -c * Bo[:, 0] - s * Bo[:, 1]
+    J[0::2, 1], J[1::2, 2] = 1.0, 1.0
+    W = np.repeat(1.0 / sig[ok] ** 2, 2)
+    chi = np.sum(res(*best)[ok] ** 2) / max(2 * len(Bo) - 3, 1)
+    cov = np.linalg.pinv(J.T @ (W[:, None] * J)) * max(chi, 1.0)
+    return _result([best[0], *best[1]], P.dy, cov, np.isin(np.arange(len(P.a)), idx[ok]),
+                   int(ok.sum()), "lifted")

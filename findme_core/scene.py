@@ -26,6 +26,20 @@ from .errors import GeometryError, HypothesisError
 from .search import SegKind
 
 _PARALLEL = 1e-9
+_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE = 1, 2, 3, 4, 5, 6
+#: Why a pixel has no 3D position (``Scene.locate_level``'s reason codes).
+REASONS = {
+    _ABOVE_HORIZON: "the pixel is at or above the horizon, so it is not on the floor, and no "
+                    "wall is known in its direction",
+    _PARALLEL_RAY: "the pixel's ray runs parallel to the wall: it never meets it",
+    _BEHIND: "the wall's plane lies behind the camera in this direction: the point would be "
+             "behind the camera",
+    _NO_FLOOR: "no floor is visible in this direction under the chosen boundary, so the wall's "
+               "distance is unknown",
+    _OUTSIDE: "the pixel is outside the image",
+    _NOT_FINITE: "the pixel is not finite",
+}
+_SURFACES = {1: "floor", 2: "wall"}
 
 
 @dataclass(frozen=True)
@@ -107,81 +121,102 @@ class Scene:
         return pieces
 
     # ------------------------------------------------------------------ queries
-    def _piece(self, pieces, az):
-        for p in pieces:
-            if p[0] <= az <= p[1]:
-                return p
+    def _solve(self, pieces, rays):
+        """Vectorised: (N, 3) level rays -> ((N,) ray parameter t, (N,) surface code, (N,)
+        failure reason); the point is t * ray. Surfaces: 1 floor, 2 wall, 0 none."""
+        n = len(rays)
+        az = np.arctan2(rays[:, 0], rays[:, 2])
+        a0 = np.array([p[0] for p in pieces])
+        a1 = np.array([p[1] for p in pieces])
+        kind = np.array([p[2] for p in pieces])
+        normal = np.array([p[3] for p in pieces])
+        offset = np.array([p[4] for p in pieces])
+        inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
         # outside every interval: the nearest end piece (walls extend past the image)
-        return min(pieces, key=lambda p: min(abs(az - p[0]), abs(az - p[1])))
+        gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
+        k = np.where(inside.any(1), np.argmax(inside, 1), np.argmin(gap, 1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_floor = np.where(rays[:, 1] > 0, self.height / rays[:, 1], np.inf)
+            den = (normal[k] * rays[:, [0, 2]]).sum(1)
+            t = offset[k] / den
+        wall = kind[k] == SegKind.WALL
+        parallel = wall & (np.abs(den) <= _PARALLEL)
+        behind = wall & ~parallel & ~(t > 0)
+        t_wall = np.where(wall & ~parallel & ~behind, t, np.inf)
+        floor = t_floor <= t_wall
+        t_out = np.where(floor, t_floor, t_wall)
+        surface = np.where(floor, 1, 2)
+        reason = np.zeros(n, int)
+        none = kind[k] == SegKind.NONE
+        bad = ~np.isfinite(t_out) | none
+        reason[bad & parallel] = _PARALLEL_RAY
+        reason[bad & behind] = _BEHIND
+        reason[bad & (reason == 0)] = _ABOVE_HORIZON
+        reason[none] = _NO_FLOOR
+        surface[bad] = 0
+        return np.where(bad, np.nan, t_out), surface, reason
 
-    def _point_level(self, pieces, ray):
-        """Level-frame point and surface of one level ray under ``pieces``."""
-        az = np.arctan2(ray[0], ray[2])
-        p = self._piece(pieces, az)
-        t_floor = self.height / ray[1] if ray[1] > 0 else np.inf
-        t_wall = np.inf
-        if p[2] == SegKind.WALL:
-            den = float(p[3] @ ray[[0, 2]])
-            if abs(den) > _PARALLEL:
-                t = p[4] / den
-                if t > 0:
-                    t_wall = t
-                elif not np.isfinite(t_floor):
-                    raise GeometryError("the wall's plane lies behind the camera in this "
-                                        "direction: the point would be behind the camera")
-            elif not np.isfinite(t_floor):
-                raise GeometryError("the pixel's ray runs parallel to the wall: it never meets it")
-        elif p[2] == SegKind.NONE:
-            raise GeometryError("no floor is visible in this direction under the chosen boundary, "
-                                "so the wall's distance is unknown")
-        if t_floor <= t_wall:
-            if not np.isfinite(t_floor):
-                raise GeometryError("the pixel is at or above the horizon, so it is not on the floor, "
-                                    "and no wall is known in its direction")
-            return t_floor * ray, "floor"
-        return t_wall * ray, "wall"
+    def locate_level(self, pixels):
+        """Vectorised 3D of (N, 2) pixels in the LEVEL frame.
+
+        Returns:
+            points: (N, 3) metres (NaN where there is no answer),
+            surface: (N,) 1 floor, 2 wall, 0 none,
+            sigma: (N,) 1-sigma radius (m; inf where no answer),
+            parts: dict of (N,) sigma components "height", "boundary", "pixel",
+            reason: (N,) failure reason code (0 = answered; see ``REASONS``).
+        """
+        cam = self.camera
+        px = np.asarray(pixels, float).reshape(-1, 2)
+        finite = np.isfinite(px).all(1)
+        pxs = np.where(finite[:, None], px, 0.0)
+        inside = (finite & (pxs[:, 0] >= -0.5) & (pxs[:, 0] <= cam.width - 0.5)
+                  & (pxs[:, 1] >= -0.5) & (pxs[:, 1] <= cam.height - 0.5))
+        rays = cam.rays_level(pxs)
+        t, surface, reason = self._solve(self._pieces, rays)
+        reason = np.where(inside, reason, np.where(finite, _OUTSIDE, _NOT_FINITE))
+        ok = reason == 0
+        surface = np.where(ok, surface, 0)
+        P = t[:, None] * rays
+        P[~ok] = np.nan
+
+        def moved(pieces, r):
+            t2, s2, _ = self._solve(pieces, r)
+            # a floor point stays on the floor (the boundary does not move it)
+            t2 = np.where(surface == 1, np.where(r[:, 1] > 0, self.height / np.maximum(r[:, 1], 1e-300),
+                                                 np.nan), t2)
+            d = np.linalg.norm(t2[:, None] * r - P, axis=1)
+            return np.where(np.isfinite(d), d, np.inf)
+
+        parts = {"height": np.linalg.norm(P, axis=1) * self.height_sigma / self.height,
+                 "boundary": moved(self._pieces_shifted, rays),
+                 "pixel": np.hypot(moved(self._pieces, cam.rays_level(pxs + (1.0, 0.0))),
+                                   moved(self._pieces, cam.rays_level(pxs + (0.0, 1.0))))}
+        sigma = np.sqrt(sum(x * x for x in parts.values()))
+        sigma = np.where(ok, sigma, np.inf)
+        return P, surface, sigma, parts, reason
 
     def locate(self, pixels) -> list[Located]:
-        """3D of each (u, v) pixel (N, 2); failures are reported per point, not raised."""
-        cam = self.camera
-        R = cam.R_level_from_cam
+        """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
+        point (``Located.error``), not raised."""
+        px = np.asarray(pixels, float).reshape(-1, 2)
+        P, surface, sigma, parts, reason = self.locate_level(px)
+        R = self.camera.R_level_from_cam
         out = []
-        for u, v in np.asarray(pixels, float).reshape(-1, 2):
-            if not (np.isfinite(u) and np.isfinite(v)):
-                out.append(Located((u, v), None, None, error=f"pixel ({u}, {v}) is not finite"))
+        for i, (u, v) in enumerate(px):
+            if reason[i]:
+                out.append(Located((u, v), None, None, error=self._reason_text(reason[i], u, v)))
                 continue
-            if not (-0.5 <= u <= cam.width - 0.5 and -0.5 <= v <= cam.height - 0.5):
-                out.append(Located((u, v), None, None, error=(
-                    f"pixel ({u:g}, {v:g}) is outside the {cam.width}x{cam.height} image")))
-                continue
-            ray = cam.rays_level([(u, v)])[0]
-            try:
-                P, surface = self._point_level(self._pieces, ray)
-            except GeometryError as e:
-                out.append(Located((u, v), None, None, error=str(e)))
-                continue
-            parts = {"height": float(np.linalg.norm(P)) * self.height_sigma / self.height}
-            parts["boundary"] = self._moved(self._pieces_shifted, ray, P, surface)
-            dp = []
-            for du, dv in ((1, 0), (0, 1)):
-                r2 = cam.rays_level([(u + du, v + dv)])[0]
-                dp.append(self._moved(self._pieces, r2, P, surface))
-            parts["pixel"] = float(np.hypot(*dp))
-            sigma = float(np.sqrt(sum(x * x for x in parts.values())))
-            out.append(Located((u, v), surface, R.T @ P, sigma, parts))
+            out.append(Located((u, v), _SURFACES[surface[i]], R.T @ P[i], float(sigma[i]),
+                               {k: float(x[i]) for k, x in parts.items()}))
         return out
 
-    def _moved(self, pieces, ray, P, surface) -> float:
-        """How far the point moves (m) when recomputed with other pieces or another ray,
-        keeping its surface; inf if it has no answer there."""
-        try:
-            Q, s2 = self._point_level(pieces, ray)
-        except GeometryError:
-            return float("inf")
-        if s2 != surface and surface == "floor":
-            t = self.height / ray[1] if ray[1] > 0 else np.inf
-            Q = t * ray
-        return float(np.linalg.norm(Q - P))
+    def _reason_text(self, code: int, u: float, v: float) -> str:
+        if code == _OUTSIDE:
+            return f"pixel ({u:g}, {v:g}) is outside the {self.camera.width}x{self.camera.height} image"
+        if code == _NOT_FINITE:
+            return f"pixel ({u}, {v}) is not finite"
+        return REASONS[code]
 
     def floor_point(self, pixel) -> np.ndarray:
         """(3,) camera-frame floor point of a pixel (eq. 2), whatever the walls.

@@ -1,0 +1,117 @@
+"""Speed of the two-image mode for 640x480 pairs, one core.
+
+    python bench/bench_motion.py [--json OUT.json] [--repeat 3]
+
+For every dev pair whose two views are 640x480 (../shared/data/findme-eval: the ZInD and TUM
+pairs; rendered synthetic pairs without it): feature extraction of both photos, matching,
+and the motion (lifting the matched points under each photo's rank-1 hypothesis, then the
+estimator), with the chosen detector (ORB, 3000 keypoints spread on a grid) side by side with
+the alternatives (ORB with 1500 keypoints, SIFT with 3000) in the same run, and the paper's
+estimator next to ours on the chosen features. Hypotheses are computed before the clock
+starts (~40-60 ms per photo, their own benchmark). Per pair the best of ``--repeat`` runs;
+reports median, p10/p90 and IQR over the pairs. Goal: features + matching + motion <= 60 ms.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
+from findme.evaluate import view_inputs  # noqa: E402
+from findme.motion_cli import motion_pair, scene_of  # noqa: E402
+from findme_core.features import FeatureParams  # noqa: E402
+
+DETECTORS = {
+    "orb 3000 grid (chosen)": FeatureParams(),
+    "orb 1500 grid": FeatureParams(n_features=1500),
+    "sift 3000": FeatureParams(detector="sift", grid=None),
+}
+
+
+def pairs():
+    """(pair id, image A, image B, camera A, camera B, h A, h B) of the 640x480 dev pairs, or
+    rendered synthetic pairs without the data."""
+    idx = EVAL_DIR / "index.json"
+    if idx.exists():
+        index = json.loads(idx.read_text())
+        for pid in sorted({p for s in index["subsets"].values() for p in s.get("pairs", [])}):
+            pair = json.loads((EVAL_DIR / "pairs" / f"{pid}.json").read_text())
+            views = []
+            for v in (pair["a"], pair["b"]):
+                meta = json.loads((EVAL_DIR / "views" / f"{v}.json").read_text())
+                cam, h, _ = view_inputs(meta)
+                views.append((cv2.imread(str(EVAL_DIR / "views" / meta["image"])), cam, h))
+            if all((c.width, c.height) == (640, 480) for _, c, _ in views):
+                yield pid, views[0][0], views[1][0], views[0][1], views[1][1], views[0][2], views[1][2]
+        return
+    from findme_core.synth import Box, Pose, Room, render
+    room = Room.rectangle(5.0, 6.0, floor_style="carpet", boxes=(Box(1.0, 1.6, 0.8, 0.5, 0.9, 20),))
+    for i in range(8):
+        a = render(room, Pose(0.2, -1.6, 1.45, yaw_deg=10 * i - 30, pitch_deg=20), 640, 480,
+                   hfov_deg=70.0, seed=1)
+        b = render(room, Pose(0.5, -1.2, 1.45, yaw_deg=10 * i - 20, pitch_deg=22), 640, 480,
+                   hfov_deg=70.0, seed=1)
+        yield f"synthetic_{i}", a.image, b.image, a.camera, b.camera, 1.45, 1.45
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--repeat", type=int, default=3)
+    a = ap.parse_args(argv)
+    how = pin_one_core()
+    runs: dict = {}
+    n, answered = 0, {k: 0 for k in DETECTORS}
+    for pid, ia, ib, ca, cb, ha, hb in pairs():
+        sa, sb = scene_of(ia, ca, ha)[0], scene_of(ib, cb, hb)[0]   # not timed
+        for name, fp in DETECTORS.items():
+            methods = ("findme", "paper") if "chosen" in name else ("findme",)
+            best = None
+            for _ in range(a.repeat):
+                res = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods, fp,
+                                  clock=time.perf_counter)
+                ours = res["findme"]
+                if isinstance(ours, Exception):     # no estimate: time up to the error
+                    break
+                tm = dict(ours.timing_ms)
+                if "paper" in res and not isinstance(res["paper"], Exception):
+                    tm["paper motion"] = res["paper"].timing_ms["motion"]
+                if best is None or sum(tm.values()) < sum(best.values()):
+                    best = tm
+            if best is None:
+                continue
+            answered[name] += 1
+            core = best["features"] + best["matching"] + best["motion"]
+            for k, v in [("features", best["features"]), ("matching", best["matching"]),
+                         ("lift (3D)", best["lift"]), ("motion", best["motion"]),
+                         ("features + matching + motion", core),
+                         ("... + lift", core + best["lift"])] + (
+                    [("paper estimator (motion)", best["paper motion"])]
+                    if "paper motion" in best else []):
+                runs.setdefault(name, {}).setdefault(k, []).append(v)
+        n += 1
+    src = "dev split" if (EVAL_DIR / "index.json").exists() else "synthetic"
+    print(f"two-image mode on {n} 640x480 pairs ({src}), best of {a.repeat} per pair, {how}; "
+          "hypotheses excluded")
+    out = {}
+    for name, parts in runs.items():
+        print(f"-- {name}: estimate for {answered[name]} of {n} pairs")
+        out[name] = {k: stats(v) for k, v in parts.items()}
+        for k, s in out[name].items():
+            print("  " + fmt(k, s))
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(out, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,164 @@
+"""``findme motion``: the planar motion between two photos (two-image mode, paper step 5).
+
+Pipeline (``motion_pair``, shared with ``findme eval`` and the benchmark): hypotheses of each
+photo (the chosen rank becomes the photo's scene), ORB features and matches, then
+``findme_core.motion.estimate`` lifts the matched points under each scene and estimates
+(x, z, yaw) of photo B in photo A's level frame. Degrees only here, at the edge.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+
+from findme_core import features
+from findme_core.camera import Camera
+from findme_core.errors import FindmeError, HypothesisError
+from findme_core.methods import METHODS as HYPOTHESIS_METHODS, hypothesize
+from findme_core.motion import METHODS, MotionParams, PlanarMotion, estimate
+from findme_core.scene import Scene
+
+from .imageio import read_image
+from .options import add_camera_args, camera_from, camera_height
+
+
+@dataclass
+class PairResult:
+    """A motion with what produced it (counts, milliseconds per stage)."""
+
+    motion: PlanarMotion
+    matches: int
+    keypoints: tuple[int, int]
+    timing_ms: dict
+
+
+def scene_of(image, camera: Camera, height: float, rank: int = 1,
+             hypothesis_method: str = "findme", which: str = "A", clock=time.perf_counter):
+    """(Scene of the photo under its ``rank``-th hypothesis, milliseconds). None when the
+    photo has no hypothesis at all (the motion then says whether it can do without); a rank
+    beyond the hypotheses found is a bad input (HypothesisError)."""
+    t0 = clock()
+    hs = hypothesize(image, camera, hypothesis_method, max(10, rank))
+    ms = 1e3 * (clock() - t0)
+    if rank < 1 or rank > max(1, len(hs.hypotheses)):
+        raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "
+                              f"{len(hs.hypotheses)} hypotheses"
+                              + (f" ({hs.reason})" if hs.reason else ""))
+    if not hs.hypotheses:
+        return None, ms
+    h = hs.hypotheses[rank - 1]
+    return Scene(camera, height, h.polyline, h.kinds), ms
+
+
+def motion_pair(image_a, image_b, cam_a: Camera, cam_b: Camera, scene_a, scene_b,
+                h_a: float, h_b: float, methods=("findme",),
+                feature_params: features.FeatureParams = features.FeatureParams(),
+                params: MotionParams = MotionParams(), clock=time.perf_counter) -> dict:
+    """Features, matches and the motion by each method of ``methods``.
+
+    Returns {method: PairResult or the FindmeError raised}; errors of the features stage
+    are raised (they concern every method)."""
+    t0 = clock()
+    fa, fb = features.detect(image_a, feature_params), features.detect(image_b, feature_params)
+    t1 = clock()
+    m = features.match(fa, fb, feature_params)
+    t2 = clock()
+    out = {}
+    for method in methods:
+        spent = [0.0]
+
+        def lifter(scene, px):
+            if scene is None:
+                return None
+
+            def lift(idx):
+                s = clock()
+                res = features.lift(scene, px, idx)
+                spent[0] += clock() - s
+                return res
+            return lift
+
+        s = clock()
+        try:
+            mo = estimate(m, cam_a, cam_b, h_a, h_b, lifter(scene_a, m.ua), lifter(scene_b, m.ub),
+                          method, params)
+        except FindmeError as e:
+            out[method] = e
+            continue
+        total = clock() - s
+        out[method] = PairResult(mo, len(m), (len(fa), len(fb)), {
+            "features": 1e3 * (t1 - t0), "matching": 1e3 * (t2 - t1),
+            "lift": 1e3 * spent[0], "motion": 1e3 * (total - spent[0])})
+    return out
+
+
+def motion_json(r: PairResult, metric: bool) -> dict:
+    """The JSON contract of ``findme motion --json``."""
+    m = r.motion
+    r6 = lambda v: round(float(v), 6)  # noqa: E731
+    return {"x_m": r6(m.x), "z_m": r6(m.z), "yaw_deg": r6(math.degrees(m.yaw)),
+            "sigma_x_m": r6(m.sigma_x), "sigma_z_m": r6(m.sigma_z),
+            "sigma_yaw_deg": r6(math.degrees(m.sigma_yaw)), "dy_m": r6(m.dy),
+            "inliers": m.n_inliers, "matches": r.matches, "scale_points": m.n_scale,
+            "keypoints": list(r.keypoints), "method": m.method, "metric": metric,
+            "timing_ms": {k: round(v, 3) for k, v in r.timing_ms.items()}}
+
+
+def register(sub) -> None:
+    p = sub.add_parser("motion", help="planar motion between two photos",
+                       description="Pose of photo B's camera in photo A's level frame: x (right), "
+                                   "z (forward) in metres and yaw in degrees (> 0: B turned right).")
+    p.add_argument("image_a", metavar="IMAGE_A")
+    p.add_argument("image_b", metavar="IMAGE_B")
+    add_camera_args(p, gravity_flags=("--gravity-a", "--gravity-b"))
+    p.add_argument("--camera-height", type=float, metavar="M",
+                   help="camera height above the floor in metres, both photos (default: 1, "
+                        "results up to scale)")
+    p.add_argument("--hypothesis-a", type=int, default=1, metavar="RANK",
+                   help="chosen boundary hypothesis of photo A (1 = best ranked)")
+    p.add_argument("--hypothesis-b", type=int, default=1, metavar="RANK",
+                   help="chosen boundary hypothesis of photo B (1 = best ranked)")
+    p.add_argument("--method", default="findme", choices=METHODS,
+                   help="motion estimator: findme (default), lifted, or paper (eqs. 5-8)")
+    p.add_argument("--hypothesis-method", default="findme", choices=HYPOTHESIS_METHODS,
+                   help="boundary hypothesis method of both photos")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_motion)
+
+
+def cmd_motion(args) -> int:
+    h, metric = camera_height(args.camera_height)
+    images, cams = [], []
+    for path, grav, flag in ((args.image_a, args.gravity_a, "--gravity-a"),
+                             (args.image_b, args.gravity_b, "--gravity-b")):
+        img = read_image(path)
+        images.append(img)
+        cams.append(camera_from(img.shape[1], img.shape[0], args.hfov, args.intrinsics, grav, flag))
+    clock = time.perf_counter
+    scenes, hyp_ms = [], 0.0
+    for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b), "AB"):
+        sc, ms = scene_of(img, cam, h, rank, args.hypothesis_method, which, clock)
+        scenes.append(sc)
+        hyp_ms += ms
+    res = motion_pair(*images, *cams, *scenes, h, h, (args.method,), clock=clock)[args.method]
+    if isinstance(res, Exception):
+        raise res
+    out = motion_json(res, metric)
+    out["timing_ms"]["hypotheses"] = round(hyp_ms, 3)
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    unit = "m" if metric else "camera heights"
+    print(f"photo B relative to photo A ({out['method']}): x {out['x_m']:+.3f} ± "
+          f"{out['sigma_x_m']:.3f} {unit} (right), z {out['z_m']:+.3f} ± {out['sigma_z_m']:.3f} "
+          f"{unit} (forward), yaw {out['yaw_deg']:+.2f} ± {out['sigma_yaw_deg']:.2f} deg "
+          "(> 0: turned right)")
+    print(f"  {out['inliers']} of {out['matches']} matches agree, {out['scale_points']} 3D points "
+          f"fix the scale; {sum(out['timing_ms'].values()):.0f} ms")
+    if not metric:
+        print("  (no --camera-height given: distances are in units of the camera height)",
+              file=sys.stderr)
+    return 0
