@@ -44,6 +44,10 @@ import numpy as np
 from .camera import Camera
 from .errors import InputError, MotionError
 from .features import Lifted, Matches
+from .planar import (_epipolar_terms, _kabsch_pairs, _rot2, _rotate, _spread,  # noqa: F401
+                     bearings, depths, epipolar_residuals, kabsch_2d, rot_y, solve_gravity_3pt,
+                     solve_planar_2pt, transfer_residuals)
+from .robust import levenberg_marquardt, msac, samples
 
 METHODS = ("findme", "lifted", "paper")
 Lifter = Callable[[np.ndarray], Lifted]  # match indices -> Lifted of all matches (NaN = not)
@@ -113,177 +117,6 @@ class PlanarMotion:
     @property
     def n_inliers(self) -> int:
         return int(np.count_nonzero(self.inliers))
-
-
-# ---------------------------------------------------------------------------- geometry
-def rot_y(yaw) -> np.ndarray:
-    """(3, 3) level_A <- level_B rotation R_y(yaw); (C, 3, 3) for C yaws."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    z, o = np.zeros_like(c), np.ones_like(c)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
-                     np.stack([-s, z, c], -1)], -2)
-
-
-def _rotate(yaw, v, inverse: bool = False) -> np.ndarray:
-    """R_y(yaw) v (or R_y^T v) for C yaws (C,) and vectors (N, 3) or (C, N, 3): (C, N, 3)."""
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None] * (-1.0 if inverse else 1.0)
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([c * x + s * z, np.broadcast_to(y, np.broadcast_shapes(c.shape, y.shape)),
-                     c * z - s * x], -1)
-
-
-def _rot2(yaw, B):
-    """R_y(yaw) on floor points (..., 2) = (x, z)."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.stack([c * B[..., 0] + s * B[..., 1], -s * B[..., 0] + c * B[..., 1]], -1)
-
-
-def _cross(u, v):
-    """np.cross over the last axis with broadcasting, without its overhead."""
-    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
-                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
-                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], -1)
-
-
-def bearings(camera: Camera, pixels) -> np.ndarray:
-    """(N, 2) pixels -> (N, 3) unit ray directions in the camera's level frame."""
-    r = camera.rays_level(pixels)
-    return r / np.linalg.norm(r, axis=1, keepdims=True)
-
-
-def solve_planar_2pt(a: np.ndarray, b: np.ndarray):
-    """Yaw and unit horizontal baseline from S samples of 2 matches, a, b (S, 2, 3).
-
-    With t = (sin phi, 0, cos phi) and psi = phi - yaw, a^T [t]x R_y b = 0 is linear in
-    v = (cos phi, sin phi, cos psi, sin psi): row (-a_x b_y, a_z b_y, a_y b_x, -a_y b_z)
-    (Ortin & Montiel 2001). v = x n1 + n2 in the null space of the 2 rows, and
-    |v_01| = |v_23| = 1 gives a quadratic in x. Returns yaw (C,), t (C, 3) up to sign and
-    the sample of each (C,)."""
-    A = np.stack([-a[..., 0] * b[..., 1], a[..., 2] * b[..., 1], a[..., 1] * b[..., 0],
-                  -a[..., 1] * b[..., 2]], -1)
-    V = np.linalg.svd(A)[2]
-    n1, n2 = V[:, 2], V[:, 3]
-    d = [np.sum(u[:, :2] * w[:, :2], 1) - np.sum(u[:, 2:] * w[:, 2:], 1)
-         for u, w in ((n1, n1), (n1, n2), (n2, n2))]
-    disc = (2 * d[1]) ** 2 - 4 * d[0] * d[2]
-    ok = (disc >= 0) & (np.abs(d[0]) > 1e-12)
-    yaws, ts = [], []
-    for sgn in (-1.0, 1.0):
-        x = (-2 * d[1][ok] + sgn * np.sqrt(disc[ok])) / (2 * d[0][ok])
-        v = x[:, None] * n1[ok] + n2[ok]
-        phi, psi = np.arctan2(v[:, 1], v[:, 0]), np.arctan2(v[:, 3], v[:, 2])
-        yaws.append(phi - psi)
-        ts.append(np.stack([np.sin(phi), np.zeros_like(phi), np.cos(phi)], 1))
-    src = np.tile(np.flatnonzero(ok), 2)
-    return np.angle(np.exp(1j * np.concatenate(yaws))), np.concatenate(ts), src
-
-
-_BASIS = ([-1.0, 0.0, 1.0], [2.0, 0.0], [1.0, 0.0, 1.0])  # cos, sin, 1 times (1 + x^2)
-_POLY = np.array([np.pad(p, (7 - len(p), 0)) for p in (
-    np.polymul(np.polymul(_BASIS[i], _BASIS[j]), _BASIS[k]) for i, j, k in np.ndindex(3, 3, 3))])
-
-
-def solve_gravity_3pt(a: np.ndarray, b: np.ndarray):
-    """Yaw and unit 3-D baseline from S samples of 3 matches, a, b (S, 3, 3) (known vertical,
-    free dy). Each match gives t . m_i = 0 with m_i = (R_y b_i) x a_i = c p_i + s q_i + r_i,
-    so det[m_1, m_2, m_3] = 0: a cubic in (c, s) = (cos, sin yaw), a sextic in tan(yaw / 2)
-    (roots: companion matrices). Returns yaw (C,), t (C, 3) up to sign, the sample (C,)."""
-    z = np.zeros(b.shape[:2])
-    K = np.stack([_cross(np.stack([b[..., 0], z, b[..., 2]], -1), a),
-                  _cross(np.stack([b[..., 2], z, -b[..., 0]], -1), a),
-                  _cross(np.stack([z, b[..., 1], z], -1), a)], 1)      # (S, kind, point, 3)
-    dets = np.stack([np.sum(K[:, i, 0] * _cross(K[:, j, 1], K[:, k, 2]), -1)
-                     for i, j, k in np.ndindex(3, 3, 3)], 1)
-    coeffs = dets @ _POLY
-    ok = np.abs(coeffs[:, 0]) > 1e-9 * np.abs(coeffs).max(1)  # else a root at yaw = pi: skip
-    comp = np.zeros((int(ok.sum()), 6, 6))
-    comp[:, 0, :] = -coeffs[ok, 1:] / coeffs[ok, :1]
-    comp[:, np.arange(1, 6), np.arange(5)] = 1.0
-    x = np.linalg.eigvals(comp)
-    real = np.abs(x.imag) < 1e-7 * np.maximum(1.0, np.abs(x.real))
-    src = np.repeat(np.flatnonzero(ok), 6).reshape(-1, 6)[real]
-    yaw = 2.0 * np.arctan(x.real[real])
-    m = _cross(_rotate(yaw, b[src]), a[src])
-    t = _cross(m[:, 0], m[:, 1])
-    return yaw, t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300), src
-
-
-def kabsch_2d(A: np.ndarray, B: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
-    """Weighted 2-D rigid alignment of floor points (x, z), A ~ R_y(yaw) B + t, closed form.
-    Returns (yaw, t (2,))."""
-    ca, cb = w @ A / w.sum(), w @ B / w.sum()
-    a, b = A - ca, B - cb
-    yaw = float(np.arctan2(w @ (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
-                           w @ (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
-    return yaw, ca - _rot2(yaw, cb)
-
-
-def _kabsch_pairs(A, B, j):
-    """``kabsch_2d`` of the 2-point samples j (S, 2): yaw (S,), t (S, 2)."""
-    dA, dB = A[j[:, 1]] - A[j[:, 0]], B[j[:, 1]] - B[j[:, 0]]
-    yaw = np.arctan2(dA[:, 0] * dB[:, 1] - dA[:, 1] * dB[:, 0], np.sum(dA * dB, 1))
-    return yaw, A[j].mean(1) - _rot2(yaw[:, None], B[j]).mean(1)
-
-
-# ---------------------------------------------------------------------------- residuals
-def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Signed angle (rad, Sampson-like) of each match from its epipolar plane,
-    a . (t x R b) / rms(|t x R b|, |t x a|): (M,) for one motion, (C, M) for C yaws (C,)
-    and baselines (C, 3)."""
-    T = np.atleast_2d(t)[:, None, :]
-    n1, n2 = _cross(T, _rotate(np.atleast_1d(yaw), b)), _cross(T, a[None])
-    den = np.sqrt(0.5 * (np.sum(n1 * n1, -1) + np.sum(n2 * n2, -1)))
-    r = np.sum(a[None] * n1, -1) / np.maximum(den, 1e-12)
-    return r[0] if np.ndim(yaw) == 0 else r
-
-
-def depths(yaw, t, a: np.ndarray, b: np.ndarray):
-    """Least-squares depths (la, lb) along a and b with la a = t + lb R_y b; shapes as in
-    ``epipolar_residuals``."""
-    Rb, T = _rotate(np.atleast_1d(yaw), b), np.atleast_2d(t)
-    ab, at, bt = np.sum(a[None] * Rb, -1), T @ a.T, np.sum(Rb * T[:, None, :], -1)
-    det = np.maximum(1.0 - ab * ab, 1e-12)
-    la, lb = (at - ab * bt) / det, (ab * at - bt) / det
-    return (la[0], lb[0]) if np.ndim(yaw) == 0 else (la, lb)
-
-
-def _moved(yaw, t, pts, into_b: bool):
-    """Lifted points (N, 3) of one photo in the other photo's level frame: (C, N, 3)."""
-    T = np.atleast_2d(t)[:, None, :]
-    return _rotate(yaw, pts[None] - T, True) if into_b else _rotate(yaw, pts) + T
-
-
-def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float):
-    """hypot(1, each point's sigma (N,) along its own ray, seen across the observed ray of
-    the other photo, in pixels): (C, N)."""
-    y1 = np.atleast_1d(yaw)
-    own = _rotate(y1, pts / np.maximum(np.linalg.norm(pts, axis=1), 1e-12)[:, None], into_b)
-    dist = np.maximum(np.linalg.norm(_moved(y1, t, pts, into_b), axis=-1), 1e-9)
-    return np.hypot(1.0, sig * np.linalg.norm(_cross(own, rays[None]), axis=-1) / dist / pix)
-
-
-def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None):
-    """Lifted points (N, 3) of one photo moved into the other: angle to the observed rays
-    (N, 3) in pixels over their ``_spread`` (computed when None); 1000 for a point behind
-    the camera. (N,) for one motion, (C, N) for C."""
-    y1 = np.atleast_1d(yaw)
-    Q = _moved(y1, t, pts, into_b)
-    dist = np.maximum(np.sqrt(np.sum(Q * Q, -1)), 1e-9)
-    spread = _spread(y1, t, pts, sig, rays, into_b, pix) if spread is None else spread
-    sin_ray = np.linalg.norm(_cross(Q, rays[None]), axis=-1) / dist
-    r = np.where(np.sum(Q * rays[None], -1) > 0, sin_ray / pix / spread, 1000.0)
-    return r[0] if np.ndim(yaw) == 0 else r
-
-
-def _epipolar_terms(a, b, yaw, t, pix):
-    """(C, M) epipolar residuals in pixels, and masks: in front of both cameras, behind
-    both, no parallax (a ~ R b within 1 px: at infinity or a pure rotation, in front
-    whatever the sign of t)."""
-    yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
-    r = np.abs(epipolar_residuals(yaw, t, a, b)) / pix
-    la, lb = depths(yaw, t, a, b)
-    far = np.linalg.norm(_cross(a[None], _rotate(yaw, b)), axis=-1) / pix < 1.0
-    return r, ~far & (la > 0) & (lb > 0), ~far & (la < 0) & (lb < 0), far
 
 
 # ---------------------------------------------------------------------------- estimation
@@ -400,17 +233,6 @@ def _no_common_view(k: int, n: int) -> MotionError:
                        "one camera motion")
 
 
-def _msac(r, thr):
-    """MSAC score per row (truncated quadratic): sum of max(0, 1 - (r / thr)^2)."""
-    return np.sum(np.maximum(0.0, 1.0 - (r / thr) ** 2), axis=-1)
-
-
-def _samples(rng, n: int, k: int, count: int) -> np.ndarray:
-    """(<= count, k) index samples without repetition inside a sample."""
-    s = rng.integers(0, n, (count, k))
-    return s[np.all(np.diff(np.sort(s, 1), axis=1) > 0, axis=1)]
-
-
 def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
     """Scale-free (yaw, unit t, inliers) with the best MSAC score, t signed so that the
     inliers are in front of both cameras; stops adaptively (``confidence``)."""
@@ -418,7 +240,7 @@ def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
     k, solver = (2, solve_planar_2pt) if planar else (3, solve_gravity_3pt)
     best, best_score, done, need = None, -1.0, 0, params.max_iters
     while done < need:
-        j = _samples(rng, n, k, 64)
+        j = samples(rng, n, k, 64)
         done += 64
         yaw, t, _ = solver(a[j], b[j])
         j0 = j[:, 0]   # and the pure rotation through each first match (no solver answer)
@@ -426,13 +248,13 @@ def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
         t = np.vstack([t, np.tile([1.0, 0.0, 0.0], (len(j0), 1))])
         # cheirality only removes inliers: the residuals' score bounds the full one, so only
         # the best 8 candidates of the batch get the depths
-        top = np.argsort(-_msac(np.abs(epipolar_residuals(yaw, t, a, b)) / pix, thr))[:8]
+        top = np.argsort(-msac(np.abs(epipolar_residuals(yaw, t, a, b)) / pix, thr))[:8]
         yaw, t = yaw[top], t[top]
         r, front, back, far = _epipolar_terms(a, b, yaw, t, pix)
         flip = (back & (r < thr)).sum(1) > (front & (r < thr)).sum(1)
         t[flip] = -t[flip]
         inl = (r < thr) & (far | np.where(flip[:, None], back, front))
-        score = _msac(np.where(inl, r, thr), thr)
+        score = msac(np.where(inl, r, thr), thr)
         i = int(np.argmax(score))
         if score[i] > best_score:
             best, best_score = (float(yaw[i]), t[i], inl[i]), score[i]
@@ -451,13 +273,13 @@ def _score(P: _Pair, yaw, t, use, thr: float):
     yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
     r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t, P.pix)
     e_in = (r < thr) & (front | far)
-    score, ins = _msac(np.where(e_in, r, thr), thr), []
+    score, ins = msac(np.where(e_in, r, thr), thr), []
     for L, u, rays, into_b in ((P.la, use[0], P.b, True), (P.lb, use[1], P.a, False)):
         i, m = np.flatnonzero(u), np.zeros(e_in.shape, bool)
         if len(i):
             rt = transfer_residuals(yaw, t, L.points[i], L.sigma[i], rays[i], into_b, P.pix)
             m[:, i] = rt < thr
-            score = score + _msac(rt, thr)
+            score = score + msac(rt, thr)
         ins.append(m)
     return score, e_in, ins[0], ins[1]
 
@@ -500,7 +322,7 @@ def _refine_dir(a, b, yaw, t, e_in, planar: bool, pix: float, sigma_elev=np.radi
         return np.concatenate([r, q[:, 2:3] / sigma_elev], 1) if planar else r
 
     q0 = np.array([yaw, np.arctan2(t[0], t[2]), np.arcsin(np.clip(t[1], -1.0, 1.0))])
-    q, cov = _levenberg_marquardt(resid, q0, n_prior=int(planar))
+    q, cov = levenberg_marquardt(resid, q0, n_prior=int(planar))
     return float(q[0]), unit(q), float(np.sqrt(cov[2, 2]))
 
 
@@ -521,45 +343,7 @@ def _refine(P: _Pair, yaw, t, e_in, ta_in, tb_in):
             + [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)]
             + [((tq[:, 1] - P.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None]], 1)
 
-    return _levenberg_marquardt(resid, np.array([yaw, *t]), n_prior=1)
-
-
-def _levenberg_marquardt(resid, p, n_prior: int = 0, iters: int = 8, c: float = 2.5):
-    """LM with a forward-difference Jacobian (``resid`` maps (C, k) parameters to (C, R)
-    residuals); Cauchy loss (scale c) on all residuals but the last ``n_prior`` (Gaussian
-    priors). Returns the parameters and their covariance, inflated by the robust chi^2 per
-    degree of freedom when > 1."""
-    k, h = len(p), 1e-7
-
-    def weights(r):
-        w = 1.0 / (1.0 + (r / c) ** 2)
-        w[len(r) - n_prior:] = 1.0
-        return w
-
-    def cost(r):
-        d, q = r[:len(r) - n_prior], r[len(r) - n_prior:]
-        return float(c * c * np.sum(np.log1p((d / c) ** 2)) + q @ q)
-
-    def eval_jac(p):
-        R = resid(np.vstack([p, p + h * np.eye(k)]))
-        return R[0], (R[1:] - R[0]).T / h
-
-    lam, (r, J) = 1e-3, eval_jac(p)
-    for _ in range(iters):
-        w = weights(r)
-        H, g = J.T @ (w[:, None] * J), J.T @ (w * r)
-        while lam < 1e8:
-            dp = -np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-12), g)
-            if cost(resid((p + dp)[None])[0]) < cost(r):
-                p, lam = p + dp, lam * 0.3
-                r, J = eval_jac(p)
-                break
-            lam *= 10.0
-        if lam >= 1e8 or np.max(np.abs(dp)) < 1e-8:
-            break
-    w = weights(r)
-    chi = float(np.sum(w * r * r)) / max(len(r) - k, 1)
-    return p, np.linalg.pinv(J.T @ (w[:, None] * J)) * max(chi, 1.0)
+    return levenberg_marquardt(resid, np.array([yaw, *t]), n_prior=1)
 
 
 def _kabsch_candidate(P: _Pair, use, params: MotionParams, rng):
@@ -569,10 +353,10 @@ def _kabsch_candidate(P: _Pair, use, params: MotionParams, rng):
     if len(both) < 2:
         return None
     A, B = P.la.points[both][:, [0, 2]], P.lb.points[both][:, [0, 2]]
-    yaw, t2 = _kabsch_pairs(A, B, _samples(rng, len(both), 2, params.max_iters))
+    yaw, t2 = _kabsch_pairs(A, B, samples(rng, len(both), 2, params.max_iters))
     sig = np.maximum(np.hypot(P.la.sigma[both], P.lb.sigma[both]), 0.02)
     d = np.linalg.norm(A - _rot2(yaw[:, None], B) - t2[:, None], axis=-1) / sig
-    top = np.argsort(-_msac(d, 3.0))[:32]
+    top = np.argsort(-msac(d, 3.0))[:32]
     t = np.column_stack([t2[top, 0], np.full(len(top), P.dy), t2[top, 1]])
     i = int(np.argmax(_score(P, yaw[top], t, use, params.thr_px)[0]))
     return float(yaw[top][i]), t[i]
@@ -640,8 +424,8 @@ def _lifted(P: _Pair, params: MotionParams, rng) -> PlanarMotion:
     A, B = P.la.points[idx][:, [0, 2]], P.lb.points[idx][:, [0, 2]]
     sig = np.maximum(np.hypot(P.la.sigma[idx], P.lb.sigma[idx]), 0.05)
     res = lambda yaw, t: np.linalg.norm(A - _rot2(yaw, B) - t, axis=-1) / sig  # noqa: E731
-    yaw, t = _kabsch_pairs(A, B, _samples(rng, len(idx), 2, params.max_iters))
-    i = int(np.argmax(_msac(res(yaw[:, None], t[:, None]), 3.0)))
+    yaw, t = _kabsch_pairs(A, B, samples(rng, len(idx), 2, params.max_iters))
+    i = int(np.argmax(msac(res(yaw[:, None], t[:, None]), 3.0)))
     best = (float(yaw[i]), t[i])
     for _ in range(4):
         ok = res(*best) < 3.0
