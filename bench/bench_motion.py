@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
 from findme.evaluate import view_inputs  # noqa: E402
-from findme.motion_cli import motion_pair, scene_of  # noqa: E402
+from findme_core.pair import motion_pair, scene_of  # noqa: E402
 from findme_core.features import FeatureParams  # noqa: E402
 
 DETECTORS = {

@@ -12,87 +12,13 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass
 
-from findme_core import features
-from findme_core.camera import Camera
-from findme_core.errors import FindmeError, HypothesisError
-from findme_core.methods import METHODS as HYPOTHESIS_METHODS, hypothesize
-from findme_core.motion import METHODS, MotionParams, PlanarMotion, estimate
-from findme_core.scene import Scene
+from findme_core.methods import METHODS as HYPOTHESIS_METHODS
+from findme_core.motion import METHODS
+from findme_core.pair import PairResult, motion_pair, scene_of
 
 from .imageio import read_image
 from .options import add_camera_args, camera_from, camera_height
-
-
-@dataclass
-class PairResult:
-    """A motion with what produced it (counts, milliseconds per stage)."""
-
-    motion: PlanarMotion
-    matches: int
-    keypoints: tuple[int, int]
-    timing_ms: dict
-
-
-def scene_of(image, camera: Camera, height: float, rank: int = 1,
-             hypothesis_method: str = "findme", which: str = "A", clock=time.perf_counter):
-    """(Scene of the photo under its ``rank``-th hypothesis, milliseconds). None when the
-    photo has no hypothesis at all (the motion then says whether it can do without); a rank
-    beyond the hypotheses found is a bad input (HypothesisError)."""
-    t0 = clock()
-    hs = hypothesize(image, camera, hypothesis_method, max(10, rank))
-    ms = 1e3 * (clock() - t0)
-    if rank < 1 or rank > max(1, len(hs.hypotheses)):
-        raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "
-                              f"{len(hs.hypotheses)} hypotheses"
-                              + (f" ({hs.reason})" if hs.reason else ""))
-    if not hs.hypotheses:
-        return None, ms
-    h = hs.hypotheses[rank - 1]
-    return Scene(camera, height, h.polyline, h.kinds), ms
-
-
-def motion_pair(image_a, image_b, cam_a: Camera, cam_b: Camera, scene_a, scene_b,
-                h_a: float, h_b: float, methods=("findme",),
-                feature_params: features.FeatureParams = features.FeatureParams(),
-                params: MotionParams = MotionParams(), clock=time.perf_counter) -> dict:
-    """Features, matches and the motion by each method of ``methods``.
-
-    Returns {method: PairResult or the FindmeError raised}; errors of the features stage
-    are raised (they concern every method)."""
-    t0 = clock()
-    fa, fb = features.detect(image_a, feature_params), features.detect(image_b, feature_params)
-    t1 = clock()
-    m = features.match(fa, fb, feature_params)
-    t2 = clock()
-    out = {}
-    for method in methods:
-        spent = [0.0]
-
-        def lifter(scene, px):
-            if scene is None:
-                return None
-
-            def lift(idx):
-                s = clock()
-                res = features.lift(scene, px, idx)
-                spent[0] += clock() - s
-                return res
-            return lift
-
-        s = clock()
-        try:
-            mo = estimate(m, cam_a, cam_b, h_a, h_b, lifter(scene_a, m.ua), lifter(scene_b, m.ub),
-                          method, params)
-        except FindmeError as e:
-            out[method] = e
-            continue
-        total = clock() - s
-        out[method] = PairResult(mo, len(m), (len(fa), len(fb)), {
-            "features": 1e3 * (t1 - t0), "matching": 1e3 * (t2 - t1),
-            "lift": 1e3 * spent[0], "motion": 1e3 * (total - spent[0])})
-    return out
 
 
 def motion_json(r: PairResult, metric: bool) -> dict:

@@ -1,0 +1,114 @@
+"""End to end across processes: a router and every service in its own process over
+loopback; a two-photo session goes capture -> hypotheses -> auto selection -> measure query
+-> odometry, and the numbers equal what the command line computes for the same photos.
+Waits on liveliness tokens and results, never sleeps."""
+
+import json
+import math
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from importlib import resources
+
+import numpy as np
+import pytest
+import zenoh
+
+import schemas
+from services.bus import BusConfig, open_session, wait_alive
+from tests.cli.conftest import run_findme
+
+SERVICES = ("hypotheses", "selection", "measurement", "odometry")
+PIXELS = [[247, 378], [495, 276]]
+
+
+def _port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _findme(*args):
+    return subprocess.Popen([sys.executable, "-m", "findme.cli", *args],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _example(name):
+    base = resources.files("findme") / "examples"
+    meta = json.loads((base / f"{name}.json").read_text())
+    k = meta["intrinsics"]
+    return (str(base / f"{name}.jpg"), f"{k['fx']},{k['fy']},{k['cx']},{k['cy']}",
+            ",".join(map(str, meta["gravity_cam"])), meta["camera_height_m"])
+
+
+@pytest.fixture
+def deployment():
+    ep = f"tcp/127.0.0.1:{_port()}"
+    procs = {"router": _findme("router", "--listen", ep)}
+    for name in SERVICES:
+        procs[name] = _findme("serve", name, "--connect", ep, *(["--auto"] if name == "selection" else []))
+    client = open_session(BusConfig(mode="client", connect=(ep,)))
+    yield ep, client, procs
+    client.close()
+    for p in procs.values():
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+    codes = {n: p.wait(20) for n, p in procs.items()}
+    assert all(c == 0 for n, c in codes.items() if n != "measurement"), codes  # clean SIGTERM
+
+
+def test_two_photo_session_across_processes(deployment):
+    ep, client, procs = deployment
+    for name in SERVICES:
+        wait_alive(client, name, 60)
+    got, cv = {}, threading.Condition()
+
+    def cb(sample):
+        with cv:
+            got[str(sample.key_expr)] = sample.payload.to_bytes()
+            cv.notify_all()
+
+    sub = client.declare_subscriber("findme/e2e/**", cb)
+    a, b = _example("room_a"), _example("room_b")
+    capture = _findme("serve", "capture", "--connect", ep, "--session", "e2e",
+                      *sum((["--wait-for", s] for s in SERVICES), []), a[0], b[0])
+    try:
+        with cv:
+            assert cv.wait_for(lambda: "findme/e2e/trajectory" in got and len(schemas.decode(
+                schemas.Trajectory, got["findme/e2e/trajectory"]).poses) == 2, 120), sorted(got)
+        # measure query on photo 0
+        req = schemas.MeasureRequest(session="e2e", index=0)
+        req.pixels.extend(schemas.pixels_to_msg(PIXELS))
+        (rep,) = [schemas.decode(schemas.MeasureReply, r.ok.payload.to_bytes())
+                  for r in client.get("findme/e2e/measure", payload=schemas.encode(req), timeout=10)
+                  if r.ok]
+        motion = schemas.decode(schemas.Motion, got["findme/e2e/motion/0/1"])
+    finally:
+        capture.send_signal(signal.SIGTERM)
+        capture.wait(20)
+        sub.undeclare()
+    # the same numbers from the command line, same photos and inputs
+    loc = json.loads(run_findme("locate", a[0], "--intrinsics", a[1], "--gravity", a[2],
+                                "--camera-height", a[3], *sum((["--point", f"{u},{v}"] for u, v in PIXELS), []),
+                                "--json").stdout)
+    for p, q in zip(rep.points, loc["points"]):
+        assert np.allclose(schemas.msg_to_vec3(p.xyz), q["xyz_m"], atol=1e-5)
+    assert rep.distances[0].distance_m == pytest.approx(loc["distances_m"][0], abs=1e-5)
+    mo = json.loads(run_findme("motion", a[0], b[0], "--intrinsics", a[1], "--gravity-a", a[2],
+                               "--gravity-b", b[2], "--camera-height", a[3], "--json").stdout)
+    assert (motion.x_m, motion.z_m) == pytest.approx((mo["x_m"], mo["z_m"]), abs=1e-5)
+    assert math.degrees(motion.yaw_rad) == pytest.approx(mo["yaw_deg"], abs=1e-4)
+    assert (motion.inliers, motion.matches) == (mo["inliers"], mo["matches"])
+    # status lists every service; one killed with SIGKILL disappears (liveliness DELETE)
+    st = json.loads(run_findme("status", "--connect", ep, "--json").stdout)
+    assert set(SERVICES) <= {s["service"] for s in st}
+    gone = threading.Event()
+    lsub = client.liveliness().declare_subscriber(
+        "findme/@services/measurement/*", lambda s: s.kind == zenoh.SampleKind.DELETE and gone.set())
+    procs["measurement"].send_signal(signal.SIGKILL)
+    assert gone.wait(10), "the killed service's liveliness token did not go away"
+    lsub.undeclare()
+    st = json.loads(run_findme("status", "--connect", ep, "--json").stdout)
+    assert "measurement" not in {s["service"] for s in st}

@@ -1,0 +1,88 @@
+"""The odometry handler, driven directly: motion between selected photos, chaining, order."""
+
+import math
+
+import numpy as np
+import pytest
+
+import schemas
+from findme_core.synth import Pose, Room, planar_motion, render
+from services.hypotheses import HypothesesHandler
+from services.odometry import OdometryHandler
+from tests.services.conftest import frame_of
+
+
+@pytest.fixture(scope="module")
+def photos():
+    """Three photos of one room walking forward and turning, with their true poses."""
+    room = Room.rectangle(5.0, 6.0, floor_style="wood")
+    poses = [Pose(-0.3, -1.8, 1.4, yaw_deg=10, pitch_deg=28), Pose(0.0, -1.3, 1.4, yaw_deg=-2, pitch_deg=26),
+             Pose(0.3, -0.9, 1.4, yaw_deg=-15, pitch_deg=27)]
+    views = [render(room, p, 640, 480, hfov_deg=70, seed=5) for p in poses]
+    msgs = []
+    for n, v in enumerate(views):
+        f = frame_of(v, "od", n)
+        (h,) = HypothesesHandler().on_message(f"findme/od/frame/{n}", f)
+        msgs.append((f, h.msg, schemas.Selection(session="od", index=n, rank=1,
+                                                 by=schemas.SELECTED_BY_AUTO)))
+    return poses, msgs
+
+
+def feed(handler, msgs, order):
+    out = []
+    for n, (f, h, _) in enumerate(msgs):
+        handler.on_message(f"findme/od/frame/{n}", f)
+        handler.on_message(f"findme/od/hypotheses/{n}", h)
+    for n in order:
+        out += handler.on_message(f"findme/od/selection/{n}", msgs[n][2])
+    return {o.key: o.msg for o in out}
+
+
+def test_motion_and_trajectory_match_the_truth(photos):
+    poses, msgs = photos
+    out = feed(OdometryHandler(), msgs, [0, 1, 2])
+    for a, b in ((0, 1), (1, 2)):
+        m = out[f"findme/od/motion/{a}/{b}"]
+        x, z, yaw = planar_motion(poses[a], poses[b])
+        assert not m.error and m.inliers > 20
+        assert math.hypot(m.x_m - x, m.z_m - z) < 0.05
+        assert abs(math.degrees(m.yaw_rad) - yaw) < 1.0
+    traj = out["findme/od/trajectory"]
+    assert [p.index for p in traj.poses] == [0, 1, 2]
+    x, z, yaw = planar_motion(poses[0], poses[2])   # chained pose of photo 2 vs the truth
+    p2 = out["findme/od/pose/2"]
+    assert math.hypot(p2.x_m - x, p2.z_m - z) < 0.08 and abs(math.degrees(p2.yaw_rad) - yaw) < 1.5
+    assert p2.sigma_x_m > out["findme/od/pose/1"].sigma_x_m > 0   # uncertainty grows
+
+
+def test_selections_out_of_order_wait_for_their_predecessor(photos):
+    _, msgs = photos
+    h = OdometryHandler()
+    early = feed(h, msgs, [0, 2])          # photo 1 not selected yet: 2 must wait
+    assert "findme/od/motion/0/2" not in early and "findme/od/pose/2" not in early
+    late = {o.key: o.msg for o in h.on_message("findme/od/selection/1", msgs[1][2])}
+    assert {"findme/od/motion/0/1", "findme/od/motion/1/2", "findme/od/pose/2"} <= set(late)
+
+
+def test_the_first_photo_is_the_origin_whatever_the_order(photos):
+    _, msgs = photos
+    h = OdometryHandler()
+    assert feed(h, msgs, [2, 1]) == {}                  # photo 0 known, not selected: wait
+    out = {o.key: o.msg for o in h.on_message("findme/od/selection/0", msgs[0][2])}
+    p0 = out["findme/od/pose/0"]
+    assert (p0.x_m, p0.z_m, p0.yaw_rad) == (0.0, 0.0, 0.0)
+    assert [p.index for p in out["findme/od/trajectory"].poses] == [0, 1, 2]
+
+
+def test_a_failed_motion_carries_its_error_and_the_chain_goes_on(photos):
+    _, msgs = photos
+    blank = schemas.Frame()
+    blank.CopyFrom(msgs[1][0])
+    import cv2
+    blank.image.data = cv2.imencode(".jpg", np.full((480, 640, 3), 128, np.uint8))[1].tobytes()
+    bad = [msgs[0], (blank, msgs[1][1], msgs[1][2]), msgs[2]]
+    out = feed(OdometryHandler(), bad, [0, 1, 2])
+    m01 = out["findme/od/motion/0/1"]
+    assert m01.error and not m01.HasField("x_m") and "findme/od/pose/1" not in out
+    assert not out["findme/od/motion/0/2"].error          # photo 2 chains from photo 0
+    assert [p.index for p in out["findme/od/trajectory"].poses] == [0, 2]
