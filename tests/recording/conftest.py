@@ -72,11 +72,15 @@ def odometry_messages(session: str, t0: int):
 
 @pytest.fixture(scope="session")
 def full_recording(tmp_path_factory) -> Path:
-    """The example pair golden plus motion, poses, a trajectory and an error: every kind."""
+    """The example pair golden plus whatever kinds it lacks among motion, poses, a trajectory
+    and an error: every kind."""
     dst = tmp_path_factory.mktemp("full") / "full.mcap"
     recs = read_recording(PAIR)
     session = bus.parse_key(recs[0].key).session
-    return rewrite(PAIR, dst, extra=odometry_messages(session, recs[-1].log_time))
+    kinds = {bus.parse_key(r.key).kind for r in recs}
+    extra = [e for e in odometry_messages(session, recs[-1].log_time)
+             if bus.parse_key(e[0]).kind not in kinds]
+    return rewrite(PAIR, dst, extra=extra)
 
 
 @pytest.fixture

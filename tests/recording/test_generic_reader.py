@@ -90,6 +90,6 @@ def test_full_recording_has_every_kind_and_the_foxglove_types(full_recording, tm
     pose = res["first"][f"findme/{sid}/foxglove/pose"]
     assert pose["frame_id"] == f"{sid}/level/0"
     traj = res["first"][f"findme/{sid}/foxglove/trajectory"]
-    assert len(traj["poses"]) == 2
+    assert len(traj["poses"]) >= 1 and traj["frame_id"] == f"{sid}/level/0"
     hyp = res["first"][f"findme/{sid}/foxglove/hypotheses"]
     assert [t["text"] for t in hyp["texts"]] == [str(i) for i in range(1, 11)]
