@@ -70,11 +70,15 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
         pred = {"hypotheses": [h_.polyline.round(3).tolist() for h_ in hs.hypotheses]}
         if hs.hypotheses and any(queries.values()):
             top = hs.hypotheses[0]
-            scene = Scene(cam, h, top.polyline, top.kinds)
+            try:
+                scene = Scene(cam, h, top.polyline, top.kinds)
+            except FindmeError:  # e.g. a level-camera polyline crossing a tilted horizon:
+                scene = None     # its points have no answer, its hypotheses still count
             for kind, px in queries.items():
                 if px:
-                    pred[kind] = [None if p.xyz is None else p.xyz.round(5).tolist()
-                                  for p in scene.locate(px)]
+                    pred[kind] = ([None] * len(px) if scene is None else
+                                  [None if p.xyz is None else p.xyz.round(5).tolist()
+                                   for p in scene.locate(px)])
         return vid, pred, None
     except FindmeError as e:
         return vid, None, str(e)
