@@ -32,7 +32,7 @@ class SnapParams:
     min_shift_px: float = 1.5
     shadow_chroma: float = 6.0   # a band with the floor's chroma (a, b) and lower L is a shadow
     step_px: float = 3.0         # spacing of profile columns along the segment
-    s_step: float = 0.005        # profile resolution, relative to the depression
+    s_step: float = 0.01         # profile resolution, relative to the depression
     robust: bool = True          # median over columns (else mean)
 
 
