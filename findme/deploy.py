@@ -266,7 +266,22 @@ def _measure(session, session_id, args, photos) -> None:
         for d in rep.distances:
             if not d.error:
                 print(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} {unit} ± {d.sigma_m:.3f}")
+        if not args.photos:
+            _example_truth(pixels)
         return
+
+
+def _example_truth(pixels) -> None:
+    """The bundled example is rendered: print its true motion and distance to compare."""
+    import json
+    import math
+    base = resources.files("findme") / "examples"
+    pair = json.loads((base / "pair.json").read_text())["motion"]
+    pts = {tuple(q["px"]): q["xyz_m"] for q in
+           json.loads((base / "room_a.json").read_text())["ground_truth"]["floor_points"]}
+    d = math.dist(pts[tuple(pixels[0])], pts[tuple(pixels[1])])
+    print(f"truth (the example is rendered): motion x {pair['x_m']:+.3f} m, z {pair['z_m']:+.3f} m,"
+          f" yaw {pair['yaw_deg']:+.2f} deg; distance 1-2 {d:.3f} m")
 
 
 # ------------------------------------------------------------------------------ serve
