@@ -214,8 +214,9 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         return HypothesisSet(W, H, [], lines, kinds,
                              "no boundary hypothesis fits below the horizon",
                              _timing(t, ("lines", "support", "search")))
-    if debug is not None:
+    if debug is not None:  # for tools/fit_ranker.py: every candidate, scored, with its polyline
         debug["ranked"] = ranked
+        debug["polylines"] = [path_polyline(r[1][1], r[1][2], ev, coef, W, H)[0] for r in ranked]
     rows = np.array([r[2] for r in ranked])
     keep = suppress_duplicates(rows, np.arange(len(ranked)), params.nms_px, max_n)
     hyps = []

@@ -68,6 +68,12 @@ class OdometryHandler(Handler):
         if isinstance(msg, schemas.HypothesisSet):
             st.hsets[n] = msg
             return []
+        if n not in st.hsets:
+            st.hsets[n] = self.need(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
+        count = len(st.hsets[n].hypotheses)
+        if not 1 <= msg.rank <= count:
+            raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which has "
+                                  f"{count} hypotheses")
         st.selected[n] = msg
         return self._advance(k.session, st)
 

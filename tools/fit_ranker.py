@@ -73,7 +73,7 @@ def candidates(job):
     if not ranked:
         return vid, np.zeros((0, len(FEATURES))), np.zeros(0)
     feats = np.array([r[3] for r in ranked])
-    errs = pixel_errors([r[1][0] for r in ranked], labels)
+    errs = pixel_errors(dbg["polylines"], labels)
     return vid, feats, errs
 
 

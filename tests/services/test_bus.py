@@ -10,6 +10,7 @@ import schemas
 from findme_core.errors import BusError
 from services.hypotheses import HypothesesHandler
 from services.measurement import MeasurementHandler
+from services.odometry import OdometryHandler
 from services.runtime import Group, Handler, Input, Output, Service
 from services.selection import SelectionHandler
 from tests.services.conftest import Collector, frame_of
@@ -21,6 +22,7 @@ GOOD_SELECTION = schemas.Selection(session="t1", index=0, rank=1, by=schemas.SEL
     ("hypotheses", "findme/t1/frame/0", "frame"),
     ("selection", "findme/t1/hypotheses/0", "hset"),
     ("measurement", "findme/t1/selection/0", "selection"),
+    ("odometry", "findme/t1/selection/0", "selection"),
 ])
 def test_malformed_then_good(handler, key, good, zsession, level_view):
     """Garbage, a wrong type and a valid message in the wrong place each give an Error on
@@ -30,13 +32,14 @@ def test_malformed_then_good(handler, key, good, zsession, level_view):
     (hs,) = HypothesesHandler().on_message("findme/t1/frame/0", frame)
     cache = {"findme/t1/frame/0": schemas.encode(frame), "findme/t1/hypotheses/0": schemas.encode(hs.msg)}
     h = {"hypotheses": HypothesesHandler, "selection": SelectionHandler,
-         "measurement": MeasurementHandler}[handler]()
+         "measurement": MeasurementHandler, "odometry": OdometryHandler}[handler]()
     svc = group.add(h)
     h.fetch = cache.get
     errors = Collector(zsession, "findme/t1/error")
     outs = Collector(zsession, {"hypotheses": "findme/t1/hypotheses/*",
                                 "selection": "findme/t1/selection/*",
-                                "measurement": "findme/t1/scene/*"}[handler])
+                                "measurement": "findme/t1/scene/*",
+                                "odometry": "findme/t1/pose/*"}[handler])
     zsession.put(key, b"\x00garbage")
     zsession.put(key, schemas.encode(schemas.Error(session="t1", key="k", code=1, message="m")))
     wrong_place = {"frame": frame_of(level_view, index=5), "hset": schemas.HypothesisSet(
