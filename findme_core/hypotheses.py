@@ -177,8 +177,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     if len(cand) == 0:
         reason = ("no straight lines found in the image" if len(lines) == 0 else
                   "no line below the horizon could be a ground-wall boundary")
-        return HypothesisSet(W, H, [no_floor_hypothesis(W, H)], lines, kinds, reason,
-                             _timing(t, ("lines",)))
+        return HypothesisSet(W, H, [], lines, kinds, reason, _timing(t, ("lines",)))
     coef = lines.coef[cand]
     lab = to_lab(image)
     table = tabulate(EdgeField(image, params.support, color=lab), coef, params.substeps)
@@ -255,12 +254,6 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows
     order = np.argsort(-score, kind="stable")
     seed = paths[int(np.argmax(feats @ ws))]
     return [(float(score[i]), paths[i], rows[i], feats[i]) for i in order], seed
-
-
-def no_floor_hypothesis(width: int, height: int) -> Hypothesis:
-    """The answer "no floor visible": the boundary along the bottom border."""
-    poly = np.array([[0.0, height - 0.5], [width - 1.0, height - 0.5]])
-    return Hypothesis(poly, np.array([SegKind.NONE]), 0.0, 0.0)
 
 
 def _timing(t, names):

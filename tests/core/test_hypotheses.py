@@ -54,12 +54,26 @@ def test_deterministic(level_view):
     assert all(np.array_equal(x.polyline, y.polyline) for x, y in zip(a.hypotheses, b.hypotheses))
 
 
-def test_blank_image_answers_no_floor():
+def test_blank_image_gives_an_empty_list_with_the_reason():
     cam = Camera.from_hfov(70, 320, 240)
     hs = H.generate(np.full((240, 320, 3), 128, np.uint8), cam)
-    assert hs.reason == "no straight lines found in the image"
-    (h,) = hs.hypotheses
-    assert h.kinds.tolist() == [SegKind.NONE] and (h.polyline[:, 1] == 239.5).all()
+    assert hs.hypotheses == [] and hs.reason == "no straight lines found in the image"
+
+
+def test_no_floor_visible_is_a_hypothesis_when_lines_exist():
+    """One horizontal edge below the horizon: the boundary along it, and the answer
+    "no floor visible" (the bottom border, kind NONE) as the alternative."""
+    img = np.full((240, 320, 3), 200, np.uint8)
+    img[200:, :] = 90
+    img = cv2.GaussianBlur(img, (0, 0), 1)
+    hs = H.generate(img, Camera.from_hfov(70, 320, 240))
+    assert hs.reason is None
+    kinds = [h.kinds.tolist() for h in hs.hypotheses]
+    assert [SegKind.NONE] in kinds
+    (edge,) = [h for h in hs.hypotheses if h.kinds.tolist() != [SegKind.NONE]]
+    np.testing.assert_allclose(edge.polyline[:, 1], 200, atol=2)
+    (none,) = [h for h in hs.hypotheses if h.kinds.tolist() == [SegKind.NONE]]
+    assert (none.polyline[:, 1] == 239.5).all()
 
 
 def test_bad_image_inputs():
