@@ -24,7 +24,7 @@ from pathlib import Path
 from findme_core.errors import FindmeError, InputError
 
 from . import bus
-from .recorder import parse
+from .mcap_layout import parse
 from .runtime import Handler, Input
 
 log = logging.getLogger("findme.services.viewer")

@@ -34,7 +34,8 @@ import schemas  # noqa: E402
 from findme.imageio import encode_jpeg  # noqa: E402
 from services import bus  # noqa: E402
 from services.convert import make_frame  # noqa: E402
-from services.recorder import McapRecording, read_recording  # noqa: E402
+from services.mcap_reader import read_recording  # noqa: E402
+from services.mcap_writer import McapRecording  # noqa: E402
 
 OUT = ROOT / "recordings" / "golden"
 T0 = 1_700_000_000_000_000_000       # 2023-11-14T22:13:20Z, the golden clock
@@ -135,7 +136,8 @@ def _with_height(handler, choices):
 
 def run_session(spec: Spec, out_dir: Path) -> Path:
     """Run the embedded pipeline on a spec with the recorder; the raw recording's path."""
-    from findme.record_cli import Watch, ask_measure, wait_result
+    from findme.regress import wait_result
+    from findme.replay import Watch, ask_measure
     from services.capture import CaptureHandler
     from services.hypotheses import HypothesesHandler
     from services.measurement import MeasurementHandler

@@ -11,7 +11,7 @@ import textwrap
 
 import pytest
 
-from services.recorder import read_recording
+from services.mcap_reader import read_recording
 
 from .conftest import GOLDENS
 

@@ -13,9 +13,11 @@ import numpy as np
 
 import schemas
 from findme.imageio import encode_jpeg
+from findme_core.errors import RecordingError
 from services import bus
 from services.convert import make_frame
-from services.recorder import FLUSH_BOUND_S, RecordingError, read_recording
+from services.mcap_reader import read_recording
+from services.recorder import FLUSH_BOUND_S
 
 from .conftest import ROOT, free_port, wait_service
 

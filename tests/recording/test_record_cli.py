@@ -7,7 +7,8 @@ import os
 import subprocess
 import sys
 
-from services.recorder import McapRecording, read_recording
+from services.mcap_reader import read_recording
+from services.mcap_writer import McapRecording
 
 from .conftest import GOLDEN, PAIR, ROOT
 

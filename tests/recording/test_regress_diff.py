@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import json
 
-from findme.record_cli import TOL_M, TOL_PX, diff_messages, regress
-from services.recorder import read_recording
+from findme.regress import TOL_M, TOL_PX, diff_messages, regress
+from services.mcap_reader import read_recording
 
 from .conftest import PAIR, rewrite
 

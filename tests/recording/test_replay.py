@@ -6,10 +6,11 @@ from __future__ import annotations
 from services import bus
 from services.hypotheses import HypothesesHandler
 from services.measurement import MeasurementHandler
-from services.recorder import RecorderHandler, read_recording
+from services.mcap_reader import read_recording
+from services.recorder import RecorderHandler
 from services.runtime import Group
 
-from findme.record_cli import diff_messages
+from findme.regress import diff_messages
 
 from .conftest import GOLDEN, PAIR, Arrivals, free_port
 

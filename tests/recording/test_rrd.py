@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from services.recorder import read_recording
+from services.mcap_reader import read_recording
 
 from .conftest import PAIR
 

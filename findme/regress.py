@@ -1,0 +1,312 @@
+"""``findme regress``: a recording's inputs run again through the current services, every
+result compared with the recorded one (``regress`` -> ``Regression``), field by field
+(``diff_messages``).
+
+Tolerances (``TOLERANCES``, printed with every failure): pixels and polyline vertices
+``TOL_PX`` (px, Euclidean, bus pixel convention); fields ending ``_m`` and 3D points
+``TOL_M`` (metres, Euclidean; reported in mm); fields ending ``_rad`` ``TOL_RAD`` (radians;
+reported in degrees); score and support ``TOL_SCORE``; other floats ``TOL_FLOAT`` relative;
+integers, enums and text exact. Clocks and who answered (``IGNORED``) are not compared.
+Errors compare as a multiset of (key, code, message). The recording is only read.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+
+import schemas
+from services import bus
+from services.mcap_reader import read_recording, recording_session
+
+from .replay import INPUT_KINDS, Source, Watch, ask_measure, measure_request
+
+#: Result kinds only the odometry service produces.
+ODOMETRY_KINDS = ("motion", "pose", "trajectory")
+
+#: Tolerances of ``findme regress`` (also printed with every failure).
+TOL_PX = 1.0                      # a polyline vertex / pixel may move this far (Euclidean)
+TOL_M = 1e-3                      # metres: fields ending _m, 3D points (Euclidean)
+TOL_RAD = math.radians(0.01)      # radians: fields ending _rad (0.01 deg)
+TOL_SCORE = 1e-4                  # hypothesis score and support (absolute)
+TOL_FLOAT = 1e-6                  # any other float (relative to max(1, |value|))
+#: Not compared: clocks and who answered.
+IGNORED = {"time_ns", "timing_ms", "service", "schema"}
+TOLERANCES = (f"polyline vertices and pixels within {TOL_PX:g} px; 3D points and lengths "
+              f"(_m) within {TOL_M * 1e3:g} mm; angles (_rad) within 0.01 deg; score and "
+              f"support within {TOL_SCORE:g}; other numbers within {TOL_FLOAT:g} relative; "
+              "integers, enums and text exact; times not compared")
+
+
+def _f(x: float) -> str:
+    return f"{x:.6g}"
+
+
+def _diff_scalar(fd, a, b, path: str, parent: str) -> str | None:
+    from google.protobuf.descriptor import FieldDescriptor as FD
+    if fd.type in (FD.TYPE_DOUBLE, FD.TYPE_FLOAT):
+        name = fd.name
+        if name.endswith("_m"):
+            tol, unit, scale = TOL_M, "mm", 1e3
+        elif name.endswith("_rad"):
+            tol, unit, scale = TOL_RAD, "deg", math.degrees(1.0)
+        elif name in ("score", "support"):
+            tol, unit, scale = TOL_SCORE, "", 1.0
+        else:
+            tol, unit, scale = TOL_FLOAT * max(1.0, abs(a)), "", 1.0
+        if math.isnan(a) and math.isnan(b):
+            return None
+        d = abs(a - b)
+        if not d <= tol:
+            return (f"{path}: {_f(a)} recorded, {_f(b)} now (off by {_f(d * scale)}"
+                    f"{' ' + unit if unit else ''} > {_f(tol * scale)}{' ' + unit if unit else ''})")
+        return None
+    if a != b:
+        if fd.enum_type is not None:
+            a, b = fd.enum_type.values_by_number.get(a, a), fd.enum_type.values_by_number.get(b, b)
+            a, b = getattr(a, "name", a), getattr(b, "name", b)
+        return f"{path}: {a!r} recorded, {b!r} now"
+    return None
+
+
+def _diff_value(fd, a, b, path: str) -> list[str]:
+    from google.protobuf.descriptor import FieldDescriptor as FD
+    if fd.type != FD.TYPE_MESSAGE:
+        d = _diff_scalar(fd, a, b, path, "")
+        return [d] if d else []
+    t = fd.message_type.full_name
+    if t == "findme.v1.Pixel":
+        d = math.hypot(a.u - b.u, a.v - b.v)
+        if not d <= TOL_PX:
+            return [f"{path}: ({a.u:.2f}, {a.v:.2f}) recorded, ({b.u:.2f}, {b.v:.2f}) now "
+                    f"(moved {d:.2f} px > {TOL_PX:g} px)"]
+        return []
+    if t == "findme.v1.Vec3" and fd.name == "xyz":
+        d = math.dist((a.x, a.y, a.z), (b.x, b.y, b.z))
+        if not d <= TOL_M:
+            return [f"{path}: ({a.x:.4f}, {a.y:.4f}, {a.z:.4f}) recorded, ({b.x:.4f}, {b.y:.4f}, "
+                    f"{b.z:.4f}) now (moved {d * 1e3:.2f} mm > {TOL_M * 1e3:g} mm)"]
+        return []
+    return diff_messages(a, b, path)
+
+
+def diff_messages(a, b, path: str = "") -> list[str]:
+    """Readable differences between a recorded and a current message beyond the tolerances."""
+    out: list[str] = []
+    for fd in a.DESCRIPTOR.fields:
+        if fd.name in IGNORED:
+            continue
+        p = f"{path}.{fd.name}" if path else fd.name
+        if fd.is_repeated:
+            if fd.message_type is not None and fd.message_type.GetOptions().map_entry:
+                da, db = dict(getattr(a, fd.name)), dict(getattr(b, fd.name))
+                if sorted(da) != sorted(db):
+                    out.append(f"{p}: keys {sorted(da)} recorded, {sorted(db)} now")
+                continue
+            va, vb = list(getattr(a, fd.name)), list(getattr(b, fd.name))
+            if len(va) != len(vb):
+                out.append(f"{p}: {len(va)} recorded, {len(vb)} now")
+            for i, (x, y) in enumerate(zip(va, vb)):
+                out.extend(_diff_value(fd, x, y, f"{p}[{i}]"))
+            continue
+        if fd.has_presence:
+            ha, hb = a.HasField(fd.name), b.HasField(fd.name)
+            if ha != hb:
+                out.append(f"{p}: {'set' if ha else 'unset'} recorded, {'set' if hb else 'unset'} now")
+                continue
+            if not ha:
+                continue
+        out.extend(_diff_value(fd, getattr(a, fd.name), getattr(b, fd.name), p))
+    return out
+
+
+@dataclass
+class Regression:
+    """The outcome of ``regress``: what was compared and every difference found."""
+
+    recording: str
+    session: str
+    compared: int = 0
+    differences: dict[str, list[str]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.differences
+
+    def report(self) -> str:
+        lines = [f"regress {self.recording} (session {self.session}): {self.compared} results "
+                 f"compared, {len(self.differences)} differ"]
+        lines += [f"  note: {n}" for n in self.notes]
+        for key, diffs in self.differences.items():
+            lines.append(f"  {key}:")
+            lines += [f"    {d}" for d in diffs[:12]]
+            if len(diffs) > 12:
+                lines.append(f"    ... and {len(diffs) - 12} more")
+        lines.append(("PASS" if self.ok else "FAIL") + f" (tolerances: {TOLERANCES})")
+        return "\n".join(lines)
+
+
+def _short(key: str, session: str) -> str:
+    p = f"{bus.ROOT}/{session}/"
+    return key[len(p):] if key.startswith(p) else key
+
+
+def _error_sig(payload: bytes) -> tuple:
+    try:
+        e = schemas.decode(schemas.Error, payload, check=False)
+        return (e.key, schemas.ErrorCode.Name(e.code), e.message)
+    except Exception:  # noqa: BLE001
+        return ("?", "?", payload[:40].hex())
+
+
+def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float = 120.0,
+            handlers=None) -> Regression:
+    """Replay a recording's frames, selections and measurements through the current services
+    (embedded, one in-process Zenoh session, as ``findme run``) and compare every result
+    with the recorded one. ``handlers`` replaces the services (tests)."""
+    from services.runtime import Group
+
+    recs = read_recording(path)
+    session_id = recording_session(path)
+    out = Regression(str(path), session_id)
+    recs = [r for r in recs if bus.parse_key(r.key).session == session_id]
+    expected: dict[str, list[bytes]] = defaultdict(list)
+    for r in recs:
+        kind = bus.parse_key(r.key).kind
+        if kind not in INPUT_KINDS and kind != "measured":
+            expected[r.key].append(r.payload)
+    kinds = {bus.parse_key(k).kind for k in expected}
+    if handlers is None:
+        handlers = _handlers(recs, kinds, method, max_n, out.notes)
+
+    session = bus.open_session(bus.BusConfig())   # peer, no endpoints: in-process only
+    group = Group(session)
+    watch = Watch(session, session_id)
+    measured_now: list[tuple[str, bytes | None, str]] = []
+    try:
+        for h in handlers:
+            group.add(h)
+        source = Source(session, session_id)
+        for r in recs:
+            k = bus.parse_key(r.key)
+            if k.kind == "frame":
+                source.put(r.key, r.payload)
+            elif k.kind == "selection":
+                need = bus.key(session_id, "hypotheses", *k.parts)
+                wait_result(group, watch, lambda c, need=need: c[need] > 0, timeout)
+                source.put(r.key, r.payload)
+            elif k.kind == "measured":
+                need = bus.key(session_id, "scene", *k.parts)
+                wait_result(group, watch, lambda c, need=need: c[need] > 0, timeout)
+                rep = schemas.decode(schemas.MeasureReply, r.payload, check=False)
+                payload, err = ask_measure(session, session_id, measure_request(rep), timeout)
+                measured_now.append((r.key, payload, err))
+        # every recorded result as often as it was recorded (or quiet: it will not come);
+        # then quiet, so that extra results are seen too
+        wait_result(group, watch, lambda c: all(c[k] >= len(v) for k, v in expected.items()),
+                    timeout)
+        wait_result(group, watch, lambda c: False, timeout)
+        source.close()
+    finally:
+        watch.close()
+        group.stop()
+        session.close()
+
+    got: dict[str, list[bytes]] = defaultdict(list)
+    for k, payload in watch.got:
+        if bus.parse_key(k).kind not in INPUT_KINDS + ("measured",):
+            got[k].append(payload)
+    for key in sorted(set(expected) | set(got)):
+        short = _short(key, session_id)
+        rec_list, now_list = expected.get(key, []), got.get(key, [])
+        out.compared += 1
+        if bus.parse_key(key).kind == "error":   # a multiset of errors
+            a, b = Counter(map(_error_sig, rec_list)), Counter(map(_error_sig, now_list))
+            diffs = [f"recorded, not now: {e[0]}: {e[1]}: {e[2]}" for e in (a - b).elements()]
+            diffs += [f"now, not recorded: {e[0]}: {e[1]}: {e[2]}" for e in (b - a).elements()]
+            if diffs:
+                out.differences[short] = diffs
+            continue
+        if not now_list:
+            out.differences[short] = [f"missing: recorded {len(rec_list)} message(s), none now"]
+            continue
+        if not rec_list:
+            out.differences[short] = [f"new: {len(now_list)} message(s) now, none recorded"]
+            continue
+        diffs = []
+        if len(rec_list) != len(now_list):
+            diffs.append(f"published {len(rec_list)} time(s) when recorded, {len(now_list)} now "
+                         "(comparing the last)")
+        diffs += _compare_payloads(rec_list[-1], now_list[-1])
+        if diffs:
+            out.differences[short] = diffs
+    recorded_measures = [r for r in recs if bus.parse_key(r.key).kind == "measured"]
+    for i, (r, (key, payload, err)) in enumerate(zip(recorded_measures, measured_now)):
+        short = f"{_short(key, session_id)} (measurement {i + 1})"
+        out.compared += 1
+        if payload is None:
+            out.differences[short] = [f"no answer now: {err}"]
+            continue
+        diffs = _compare_payloads(r.payload, payload)
+        if diffs:
+            out.differences[short] = diffs
+    return out
+
+
+def _compare_payloads(recorded: bytes, now: bytes) -> list[str]:
+    try:
+        a = schemas.decode_any(recorded, check=False)
+    except Exception as e:  # noqa: BLE001
+        return [f"the recorded payload does not decode ({e})"] if recorded != now else []
+    try:
+        b = schemas.decode_any(now, check=False)
+    except Exception as e:  # noqa: BLE001
+        return [f"the current payload does not decode ({e})"]
+    if type(a) is not type(b):
+        return [f"a {a.DESCRIPTOR.full_name} recorded, a {b.DESCRIPTOR.full_name} now"]
+    return diff_messages(a, b)
+
+
+def wait_result(group, watch: Watch, pred, timeout: float, step: float = 0.05) -> bool:
+    """Until ``pred(counts)`` holds (True), or the bus has gone quiet without it (False):
+    every service idle and nothing new arriving for three steps in a row, so it will not
+    come. ``timeout`` caps the wait. With ``pred`` never true this waits for quiet."""
+    deadline = time.monotonic() + timeout
+    last, stable = None, 0
+    while True:
+        if watch.wait(pred, step):
+            return True
+        with watch.cv:
+            n = len(watch.got)
+        idle = all(s.idle.is_set() for s in group.services)
+        state = (n, tuple(s.counters.frames_in for s in group.services))
+        stable = stable + 1 if (idle and state == last) else 0
+        last = state
+        if stable >= 3 or time.monotonic() > deadline:
+            with watch.cv:
+                return bool(pred(watch.count))
+
+
+def _handlers(recs, kinds, method, max_n, notes) -> list:
+    from services.hypotheses import HypothesesHandler
+    from services.measurement import MeasurementHandler
+    if method is None:
+        for r in recs:
+            if bus.parse_key(r.key).kind == "hypotheses":
+                m = schemas.decode(schemas.HypothesisSet, r.payload, check=False).method
+                method = m.split("/", 1)[0] if m else None
+                break
+    hs = [HypothesesHandler(method or "findme", max_n), MeasurementHandler()]
+    if kinds & set(ODOMETRY_KINDS):
+        try:
+            from services.odometry import OdometryHandler
+            hs.append(OdometryHandler())
+        except ImportError:
+            notes.append("the recording has odometry results but this build has no odometry "
+                         "service")
+    else:
+        notes.append("odometry not run: the recording has no motion, pose or trajectory")
+    return hs
