@@ -1,5 +1,6 @@
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -24,6 +25,16 @@ def test_hypotheses_json_contract(level_jpg, level_view, tmp_path):
     assert floor_pixel_error(np.array(hyps[0]["polyline"]), level_view.labels) < 0.03
     assert set(out["timing_ms"]) >= {"lines", "total"}
     assert overlay.stat().st_size > 1000
+
+
+def test_no_lines_is_an_empty_list_with_the_reason(tmp_path):
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640, 3), 128, np.uint8))
+    out = as_json(run_findme("hypotheses", blank, "--json"))
+    assert out["hypotheses"] == [] and out["reason"] == "no straight lines found in the image"
+    p = run_findme("locate", blank, "--point", "320,400", check=False)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1
+    assert "hypothesis 1 does not exist" in p.stderr and "no straight lines" in p.stderr
 
 
 def test_paper_method_and_text_output(level_jpg, level_view):
