@@ -15,8 +15,9 @@ import pytest
 
 import schemas
 from services import bus
-from services.gateway import (Gateway, GatewayError, build_frame, parse_command, parse_http,
-                              parse_upload, to_page)
+from services.gateway import Gateway, parse_http
+from services.page_input import GatewayError, build_frame, parse_command, parse_upload
+from services.page_output import to_page
 
 CODE = schemas.ErrorCode
 ROOM_A = (resources.files("findme") / "examples" / "room_a.jpg").read_bytes()

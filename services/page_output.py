@@ -1,0 +1,84 @@
+"""Bus messages as the JSON a page reads: what the gateway forwards to a page.
+
+    HypothesisSet -> {"type": "hypotheses", ...}     MeasureReply -> {"type": "measure", ...}
+    Selection, Scene, Motion, Pose, Trajectory, Error -> the type of the same name, lower-case
+    anything else (a Frame)                           -> None: not for the page
+
+Nothing changes frame or unit on the way: pixels as on the bus ((0, 0) is the centre of the
+top-left pixel), metres (``*_m``, up to scale when not metric), radians (``*_rad``), poses
+relative to photo 0 and motions of photo B relative to photo A as in ``schemas``, measured
+points in camera coordinates, gravity in camera axes. Enums become lower-case names (error
+codes upper-case, without their prefix), unset optional fields ``None``, and an error's key
+is given relative to the session (``frame/3``).
+
+Pure: no bus, no server; the message is only read.
+"""
+
+from __future__ import annotations
+
+import schemas
+
+from . import bus
+
+CODE = schemas.ErrorCode
+
+
+def _opt(m, name):
+    return getattr(m, name) if m.HasField(name) else None
+
+
+def _kind_name(k: int) -> str:
+    return schemas.SegKind.Name(k).removeprefix("SEG_KIND_").lower()
+
+
+def _pose(p) -> dict:
+    return {"index": p.index, "x_m": p.x_m, "z_m": p.z_m, "yaw_rad": p.yaw_rad,
+            "sigma_x_m": _opt(p, "sigma_x_m"), "sigma_z_m": _opt(p, "sigma_z_m"),
+            "sigma_yaw_rad": _opt(p, "sigma_yaw_rad")}
+
+
+def to_page(session: str, msg) -> dict | None:
+    """A bus message of ``session`` as the JSON the page reads (None: not for the page)."""
+    name = type(msg).__name__
+    if name == "HypothesisSet":
+        return {"type": "hypotheses", "index": msg.index, "width": msg.width,
+                "height": msg.height, "reason": msg.reason, "method": msg.method,
+                "timing_ms": dict(msg.timing_ms),
+                "hypotheses": [{"rank": h.rank, "score": h.score, "support": h.support,
+                                "points": [[p.u, p.v] for p in h.polyline.points],
+                                "kinds": [_kind_name(k) for k in h.polyline.kinds]}
+                               for h in msg.hypotheses]}
+    if name == "Selection":
+        return {"type": "selection", "index": msg.index, "rank": msg.rank,
+                "by": "user" if msg.by == schemas.SELECTED_BY_USER else "auto",
+                "camera_height_m": _opt(msg, "camera_height_m")}
+    if name == "Scene":
+        return {"type": "scene", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
+                "camera_height_m": msg.camera_height_m,
+                "gravity": [msg.camera.gravity.x, msg.camera.gravity.y, msg.camera.gravity.z]}
+    if name == "Motion":
+        d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
+             "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}
+        for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad"):
+            d[k] = _opt(msg, k)
+        return d
+    if name == "Pose":
+        return {"type": "pose", **_pose(msg)}
+    if name == "Trajectory":
+        return {"type": "trajectory", "poses": [_pose(p) for p in msg.poses]}
+    if name == "Error":
+        prefix = f"{bus.ROOT}/{session}/"
+        return {"type": "error", "code": CODE.Name(msg.code).removeprefix("ERROR_CODE_"),
+                "message": msg.message, "key": msg.key.removeprefix(prefix),
+                "service": msg.service}
+    if name == "MeasureReply":
+        return {"type": "measure", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
+                "error": msg.error,
+                "points": [{"pixel": [p.pixel.u, p.pixel.v],
+                            "surface": schemas.Surface.Name(p.surface).removeprefix("SURFACE_").lower(),
+                            "xyz": [p.xyz.x, p.xyz.y, p.xyz.z] if p.HasField("xyz") else None,
+                            "sigma_m": _opt(p, "sigma_m"), "error": p.error} for p in msg.points],
+                "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
+                               "sigma_m": _opt(d, "sigma_m"), "error": d.error}
+                              for d in msg.distances]}
+    return None
