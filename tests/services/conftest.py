@@ -1,3 +1,6 @@
+import socket
+import subprocess
+import sys
 import threading
 
 import cv2
@@ -47,3 +50,32 @@ class Collector:
 
     def decoded(self, cls, n=1):
         return [schemas.decode(cls, p) for _, p in self.wait(n)]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def spawn_findme(*args):
+    """Spawn ``findme ARGS`` (a new interpreter); its stderr lines are collected (and the pipe
+    drained) by a thread into ``proc.lines``, announced on ``proc.new_line`` (Condition)."""
+    proc = subprocess.Popen([sys.executable, "-m", "findme.cli", *map(str, args)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc.lines, proc.new_line = [], threading.Condition()
+
+    def drain():
+        for line in proc.stderr:
+            with proc.new_line:
+                proc.lines.append(line)
+                proc.new_line.notify_all()
+    threading.Thread(target=drain, daemon=True).start()
+    return proc
+
+
+def wait_logged(proc, text: str, timeout: float = 60.0) -> None:
+    """Block until ``proc`` logs a line containing ``text`` (its readiness signal)."""
+    with proc.new_line:
+        assert proc.new_line.wait_for(lambda: any(text in x for x in proc.lines), timeout), \
+            f"no {text!r} from {proc.args[3:]} in {timeout:.0f} s: {''.join(proc.lines)[-2000:]}"

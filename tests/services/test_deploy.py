@@ -3,8 +3,6 @@ loads, and the phone + server router configuration enforces TLS, passwords and p
 keys (run for real with generated certificates)."""
 
 import shlex
-import socket
-import subprocess
 import sys
 import threading
 from pathlib import Path
@@ -14,6 +12,7 @@ import zenoh
 
 from findme.cli import build_parser
 from services.bus import BusConfig, open_session
+from tests.services.conftest import free_port, spawn_findme, wait_logged
 
 COMPOSE = Path(__file__).resolve().parents[2] / "compose"
 
@@ -36,12 +35,6 @@ def test_zenoh_configs_load(name):
     zenoh.Config.from_file(str(COMPOSE / name))
 
 
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture
 def tls_router(tmp_path):
     pytest.importorskip("cryptography", reason="cryptography generates the test certificates")
@@ -49,12 +42,12 @@ def tls_router(tmp_path):
     from make_certs import make_certs
     make_certs(tmp_path, ("localhost", "127.0.0.1"))
     (tmp_path / "users.txt").write_text("server:change-me-server\nalice:change-me-alice\n")
-    port = _free_port()
+    port = free_port()
     cfg = (COMPOSE / "router-tls.json5").read_text()
     cfg = cfg.replace("/certs/", f"{tmp_path}/").replace("tls/0.0.0.0:7447", f"tls/127.0.0.1:{port}")
     (tmp_path / "router.json5").write_text(cfg)
-    proc = subprocess.Popen([sys.executable, "-m", "findme.cli", "router", "--config",
-                             str(tmp_path / "router.json5")], stderr=subprocess.PIPE, text=True)
+    proc = spawn_findme("router", "--config", tmp_path / "router.json5")
+    wait_logged(proc, "listening on")
     yield f"tls/127.0.0.1:{port}", {"root_ca_certificate": str(tmp_path / "ca.pem")}
     proc.terminate()
     proc.wait(10)

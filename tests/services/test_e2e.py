@@ -6,9 +6,6 @@ Waits on liveliness tokens and results, never sleeps."""
 import json
 import math
 import signal
-import socket
-import subprocess
-import sys
 import threading
 from importlib import resources
 
@@ -19,20 +16,10 @@ import zenoh
 import schemas
 from services.bus import BusConfig, open_session, wait_alive
 from tests.cli.conftest import run_findme
+from tests.services.conftest import free_port, spawn_findme, wait_logged
 
 SERVICES = ("hypotheses", "selection", "measurement", "odometry")
 PIXELS = [[247, 378], [495, 276]]
-
-
-def _port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _findme(*args):
-    return subprocess.Popen([sys.executable, "-m", "findme.cli", *args],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
 def _example(name):
@@ -45,10 +32,11 @@ def _example(name):
 
 @pytest.fixture
 def deployment():
-    ep = f"tcp/127.0.0.1:{_port()}"
-    procs = {"router": _findme("router", "--listen", ep)}
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    procs = {"router": spawn_findme("router", "--listen", ep)}
+    wait_logged(procs["router"], "listening on")   # the router is up before anyone connects
     for name in SERVICES:
-        procs[name] = _findme("serve", name, "--connect", ep, *(["--auto"] if name == "selection" else []))
+        procs[name] = spawn_findme("serve", name, "--connect", ep, *(["--auto"] if name == "selection" else []))
     client = open_session(BusConfig(mode="client", connect=(ep,)))
     yield ep, client, procs
     client.close()
@@ -72,7 +60,7 @@ def test_two_photo_session_across_processes(deployment):
 
     sub = client.declare_subscriber("findme/e2e/**", cb)
     a, b = _example("room_a"), _example("room_b")
-    capture = _findme("serve", "capture", "--connect", ep, "--session", "e2e",
+    capture = spawn_findme("serve", "capture", "--connect", ep, "--session", "e2e",
                       *sum((["--wait-for", s] for s in SERVICES), []), a[0], b[0])
     try:
         with cv:
