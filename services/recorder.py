@@ -24,7 +24,7 @@ import threading
 import time
 from pathlib import Path
 
-from findme_core.errors import FindmeError
+from findme_core.errors import FindmeError, InputError
 
 from . import bus
 from .mcap_writer import COMPRESSIONS, McapRecording, recording_path
@@ -50,7 +50,7 @@ class RecorderHandler(Handler):
                  views: bool = True, max_open: int = 64, idle_close_s: float | None = None,
                  clock=time.time_ns):
         if compression not in COMPRESSIONS:
-            raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}")
+            raise InputError(f"compression {compression!r} is not one of {sorted(COMPRESSIONS)}")
         self.out = Path(out_dir)
         self.flush_s, self.compression, self.chunk_size = flush_s, compression, chunk_size
         self.views, self.max_open, self.idle_close_s = views, max_open, idle_close_s

@@ -11,7 +11,7 @@ from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
 from mcap.reader import make_reader
 
 import schemas
-from findme_core.errors import RecordingError
+from findme_core.errors import InputError, RecordingError
 from services import bus
 from services.mcap_layout import key_of
 from services.mcap_reader import read_recording
@@ -87,6 +87,11 @@ def test_view_channels_image_and_numbered_hypotheses(tmp_path):
     assert ann.points[0].points[0].y == pytest.approx(first.v + 0.5)
     views = {r.topic.rsplit("/", 1)[1] for r in recs if r.channel == "view"}
     assert {"image", "calibration", "tf", "hypotheses", "boundary", "measured"} <= views
+
+
+def test_unknown_compression_is_refused_by_name(tmp_path):
+    with pytest.raises(InputError, match="compression 'gzip' is not one of"):
+        RecorderHandler(tmp_path, compression="gzip")
 
 
 def test_never_overwrites_a_recording(tmp_path):
