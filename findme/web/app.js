@@ -135,8 +135,7 @@
     ws.onmessage = (ev) => {
       let msg;
       try { msg = JSON.parse(ev.data); } catch (e) { return; }
-      const f = HANDLERS[msg.type];
-      if (f) f(msg);
+      handle(msg);
     };
     ws.onclose = (ev) => {
       setStatus('closed', 'disconnected');
@@ -297,6 +296,10 @@
 
   // ------------------------------------------------------------------ server messages
   const photoAt = (n) => state.photos.find((p) => p.index === n);
+  function handle(msg) {   // one server message (JSON) -> the page's state and view
+    const f = HANDLERS[msg.type];
+    if (f) f(msg);
+  }
   const HANDLERS = {
     hello(m) {
       state.session = m.session;
@@ -343,7 +346,11 @@
       if (!p) return;
       p.rank = m.rank;
       p.by = m.by;
-      if (p.sceneRank !== m.rank || m.camera_height_m !== null) setBusy('scene', 'Building the 3D scene…');
+      // the scene of this selection may already be here (the bus does not order the
+      // selection, published by the gateway, against the scene, published by measurement)
+      const sceneHere = p.sceneRank === m.rank &&
+        (m.camera_height_m === null || m.camera_height_m === p.height_m);
+      if (sceneHere) clearBusy('scene'); else setBusy('scene', 'Building the 3D scene…');
       if (p.index === state.current) render();
     },
     scene(m) {
@@ -798,7 +805,7 @@
 
   // for tests and the curious: the pure conversions and the state
   window.FindMe = {deviceGravityFromOrientation, deviceGravityFromMotion, deviceToCamera,
-                   autoRotation, state, send};
+                   autoRotation, state, send, handle};
   if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', init);
   else init();
 })();

@@ -119,7 +119,12 @@ def shots(tmp_path_factory):
         """What the user sees, scrolled to ``at`` (a selector) when given; ``settled``:
         once the busy indicator is gone (the server has answered everything asked)."""
         if settled:   # a function, not an expression: the page's CSP forbids eval
-            page.wait_for_function("() => !document.body.dataset.busy")
+            from playwright.sync_api import TimeoutError as PlaywrightTimeout
+            try:
+                page.wait_for_function("() => !document.body.dataset.busy")
+            except PlaywrightTimeout:
+                busy = page.evaluate("() => document.body.dataset.busy")
+                raise AssertionError(f"{name}: the page is still busy with {busy!r}") from None
         if at:
             page.locator(at).first.evaluate("e => e.scrollIntoView({block: 'start'})")
         path = d / f"{name}.png"

@@ -172,6 +172,28 @@ def test_photo_hypothesis_and_distance_match_locate(browser, app, shots):
     close(page)
 
 
+def test_page_state_does_not_depend_on_message_order(browser, app):
+    """The bus does not order a selection (published by the gateway) against its scene
+    (published by the measurement service): a scene that reaches the page before its
+    selection still ends the wait for it."""
+    page = open_page(browser, app)
+    type_camera(page, SIDE_A)
+    upload(page, ROOM_A, 0)
+    before, after = page.evaluate("""() => {
+        const F = FindMe, p0 = F.state.photos[0], h = p0.height_m;
+        F.handle({type: 'frame', id: null, index: 1, width: p0.width, height: p0.height,
+                  camera_height_m: h, reencoded: false});
+        F.handle({type: 'hypotheses', index: 1, hypotheses: p0.hyps, reason: ''});
+        F.handle({type: 'scene', index: 1, rank: 1, metric: true, camera_height_m: h});
+        const before = document.body.dataset.busy;
+        F.handle({type: 'selection', index: 1, rank: 1, by: 'auto', camera_height_m: null});
+        return [before, document.body.dataset.busy];
+    }""")
+    assert "scene" in before.split()                        # the scene's rank is not chosen yet
+    assert not {"scene", "upload"} & set(after.split()), after
+    close(page)
+
+
 def test_two_photos_show_the_motion(browser, app, shots):
     """room_a then room_b: the second photo's motion and the floor map (needs odometry)."""
     page = open_page(browser, app)
