@@ -313,12 +313,12 @@ def _refine_dir(a, b, yaw, t, e_in, planar: bool, pix: float, sigma_elev=np.radi
     """Robust LM of (yaw, azimuth, elevation) of the unit baseline on the inliers' epipolar
     residuals (pixels); a level prior on the elevation when h_A = h_B. Returns (yaw, unit
     t, sigma of the elevation)."""
-    e = np.flatnonzero(e_in)
+    ae, be = a[e_in], b[e_in]   # indexed once, not per residual evaluation
     unit = lambda q: np.stack([np.sin(q[..., 1]) * np.cos(q[..., 2]), np.sin(q[..., 2]),  # noqa
                                np.cos(q[..., 1]) * np.cos(q[..., 2])], -1)
 
     def resid(q):  # (C, 3) -> (C, R)
-        r = epipolar_residuals(q[:, 0], unit(q), a[e], b[e]) / pix
+        r = epipolar_residuals(q[:, 0], unit(q), ae, be) / pix
         return np.concatenate([r, q[:, 2:3] / sigma_elev], 1) if planar else r
 
     q0 = np.array([yaw, np.arctan2(t[0], t[2]), np.arcsin(np.clip(t[1], -1.0, 1.0))])
@@ -331,7 +331,8 @@ def _refine(P: _Pair, yaw, t, e_in, ta_in, tb_in):
     inliers ``e_in`` and the transfer residuals of the lifted inliers (``ta_in`` A into B,
     ``tb_in`` B into A), pixels; Gaussian prior ty = dy, 2 cm + 3 % of the baseline (a floor
     or road that is not quite level, a hand-held phone). Returns (p, covariance)."""
-    e, ia, ib = np.flatnonzero(e_in), np.flatnonzero(ta_in), np.flatnonzero(tb_in)
+    ia, ib = np.flatnonzero(ta_in), np.flatnonzero(tb_in)
+    ae, be = P.a[e_in], P.b[e_in]   # indexed once, not per residual evaluation
     lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
               (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
     spread = [_spread(yaw, t, *x, P.pix) for x in lifted]   # at the start: barely changes
@@ -339,7 +340,7 @@ def _refine(P: _Pair, yaw, t, e_in, ta_in, tb_in):
     def resid(p):  # (C, 4) -> (C, R)
         y, tq = p[:, 0], p[:, 1:4]
         return np.concatenate(
-            [epipolar_residuals(y, tq, P.a[e], P.b[e]) / P.pix]
+            [epipolar_residuals(y, tq, ae, be) / P.pix]
             + [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)]
             + [((tq[:, 1] - P.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None]], 1)
 
