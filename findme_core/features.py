@@ -35,6 +35,7 @@ import numpy as np
 from .errors import InputError
 
 DETECTORS = ("orb", "sift")
+MATCHERS = ("auto", "brute", "lsh")
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,10 @@ class FeatureParams:
             its strongest ``n_features / cells``, the rest go to the strongest anywhere (so
             the faint floor gets keypoints next to a textured wall or tree); None: off.
         oversample: candidates detected per kept keypoint when ``grid`` is on.
+        matcher: "brute" (exact nearest neighbours), "lsh" (FLANN locality-sensitive
+            hashing of binary descriptors: approximate, 2-5x faster for 3000 ORB keypoints
+            with this OpenCV build, whose Hamming distance is not vectorised; its hash
+            tables are seeded, so results repeat) or "auto" (lsh for ORB, brute for SIFT).
     """
 
     detector: str = "orb"
@@ -63,6 +68,7 @@ class FeatureParams:
     mutual: bool = True
     grid: tuple | None = (8, 6)
     oversample: float = 3.0
+    matcher: str = "auto"
 
     def __post_init__(self) -> None:
         if self.detector not in DETECTORS:
@@ -72,6 +78,11 @@ class FeatureParams:
             raise InputError(f"n_features must be at least 8, got {self.n_features}")
         if not 0.0 < self.ratio <= 1.0:
             raise InputError(f"ratio must be in (0, 1], got {self.ratio}")
+        if self.matcher not in MATCHERS:
+            raise InputError(f"unknown matcher {self.matcher!r}; choose one of "
+                             f"{', '.join(MATCHERS)}")
+        if self.matcher == "lsh" and self.detector != "orb":
+            raise InputError(f"the lsh matcher needs binary descriptors (orb), not {self.detector}")
 
 
 @dataclass(frozen=True)
@@ -208,7 +219,15 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
                     np.zeros(0), len(fa), len(fb))
     if len(fa) < 2 or len(fb) < 2:
         return empty
-    bf = cv2.BFMatcher(cv2.NORM_HAMMING if fa.detector == "orb" else cv2.NORM_L2)
+    binary = fa.detector == "orb"
+    if params.matcher == "lsh" and not binary:
+        raise InputError(f"the lsh matcher needs binary descriptors (orb), not {fa.detector}")
+    if params.matcher == "lsh" or (params.matcher == "auto" and binary):
+        cv2.setRNGSeed(0)   # LSH hash tables come from OpenCV's (thread-local) RNG: repeatable
+        bf = cv2.FlannBasedMatcher(dict(algorithm=6, table_number=6, key_size=12,
+                                        multi_probe_level=1), dict(checks=32))
+    else:
+        bf = cv2.BFMatcher(cv2.NORM_HAMMING if binary else cv2.NORM_L2)
     idx, dist = _knn(bf, fa.descriptors, fb.descriptors)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(dist[:, 1] > 0, dist[:, 0] / dist[:, 1], 1.0)
@@ -217,7 +236,8 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
     if params.mutual and len(ia):
         cand = np.unique(ib)
         back = np.full(len(fb), -1)
-        back[cand] = [m.trainIdx for m in bf.match(fb.descriptors[cand], fa.descriptors)]
+        for m in bf.match(fb.descriptors[cand], fa.descriptors):   # (LSH may skip a query)
+            back[cand[m.queryIdx]] = m.trainIdx
         keep = back[ib] == ia
         ia, ib = ia[keep], ib[keep]
     if len(ia) == 0:

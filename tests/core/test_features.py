@@ -40,9 +40,10 @@ def test_detect_gives_spread_keypoints_with_descriptors(views):
     assert cells(spread.pixels) > cells(plain.pixels)
 
 
-def test_matches_are_mostly_right_and_one_to_one(views):
+@pytest.mark.parametrize("matcher", ["auto", "brute"])
+def test_matches_are_mostly_right_and_one_to_one(views, matcher):
     va, vb = views
-    m = match(detect(va.image), detect(vb.image))
+    m = match(detect(va.image), detect(vb.image), FeatureParams(matcher=matcher))
     assert len(m) >= 50 and m.ua.shape == m.ub.shape == (len(m), 2)
     err = np.linalg.norm(_true_pixel_in_b(va, vb, m.ua) - m.ub, axis=1)
     assert np.mean(err < 3.0) > 0.5   # the rest: wrong matches, for RANSAC to reject
@@ -55,6 +56,19 @@ def test_a_stricter_ratio_test_keeps_a_subset(views):
     loose, strict = match(fa, fb), match(fa, fb, FeatureParams(ratio=0.6))
     assert 0 < len(strict) < len(loose)
     assert set(zip(strict.ia, strict.ib)) <= set(zip(loose.ia, loose.ib))
+
+
+def test_lsh_matching_repeats_and_finds_most_exact_matches(views):
+    """LSH (the default for ORB) is approximate; its hash tables are seeded, so the same
+    photos give the same matches whatever was matched before, in any thread's history."""
+    fa, fb = detect(views[0].image), detect(views[1].image)
+    first = match(fa, fb)
+    match(fb, fa)                                   # other work in between
+    again = match(fa, fb)
+    assert np.array_equal(first.ia, again.ia) and np.array_equal(first.ib, again.ib)
+    exact = match(fa, fb, FeatureParams(matcher="brute"))
+    common = set(zip(first.ia, first.ib)) & set(zip(exact.ia, exact.ib))
+    assert len(common) >= 0.6 * len(exact)
 
 
 def test_sift_works_too(views):
@@ -83,6 +97,10 @@ def test_bad_parameters_are_input_errors(views):
         FeatureParams(detector="surf")
     with pytest.raises(InputError, match="ratio"):
         FeatureParams(ratio=1.5)
+    with pytest.raises(InputError, match="unknown matcher 'kd'"):
+        FeatureParams(matcher="kd")
+    with pytest.raises(InputError, match="binary descriptors"):
+        FeatureParams(detector="sift", matcher="lsh")
     orb = detect(views[0].image)
     sift = detect(views[0].image, FeatureParams(detector="sift", n_features=100, grid=None))
     with pytest.raises(InputError, match="cannot match"):
