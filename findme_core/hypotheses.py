@@ -25,7 +25,7 @@ from .errors import InputError
 from .lines import Lines, LineKind, classify, detect_segments, merge_collinear
 from .refine import SnapParams, snap_polyline
 from .ranking import RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
-from .search import (SearchParams, SegKind, best_paths, events, path_features, path_pieces,
+from .search import (SearchParams, best_paths, events, path_features, path_pieces,
                      path_polyline, path_rows, rewards, track_rows, track_tables)
 from .support import EdgeField, SupportParams, tabulate
 

@@ -23,9 +23,10 @@ Estimators (``METHODS``):
   lifted points, pixels over their sigma) is refined by robust Levenberg-Marquardt of
   (yaw, x, dy, z). Floor points first: wall points (right only when the hypothesis is)
   count only when fewer than ``min_floor`` floor points agree.
-* ``lifted``: 2-point RANSAC on the matches lifted in both photos projected to the floor,
-  weighted closed-form 2-D rigid alignment (Kabsch), refit on the inliers.
-* ``paper``: the paper's estimator as written, on the matches verified in (1) and lifted in
+* ``lifted`` (``motion_baselines``): 2-point RANSAC on the matches lifted in both photos
+  projected to the floor, weighted closed-form 2-D rigid alignment (Kabsch), refit on the
+  inliers.
+* ``paper`` (``motion_baselines``): the paper's estimator as written, on the matches verified in (1) and lifted in
   both photos: yaw = 1/Z-weighted mean of the bearing differences (eq. 5), translation =
   1/Z-weighted mean of P_A - R_y P_B on the floor (eqs. 6-8).
 
@@ -36,7 +37,7 @@ the cause. Pure: numpy in, numbers out; randomness is seeded by ``MotionParams.s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -44,99 +45,19 @@ import numpy as np
 from .camera import Camera
 from .errors import InputError, MotionError
 from .features import Lifted, Matches
-from .planar import (_epipolar_terms, _kabsch_pairs, _rot2, _rotate, _spread,  # noqa: F401
-                     bearings, depths, epipolar_residuals, kabsch_2d, rot_y, solve_gravity_3pt,
-                     solve_planar_2pt, transfer_residuals)
+from .motion_baselines import lifted_estimate, paper_estimate
+from .motion_model import (MotionInputs, MotionParams, PlanarMotion, motion_result,  # noqa: F401
+                           no_common_view)
+from .planar import (_epipolar_terms, _kabsch_pairs, _rot2, _rotate, _spread, bearings,
+                     epipolar_residuals, rot_y, solve_gravity_3pt, solve_planar_2pt,
+                     transfer_residuals)
 from .robust import levenberg_marquardt, msac, samples
 
 METHODS = ("findme", "lifted", "paper")
 Lifter = Callable[[np.ndarray], Lifted]  # match indices -> Lifted of all matches (NaN = not)
 
 
-@dataclass(frozen=True)
-class MotionParams:
-    """Thresholds (pixels) and RANSAC settings.
-
-    Attributes:
-        thr_px: inlier threshold of epipolar and transfer residuals, pixels.
-        max_iters: most RANSAC samples of each kind (fewer when the inliers allow).
-        confidence: RANSAC stops when a better sample is this unlikely.
-        min_matches / min_inliers: fewer matches / consistent ones: no common view.
-        min_parallax_px: 80 % of the matches moved less: the photos are identical.
-        min_floor: with fewer floor points agreeing, wall points fix the scale too.
-        max_lift: at most this many matches are lifted to 3D per photo (verified first).
-        gravity_sigma_deg: error of the given gravity: a point lifted at horizontal distance
-            d moves by ~ d^2 / h * error, added to its sigma.
-        scale_sigma, direction_sigma_deg, yaw_sigma_deg: model errors the fit cannot see
-            (camera height and gravity errors, a floor that is not flat, a hand-held phone
-            that does not move in a plane), added to every estimate's covariance: relative
-            along the baseline, across it (degrees of its direction) and on the yaw.
-        seed: RANSAC seed.
-    """
-
-    thr_px: float = 3.0
-    max_iters: int = 500
-    confidence: float = 0.999
-    min_matches: int = 8
-    min_inliers: int = 6
-    min_parallax_px: float = 0.3
-    min_floor: int = 6
-    max_lift: int = 60
-    gravity_sigma_deg: float = 1.0
-    scale_sigma: float = 0.03
-    direction_sigma_deg: float = 1.0
-    yaw_sigma_deg: float = 0.5
-    seed: int = 0
-
-
-@dataclass(frozen=True)
-class PlanarMotion:
-    """Pose of camera B in camera A's level frame, with 1-sigma uncertainties.
-
-    Attributes:
-        x, z: B's centre, metres (x right, z forward of A's level frame).
-        yaw: heading of B relative to A, radians (> 0 turned right).
-        dy: B's centre below A's, metres (estimated by ``findme``, else h_A - h_B).
-        sigma_x, sigma_z, sigma_yaw: 1-sigma of x, z (m) and yaw (rad).
-        inliers: (M,) bool over the matches: consistent with the estimate.
-        n_scale: lifted points that fixed the metric scale.
-        method: the estimator.
-    """
-
-    x: float
-    z: float
-    yaw: float
-    dy: float
-    sigma_x: float
-    sigma_z: float
-    sigma_yaw: float
-    inliers: np.ndarray
-    n_scale: int
-    method: str
-
-    @property
-    def n_inliers(self) -> int:
-        return int(np.count_nonzero(self.inliers))
-
-
 # ---------------------------------------------------------------------------- estimation
-@dataclass(frozen=True)
-class _Pair:
-    """Bearings (M, 3), lifted points (sigma with the gravity error), dy, h_A, 1 px (rad)."""
-
-    a: np.ndarray
-    b: np.ndarray
-    la: Lifted
-    lb: Lifted
-    dy: float
-    h_a: float
-    pix: float
-
-    def usable(self, walls: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Lifted points that may fix the scale: floor points, and wall points if asked."""
-        return (self.la.valid & (self.la.floor | walls), self.lb.valid & (self.lb.floor | walls))
-
-
 def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: float,
              lift_a: Lifter | None, lift_b: Lifter | None, method: str = "findme",
              params: MotionParams = MotionParams()) -> PlanarMotion:
@@ -170,16 +91,16 @@ def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: fl
 
     def pair(e_in, normal=None):
         sel = _lift_order(a, matches.ratio, e_in, params.max_lift)
-        return _Pair(a, b, _inflate(lift_a, sel, n, h_a, params, normal, a),
+        return MotionInputs(a, b, _inflate(lift_a, sel, n, h_a, params, normal, a),
                      _inflate(lift_b, sel, n, h_b, params,
                               None if normal is None else rot_y(yaw).T @ normal, b),
                      float(h_a - h_b), float(h_a), pix)
 
     if method == "lifted":
-        return _model_error(_lifted(pair(np.ones(n, bool)), params, rng), params)
+        return _model_error(lifted_estimate(pair(np.ones(n, bool)), params, rng), params)
     yaw, t, e_in = _epipolar_ransac(a, b, planar, pix, params, rng)
     if method == "paper":
-        return _model_error(_paper(pair(e_in), e_in), params)
+        return _model_error(paper_estimate(pair(e_in), e_in), params)
     for _ in range(2):   # local optimisation: refine on the inliers, take them again
         yaw, t, sig_elev = _refine_dir(a, b, yaw, t, e_in, planar, pix)
         r, front, _, far = _epipolar_terms(a, b, yaw, t, pix)
@@ -228,11 +149,6 @@ def _inflate(lift: Lifter | None, sel, n: int, h: float, params: MotionParams,
                   L.floor & L.valid)
 
 
-def _no_common_view(k: int, n: int) -> MotionError:
-    return MotionError(f"the photos have no common view: only {k} of {n} matches agree on "
-                       "one camera motion")
-
-
 def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
     """Scale-free (yaw, unit t, inliers) with the best MSAC score, t signed so that the
     inliers are in front of both cameras; stops adaptively (``confidence``)."""
@@ -262,11 +178,11 @@ def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
             need = min(params.max_iters,
                        int(np.log(1 - params.confidence) / np.log(max(1e-12, 1 - w ** k))) + 1)
     if best is None or best[2].sum() < min(params.min_inliers, n):
-        raise _no_common_view(0 if best is None else int(best[2].sum()), n)
+        raise no_common_view(0 if best is None else int(best[2].sum()), n)
     return best
 
 
-def _score(P: _Pair, yaw, t, use, thr: float):
+def _score(P: MotionInputs, yaw, t, use, thr: float):
     """MSAC score of C metric motions, yaw (C,), t (C, 3): epipolar residuals of all matches
     plus transfer residuals of the lifted points in ``use`` (masks of A, B). Returns (score
     (C,), epipolar inliers (C, M), lifted-A inliers (C, M), lifted-B inliers (C, M))."""
@@ -284,7 +200,7 @@ def _score(P: _Pair, yaw, t, use, thr: float):
     return score, e_in, ins[0], ins[1]
 
 
-def _scale(P: _Pair, yaw, t, e_in, use) -> float | None:
+def _scale(P: MotionInputs, yaw, t, e_in, use) -> float | None:
     """Baseline length along the unit t on which most lifted epipolar inliers agree (1-D
     consensus; each point's s puts it on the other photo's ray; relative sigma = relative
     depth sigma (+) one pixel over the parallax); None without a lifted inlier."""
@@ -326,7 +242,7 @@ def _refine_dir(a, b, yaw, t, e_in, planar: bool, pix: float, sigma_elev=np.radi
     return float(q[0]), unit(q), float(np.sqrt(cov[2, 2]))
 
 
-def _refine(P: _Pair, yaw, t, e_in, ta_in, tb_in):
+def _refine(P: MotionInputs, yaw, t, e_in, ta_in, tb_in):
     """Robust LM of p = (yaw, tx, ty, tz) (radians, metres) on the epipolar residuals of the
     inliers ``e_in`` and the transfer residuals of the lifted inliers (``ta_in`` A into B,
     ``tb_in`` B into A), pixels; Gaussian prior ty = dy, 2 cm + 3 % of the baseline (a floor
@@ -347,7 +263,7 @@ def _refine(P: _Pair, yaw, t, e_in, ta_in, tb_in):
     return levenberg_marquardt(resid, np.array([yaw, *t]), n_prior=1)
 
 
-def _kabsch_candidate(P: _Pair, use, params: MotionParams, rng):
+def _kabsch_candidate(P: MotionInputs, use, params: MotionParams, rng):
     """Best 2-point floor alignment of matches lifted in both photos: cheap 2-D agreement of
     the lifted pairs first, then the full score of the best 32. None if fewer than 2."""
     both = np.flatnonzero(use[0] & use[1])
@@ -363,7 +279,7 @@ def _kabsch_candidate(P: _Pair, use, params: MotionParams, rng):
     return float(yaw[top][i]), t[i]
 
 
-def _findme(P: _Pair, yaw, t, e_in, params: MotionParams, rng) -> PlanarMotion:
+def _findme(P: MotionInputs, yaw, t, e_in, params: MotionParams, rng) -> PlanarMotion:
     """The better (full score) of the scaled epipolar motion and the best lifted alignment,
     refined twice (inliers re-taken). Floor points first; wall points too when fewer than
     ``min_floor`` floor points agree with it (wrong matches on a repetitive carpet are
@@ -385,61 +301,10 @@ def _findme(P: _Pair, yaw, t, e_in, params: MotionParams, rng) -> PlanarMotion:
         else:
             _, e2, ta, tb = (m[0] for m in _score(P, p[0], p[1:], use, params.thr_px))
             if e2.sum() >= params.min_inliers and (walls or (ta | tb).sum() >= params.min_floor):
-                return _result(p[[0, 1, 3]], p[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
+                return motion_result(p[[0, 1, 3]], p[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
                                e2 | ta | tb, int(ta.sum() + tb.sum()), "findme")
     raise MotionError("no matched point lies on the floor or on a chosen wall consistently "
                       "with the motion in either photo, so the distance between the photos "
                       "cannot be measured")
 
 
-def _result(p, dy, cov, inliers, n_scale, method) -> PlanarMotion:
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    return PlanarMotion(float(p[1]), float(p[2]), float(np.angle(np.exp(1j * p[0]))), float(dy),
-                        float(sd[1]), float(sd[2]), float(sd[0]), inliers, int(n_scale), method)
-
-
-def _paper(P: _Pair, inl) -> PlanarMotion:
-    """Eqs. 5-8 on the verified matches lifted in both photos (floor projection x, z)."""
-    idx = np.flatnonzero(inl & P.la.valid & P.lb.valid)
-    if len(idx) == 0:
-        raise MotionError("no verified match has a 3D point in both photos (floor or chosen "
-                          "wall), so the paper's estimator has nothing to average")
-    A, B = P.la.points[idx][:, [0, 2]], P.lb.points[idx][:, [0, 2]]
-    w = 2.0 / (A[:, 1] + B[:, 1])                                   # 1 / Z
-    d = np.angle(np.exp(1j * (np.arctan2(A[:, 0], A[:, 1]) - np.arctan2(B[:, 0], B[:, 1]))))
-    yaw = float(np.sum(w * d) / np.sum(w))                          # eq. 5
-    T = A - _rot2(yaw, B)
-    t = w @ T / np.sum(w)                                           # eqs. 6-8
-    var = lambda x, m: np.sum(w * (x - m) ** 2) * np.sum(w ** 2) / np.sum(w) ** 3  # noqa: E731
-    cov = np.diag([var(d, yaw), var(T[:, 0], t[0]), var(T[:, 1], t[1])])
-    return _result([yaw, *t], P.dy, cov, np.isin(np.arange(len(P.a)), idx), len(idx), "paper")
-
-
-def _lifted(P: _Pair, params: MotionParams, rng) -> PlanarMotion:
-    """2-point RANSAC + weighted Kabsch on the matches lifted in both photos, projected on
-    the floor; inliers within 3 sigma (both points' sigmas combined, at least 5 cm)."""
-    idx = np.flatnonzero(P.la.valid & P.lb.valid)
-    if len(idx) < 2:
-        raise MotionError(f"only {len(idx)} matches have a 3D point in both photos (floor or "
-                          "chosen wall); the lifted estimator needs 2")
-    A, B = P.la.points[idx][:, [0, 2]], P.lb.points[idx][:, [0, 2]]
-    sig = np.maximum(np.hypot(P.la.sigma[idx], P.lb.sigma[idx]), 0.05)
-    res = lambda yaw, t: np.linalg.norm(A - _rot2(yaw, B) - t, axis=-1) / sig  # noqa: E731
-    yaw, t = _kabsch_pairs(A, B, samples(rng, len(idx), 2, params.max_iters))
-    i = int(np.argmax(msac(res(yaw[:, None], t[:, None]), 3.0)))
-    best = (float(yaw[i]), t[i])
-    for _ in range(4):
-        ok = res(*best) < 3.0
-        if ok.sum() < 2:
-            raise _no_common_view(int(ok.sum()), len(idx))
-        best = kabsch_2d(A[ok], B[ok], 1.0 / sig[ok] ** 2)
-    # covariance of (yaw, tx, tz) from the Jacobian of the weighted 2-D residuals
-    c, s, Bo = np.cos(best[0]), np.sin(best[0]), B[ok]
-    J = np.zeros((2 * len(Bo), 3))
-    J[0::2, 0], J[1::2, 0] = -s * Bo[:, 0] + c * Bo[:, 1], -c * Bo[:, 0] - s * Bo[:, 1]
-    J[0::2, 1], J[1::2, 2] = 1.0, 1.0
-    W = np.repeat(1.0 / sig[ok] ** 2, 2)
-    chi = np.sum(res(*best)[ok] ** 2) / max(2 * len(Bo) - 3, 1)
-    cov = np.linalg.pinv(J.T @ (W[:, None] * J)) * max(chi, 1.0)
-    return _result([best[0], *best[1]], P.dy, cov, np.isin(np.arange(len(P.a)), idx[ok]),
-                   int(ok.sum()), "lifted")

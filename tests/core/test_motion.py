@@ -13,8 +13,8 @@ from findme_core import features
 from findme_core.camera import Camera
 from findme_core.errors import InputError, MotionError
 from findme_core.features import Lifted, Matches
-from findme_core.motion import (MotionParams, estimate, kabsch_2d, rot_y, solve_gravity_3pt,
-                                solve_planar_2pt)
+from findme_core.motion import MotionParams, estimate
+from findme_core.planar import kabsch_2d, rot_y, solve_gravity_3pt, solve_planar_2pt
 from findme_core.scene import Scene
 from findme_core.synth import Box, Pose, Room, planar_motion, render
 

@@ -1,0 +1,113 @@
+"""What the motion estimators share: their settings, their result and their inputs.
+
+Frames and units (DESIGN.md, ``motion``): the motion of a pair (A, B) is the pose of camera
+B in A's level frame (y down along gravity, z forward, x right): x, z and dy in metres, yaw
+in radians (> 0: B turned right of A). Bearings are unit rays in each photo's level frame;
+lifted points are metres in that photo's level frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import MotionError
+from .features import Lifted
+
+
+@dataclass(frozen=True)
+class MotionParams:
+    """Thresholds (pixels) and RANSAC settings.
+
+    Attributes:
+        thr_px: inlier threshold of epipolar and transfer residuals, pixels.
+        max_iters: most RANSAC samples of each kind (fewer when the inliers allow).
+        confidence: RANSAC stops when a better sample is this unlikely.
+        min_matches / min_inliers: fewer matches / consistent ones: no common view.
+        min_parallax_px: 80 % of the matches moved less: the photos are identical.
+        min_floor: with fewer floor points agreeing, wall points fix the scale too.
+        max_lift: at most this many matches are lifted to 3D per photo (verified first).
+        gravity_sigma_deg: error of the given gravity: a point lifted at horizontal distance
+            d moves by ~ d^2 / h * error, added to its sigma.
+        scale_sigma, direction_sigma_deg, yaw_sigma_deg: model errors the fit cannot see
+            (camera height and gravity errors, a floor that is not flat, a hand-held phone
+            that does not move in a plane), added to every estimate's covariance: relative
+            along the baseline, across it (degrees of its direction) and on the yaw.
+        seed: RANSAC seed.
+    """
+
+    thr_px: float = 3.0
+    max_iters: int = 500
+    confidence: float = 0.999
+    min_matches: int = 8
+    min_inliers: int = 6
+    min_parallax_px: float = 0.3
+    min_floor: int = 6
+    max_lift: int = 60
+    gravity_sigma_deg: float = 1.0
+    scale_sigma: float = 0.03
+    direction_sigma_deg: float = 1.0
+    yaw_sigma_deg: float = 0.5
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class PlanarMotion:
+    """Pose of camera B in camera A's level frame, with 1-sigma uncertainties.
+
+    Attributes:
+        x, z: B's centre, metres (x right, z forward of A's level frame).
+        yaw: heading of B relative to A, radians (> 0 turned right).
+        dy: B's centre below A's, metres (estimated by ``findme``, else h_A - h_B).
+        sigma_x, sigma_z, sigma_yaw: 1-sigma of x, z (m) and yaw (rad).
+        inliers: (M,) bool over the matches: consistent with the estimate.
+        n_scale: lifted points that fixed the metric scale.
+        method: the estimator.
+    """
+
+    x: float
+    z: float
+    yaw: float
+    dy: float
+    sigma_x: float
+    sigma_z: float
+    sigma_yaw: float
+    inliers: np.ndarray
+    n_scale: int
+    method: str
+
+    @property
+    def n_inliers(self) -> int:
+        return int(np.count_nonzero(self.inliers))
+
+
+@dataclass(frozen=True)
+class MotionInputs:
+    """Bearings (M, 3), lifted points (sigma with the gravity error), dy, h_A, 1 px (rad)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    la: Lifted
+    lb: Lifted
+    dy: float
+    h_a: float
+    pix: float
+
+    def usable(self, walls: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Lifted points that may fix the scale: floor points, and wall points if asked."""
+        return (self.la.valid & (self.la.floor | walls), self.lb.valid & (self.lb.floor | walls))
+
+
+def no_common_view(k: int, n: int) -> MotionError:
+    """The error for a pair where only ``k`` of ``n`` matches agree on one motion."""
+    return MotionError(f"the photos have no common view: only {k} of {n} matches agree on "
+                       "one camera motion")
+
+
+def motion_result(p, dy, cov, inliers, n_scale, method) -> PlanarMotion:
+    """PlanarMotion from p = (yaw rad, x m, z m) and its (3, 3) covariance in that order; the
+    yaw is wrapped to (-pi, pi]."""
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return PlanarMotion(float(p[1]), float(p[2]), float(np.angle(np.exp(1j * p[0]))), float(dy),
+                        float(sd[1]), float(sd[2]), float(sd[0]), inliers, int(n_scale), method)
