@@ -63,6 +63,7 @@ class RecorderHandler(Handler):
         self._stop = threading.Event()
         self._flusher: threading.Thread | None = None
         self.opened = threading.Condition(self._lock)  # notified when a file is opened
+        self.wrote = threading.Condition(self._lock)   # notified after each recorded message
 
     # ------------------------------------------------------------------ files
     def path_of(self, session: str) -> Path | None:
@@ -130,10 +131,18 @@ class RecorderHandler(Handler):
                 rec = self.files.get(session) or self._open(session)
                 rec.write(key, payload, t)
                 self.recorded += 1
+                self.wrote.notify_all()
             except (OSError, ValueError) as e:
                 self.write_errors += 1
                 log.error("recorder: cannot record %s: %s", key, e)
         return []
+
+    def wait_recorded(self, n: int, timeout: float = 30.0) -> bool:
+        """Block until at least ``n`` messages have been recorded since the start (False on
+        timeout): the signal to wait on before stopping, since messages still in flight on
+        the bus are not yet queued."""
+        with self._lock:
+            return self.wrote.wait_for(lambda: self.recorded >= n, timeout)
 
     def close(self) -> None:
         """Finish every file (summary and indexes): they are then valid without recovery."""

@@ -127,6 +127,7 @@ def test_recorder_service_records_the_bus_and_finishes_on_stop(tmp_path):
         for r in recs:
             bus.put(session, r.key, r.payload)
         assert seen.wait_count(len(recs))
+        assert svc.handler.wait_recorded(len(recs)), svc.handler.counters()
         seen.close()
     finally:
         group.stop()      # drains the recorder's queue, then finishes the file

@@ -35,6 +35,7 @@ def test_replay_all_keys_records_the_same_messages_again(tmp_path, cli):
         assert rc == 0, err
         assert f"replayed {len(recs)} messages" in out
         assert seen.wait_count(len(recs))
+        assert rec.wait_recorded(len(recs)), rec.counters()
         seen.close()
     finally:
         group.stop()
