@@ -34,6 +34,9 @@ class MotionParams:
             (camera height and gravity errors, a floor that is not flat, a hand-held phone
             that does not move in a plane), added to every estimate's covariance: relative
             along the baseline, across it (degrees of its direction) and on the yaw.
+            Fitted by ``tools/calibrate_motion.py`` on tum-cabinet-pairs (dev) so the median
+            normalised error is a calibrated Gaussian's; held out, zind-pairs-tilted has
+            62-81 % of its errors within 1 sigma (gross failures stay outside 3 sigma).
         seed: RANSAC seed.
     """
 
@@ -46,9 +49,9 @@ class MotionParams:
     min_floor: int = 6
     max_lift: int = 60
     gravity_sigma_deg: float = 1.0
-    scale_sigma: float = 0.03
-    direction_sigma_deg: float = 1.0
-    yaw_sigma_deg: float = 0.5
+    scale_sigma: float = 0.13
+    direction_sigma_deg: float = 5.0
+    yaw_sigma_deg: float = 1.4
     seed: int = 0
 
 

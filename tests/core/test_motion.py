@@ -116,11 +116,15 @@ POSES = [  # (A, B): level, tilted phone-like, sideways, and different heights (
 ]
 
 
+# the fit's own covariance, without the model errors the defaults add for real photos
+FIT_ONLY = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0)
+
+
 @pytest.mark.parametrize("method", ["findme", "lifted"])
 @pytest.mark.parametrize("poses", POSES)
 def test_estimators_are_exact_on_noise_free_points(method, poses):
     m, (ca, cb), la, lb = exact_pair(*poses)
-    r = estimate(m, ca, cb, poses[0].height, poses[1].height, la, lb, method)
+    r = estimate(m, ca, cb, poses[0].height, poses[1].height, la, lb, method, FIT_ONLY)
     _check(r, *poses, 1e-6, 1e-5)
     assert r.n_inliers == len(m) if method == "findme" else r.n_inliers >= 2
     # a-priori noise (one pixel, the points' sigma) even when the data happen to be exact;
@@ -187,11 +191,32 @@ def test_sigma_covers_the_error_with_noisy_pixels():
             L = lift(idx)
             return Lifted(L.points * (1 + rng.normal(0, 0.01, (len(L.points), 1))), L.sigma, L.floor)
         return out
-    r = estimate(m2, ca, cb, 1.45, 1.45, noisy(la), noisy(lb))
+    r = estimate(m2, ca, cb, 1.45, 1.45, noisy(la), noisy(lb), params=FIT_ONLY)
     x, z, yaw = planar_motion(pa, pb)
     assert 0 < r.sigma_x < 0.05 and 0 < r.sigma_z < 0.05 and 0 < r.sigma_yaw < math.radians(1)
     assert abs(r.x - x) < 4 * r.sigma_x + 0.01 and abs(r.z - z) < 4 * r.sigma_z + 0.01
     assert abs(math.degrees(r.yaw) - yaw) < math.degrees(4 * r.sigma_yaw) + 0.1
+
+
+@pytest.mark.parametrize("method", ["findme", "lifted", "paper"])
+def test_model_errors_are_added_along_and_across_the_baseline(method):
+    """Defaults = the fit's covariance + (scale_sigma * baseline)^2 along the baseline,
+    (direction_sigma * baseline)^2 across it and yaw_sigma^2 on the yaw."""
+    poses = POSES[1]
+    m, (ca, cb), la, lb = exact_pair(*poses)
+    p = MotionParams()
+    fit = estimate(m, ca, cb, 1.45, 1.45, la, lb, method, FIT_ONLY)
+    full = estimate(m, ca, cb, 1.45, 1.45, la, lb, method, p)
+    assert (full.x, full.z, full.yaw) == (fit.x, fit.z, fit.yaw)
+    base = math.hypot(fit.x, fit.z)
+    ux, uz = fit.x / base, fit.z / base
+    along, across = p.scale_sigma * base, math.radians(p.direction_sigma_deg) * base
+    assert full.sigma_x ** 2 == pytest.approx(fit.sigma_x ** 2 + (along * ux) ** 2
+                                              + (across * uz) ** 2)
+    assert full.sigma_z ** 2 == pytest.approx(fit.sigma_z ** 2 + (along * uz) ** 2
+                                              + (across * ux) ** 2)
+    assert full.sigma_yaw == pytest.approx(math.hypot(fit.sigma_yaw,
+                                                      math.radians(p.yaw_sigma_deg)))
 
 
 # ---------------------------------------------------------------------------- rendered pair

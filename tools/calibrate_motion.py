@@ -1,0 +1,111 @@
+"""Fit the motion's model-error terms so its 1-sigma values mean what they say.
+
+    python tools/calibrate_motion.py ../shared/data/findme-eval [--fit tum-cabinet-pairs]
+
+Runs the default estimator with no model error on every dev pair (rank-1 hypotheses), then
+finds the relative scale error (along the baseline), the direction error (across it,
+degrees) and the yaw error (degrees) that make the median normalised error on the ``--fit``
+subset equal to a calibrated Gaussian's (0.674), and prints the coverage (fraction within
+1 and 3 sigma) of the current and the fitted values on every pair subset; the other subsets
+are the held-out check. Put the fitted values in ``MotionParams`` (findme_core/motion_model.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from findme.evaluate import view_inputs  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
+from findme_core.motion import MotionParams  # noqa: E402
+from findme_core.pair import motion_pair, scene_of  # noqa: E402
+
+SUBSETS = ("tum-cabinet-pairs", "zind-pairs-tilted", "zind-pairs-level", "kitti06-pairs")
+MEDIAN_ABS_Z = 0.6745   # median |z| of a standard normal
+
+
+def raw_motions(split: Path, subset: str) -> dict:
+    """Estimates with their fit sigmas only, and the truth, of the answered pairs: arrays
+    x, z (m), yaw (deg), sx, sz (m), sy (deg), gx, gz, gy."""
+    index = json.loads((split / "index.json").read_text())
+    p0 = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0)
+    rows = []
+    for pid in index["subsets"][subset]["pairs"]:
+        pair = json.loads((split / "pairs" / f"{pid}.json").read_text())
+        views = []
+        for v in (pair["a"], pair["b"]):
+            meta = json.loads((split / "views" / f"{v}.json").read_text())
+            cam, h, _ = view_inputs(meta)
+            views.append((cv2.imread(str(split / "views" / meta["image"])), cam, h))
+        (ia, ca, ha), (ib, cb, hb) = views
+        try:
+            sa, sb = scene_of(ia, ca, ha)[0], scene_of(ib, cb, hb)[0]
+            r = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, ("findme",), params=p0)["findme"]
+        except FindmeError:
+            continue
+        if isinstance(r, Exception):
+            continue
+        m, g = r.motion, pair["motion"]
+        rows.append((m.x, m.z, math.degrees(m.yaw), m.sigma_x, m.sigma_z,
+                     math.degrees(m.sigma_yaw), g["x_m"], g["z_m"], g["yaw_deg"]))
+    return dict(zip(("x", "z", "yaw", "sx", "sz", "sy", "gx", "gz", "gy"), np.array(rows).T))
+
+
+def normalised(a: dict, scale: float, direction_deg: float, yaw_deg: float):
+    """|error| / sigma along the baseline, across it and in yaw (as ``motion`` adds them)."""
+    base = np.hypot(a["x"], a["z"])
+    u = np.stack([a["x"], a["z"]], 1) / np.maximum(base, 1e-12)[:, None]
+    v = np.stack([-u[:, 1], u[:, 0]], 1)
+    e = np.stack([a["x"] - a["gx"], a["z"] - a["gz"]], 1)
+    var_u = (u[:, 0] * a["sx"]) ** 2 + (u[:, 1] * a["sz"]) ** 2 + (scale * base) ** 2
+    var_v = (v[:, 0] * a["sx"]) ** 2 + (v[:, 1] * a["sz"]) ** 2 \
+        + (math.radians(direction_deg) * base) ** 2
+    dyaw = (a["yaw"] - a["gy"] + 180.0) % 360.0 - 180.0
+    return (np.abs((e * u).sum(1)) / np.sqrt(var_u), np.abs((e * v).sum(1)) / np.sqrt(var_v),
+            np.abs(dyaw) / np.hypot(a["sy"], yaw_deg))
+
+
+def _solve(f, lo: float, hi: float) -> float:
+    """Root of a decreasing f on [lo, hi] by bisection (lo when f(lo) <= 0 already: no
+    model error needed; hi when f(hi) > 0)."""
+    if f(lo) <= 0:
+        return lo
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) > 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("split", type=Path)
+    ap.add_argument("--fit", default="tum-cabinet-pairs", choices=SUBSETS)
+    a = ap.parse_args(argv)
+    cv2.setNumThreads(1)
+    data = {s: raw_motions(a.split, s) for s in SUBSETS}
+    d = data[a.fit]
+    fitted = (_solve(lambda s: np.median(normalised(d, s, 0, 0)[0]) - MEDIAN_ABS_Z, 0, 1),
+              _solve(lambda r: np.median(normalised(d, 0, r, 0)[1]) - MEDIAN_ABS_Z, 0, 45),
+              _solve(lambda y: np.median(normalised(d, 0, 0, y)[2]) - MEDIAN_ABS_Z, 0, 45))
+    p = MotionParams()
+    for name, terms in (("current", (p.scale_sigma, p.direction_sigma_deg, p.yaw_sigma_deg)),
+                        (f"fitted on {a.fit}", fitted)):
+        print(f"{name}: scale_sigma {terms[0]:.3f}, direction_sigma_deg {terms[1]:.2f}, "
+              f"yaw_sigma_deg {terms[2]:.2f}")
+        for s, dd in data.items():
+            cover = [f"{np.mean(z <= 1):.2f} / {np.mean(z <= 3):.2f}"
+                     for z in normalised(dd, *terms)]
+            print(f"  {s:20s} n={len(dd['x']):3d}  within 1 / 3 sigma: along {cover[0]}, "
+                  f"across {cover[1]}, yaw {cover[2]}")
+
+
+if __name__ == "__main__":
+    main()
