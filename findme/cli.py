@@ -9,6 +9,17 @@ import sys
 from findme_core.errors import FindmeError
 
 
+DESCRIPTION = """\
+Measure a room and locate yourself from phone photos.
+
+  findme run                      every service on the bundled example (or your photos)
+  findme hypotheses PHOTO         the photo's floor-boundary hypotheses, best first
+  findme locate PHOTO --point U,V 3D of tapped pixels under a hypothesis
+  findme motion PHOTO_A PHOTO_B   how the camera moved between two photos
+  findme app                      the phone web page, with every service
+"""
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line on stderr and exit status 2, and values such
     as ``-0.05,0.9,0.4`` (a gravity vector) or ``-4,2`` (a pixel) are values, not options."""
@@ -24,7 +35,8 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from . import app_cli, demo, deploy, evaluate, motion_cli, record_cli, single
-    p = _Parser(prog="findme", description=__doc__)
+    p = _Parser(prog="findme", description=DESCRIPTION,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for mod in (demo, single, evaluate, motion_cli, deploy, app_cli, record_cli):
