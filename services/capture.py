@@ -26,7 +26,7 @@ from findme_core.errors import ImageError, InputError
 
 from . import bus
 from .convert import make_frame
-from .runtime import Handler
+from .handler import Handler
 
 IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 VIDEO_EXT = {".mp4", ".avi", ".mov", ".mkv", ".webm"}
@@ -126,7 +126,7 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
 
 def publish_frames(service, session: str, srcs, lens: Lens = Lens()) -> int:
     """Publish every frame through a running capture ``service``; returns the count."""
-    from .runtime import Output
+    from .handler import Output
     n = 0
     for f in frames(session, srcs, lens):
         service.publish(Output(bus.key(session, "frame", f.index), f))

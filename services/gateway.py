@@ -52,7 +52,8 @@ from findme_core.errors import BusError, InputError
 from . import bus
 from .page_input import MAX_HEADER_BYTES, MAX_MEASURE_PIXELS, MAX_UPLOAD_BYTES
 from .page_session import MAX_PHOTOS, PageSession
-from .runtime import Handler, Service
+from .handler import Handler
+from .runtime import Service
 
 log = logging.getLogger("findme.services.gateway")
 

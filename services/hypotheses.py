@@ -17,7 +17,7 @@ from findme_core.methods import hypothesize
 
 from . import bus
 from .convert import frame_inputs, hypothesis_set_msg
-from .runtime import Handler, Input, Output
+from .handler import Handler, Input, Output
 
 
 def check_frame_key(key: str, frame) -> bus.Key:

@@ -18,7 +18,7 @@ from findme_core.scene import Scene
 
 from . import bus
 from .convert import camera_msg, frame_camera, measure_reply_msg, msg_hypotheses
-from .runtime import Handler, Input, Output, UnknownSession
+from .handler import Handler, Input, Output, UnknownSession
 
 DEFAULT_HEIGHT_SIGMA_M = 0.03
 

@@ -28,7 +28,7 @@ from findme_core.trajectory import PlanarPose, compose
 
 from . import bus
 from .convert import frame_camera, msg_hypotheses
-from .runtime import Handler, Input, Output
+from .handler import Handler, Input, Output
 
 
 class _Session:

@@ -43,7 +43,8 @@ from findme_core.errors import FindmeError
 from . import bus
 from .page_input import CODE, GatewayError, _bad, build_frame, parse_command, parse_upload
 from .page_output import to_page
-from .runtime import Output, Service
+from .handler import Output
+from .runtime import Service
 
 log = logging.getLogger("findme.services.gateway")
 

@@ -28,7 +28,7 @@ from findme_core.errors import FindmeError, InputError
 
 from . import bus
 from .mcap_writer import COMPRESSIONS, McapRecording, recording_path
-from .runtime import Handler, Input
+from .handler import Handler, Input
 
 log = logging.getLogger("findme.services.recorder")
 

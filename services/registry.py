@@ -9,7 +9,7 @@ import threading
 
 from findme_core.errors import InputError
 
-from .runtime import Handler
+from .handler import Handler
 
 log = logging.getLogger("findme.services")
 

@@ -21,7 +21,7 @@ from findme_core.overlay import draw_hypotheses
 
 from . import bus
 from .convert import msg_hypotheses
-from .runtime import Handler, Input, Output
+from .handler import Handler, Input, Output
 
 
 class AutoChooser:

@@ -25,7 +25,7 @@ from findme_core.errors import FindmeError, InputError
 
 from . import bus
 from .mcap_layout import parse
-from .runtime import Handler, Input
+from .handler import Handler, Input
 
 log = logging.getLogger("findme.services.viewer")
 

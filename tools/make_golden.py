@@ -142,7 +142,8 @@ def run_session(spec: Spec, out_dir: Path) -> Path:
     from services.hypotheses import HypothesesHandler
     from services.measurement import MeasurementHandler
     from services.recorder import RecorderHandler
-    from services.runtime import Group, Output
+    from services.handler import Output
+    from services.runtime import Group
     from services.selection import SelectionHandler
 
     sid = f"golden-{spec.name}"

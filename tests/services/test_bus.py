@@ -11,7 +11,8 @@ from findme_core.errors import BusError
 from services.hypotheses import HypothesesHandler
 from services.measurement import MeasurementHandler
 from services.odometry import OdometryHandler
-from services.runtime import Group, Handler, Input, Output, Service
+from services.handler import Handler, Input, Output
+from services.runtime import Group, Service
 from services.selection import SelectionHandler
 from tests.services.conftest import Collector, frame_of
 

@@ -12,7 +12,7 @@ from findme_core.methods import hypothesize
 from findme_core.scene import Scene
 from services.hypotheses import HypothesesHandler
 from services.measurement import MeasurementHandler
-from services.runtime import UnknownSession
+from services.handler import UnknownSession
 from services.selection import AutoChooser, SelectionHandler, TerminalChooser
 from tests.services.conftest import frame_of
 
