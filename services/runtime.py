@@ -1,9 +1,9 @@
 """Runs a pure handler on the bus: decode, handle, encode, publish; errors, counters,
 liveliness, status, a latched cache of outputs, sharding among instances, shutdown.
 
-A *handler* (``handler.Handler``) knows nothing about Zenoh: it declares its inputs and queries and
-turns one decoded message into outputs, so tests drive it directly. ``Service`` wires it to
-a session:
+A *handler* (``handler.Handler``) knows nothing about Zenoh: it declares its inputs and
+queries and turns one decoded message into outputs, so tests drive it directly. ``Service``
+wires it to a session:
 
 * inputs with policy ``"all"`` go through a bounded FIFO; a full FIFO blocks the sender
   (backpressure), nothing is dropped. Inputs with policy ``"latest"`` keep the newest
