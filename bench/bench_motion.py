@@ -21,12 +21,10 @@ import os
 import sys
 import time
 
-import cv2
-import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
-from findme.evaluate import view_inputs  # noqa: E402
+from findme.evaluate import pair_inputs  # noqa: E402
 from findme_core.pair import motion_pair, scene_of  # noqa: E402
 from findme_core.features import FeatureParams  # noqa: E402
 
@@ -45,14 +43,10 @@ def pairs():
     if idx.exists():
         index = json.loads(idx.read_text())
         for pid in sorted({p for s in index["subsets"].values() for p in s.get("pairs", [])}):
-            pair = json.loads((EVAL_DIR / "pairs" / f"{pid}.json").read_text())
-            views = []
-            for v in (pair["a"], pair["b"]):
-                meta = json.loads((EVAL_DIR / "views" / f"{v}.json").read_text())
-                cam, h, _ = view_inputs(meta)
-                views.append((cv2.imread(str(EVAL_DIR / "views" / meta["image"])), cam, h))
-            if all((c.width, c.height) == (640, 480) for _, c, _ in views):
-                yield pid, views[0][0], views[1][0], views[0][1], views[1][1], views[0][2], views[1][2]
+            _, photos = pair_inputs(EVAL_DIR / "pairs", EVAL_DIR / "views", pid)
+            if all((c.width, c.height) == (640, 480) for _, c, _ in photos):
+                (ia, ca, ha), (ib, cb, hb) = photos
+                yield pid, ia, ib, ca, cb, ha, hb
         return
     from findme_core.synth import Box, Pose, Room, render
     room = Room.rectangle(5.0, 6.0, floor_style="carpet", boxes=(Box(1.0, 1.6, 0.8, 0.5, 0.9, 20),))

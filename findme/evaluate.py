@@ -84,22 +84,30 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
         return vid, None, str(e)
 
 
+def pair_inputs(pair_dir, view_dir, pid: str) -> tuple[dict, list]:
+    """A dataset pair's record and, for its photos A and B, (image, camera, camera height);
+    of each view only its inputs are read (``view_inputs``)."""
+    with open(os.path.join(pair_dir, pid + ".json")) as f:
+        pair = json.load(f)
+    photos = []
+    for which in ("a", "b"):
+        with open(os.path.join(view_dir, pair[which] + ".json")) as f:
+            meta = json.load(f)
+        cam, h, _ = view_inputs(meta)
+        photos.append((read_image(os.path.join(view_dir, meta["image"])), cam, h))
+    return pair, photos
+
+
 def predict_pair(args) -> tuple[str, dict, dict]:
     """Motion of one pair by each method: ({method: {x_m, z_m, yaw_deg, ...}}, {method: error})."""
     pair_dir, view_dir, pid, hyp_method, methods = args
     cv2.setNumThreads(1)
     preds, errs = {}, {}
     try:
-        with open(os.path.join(pair_dir, pid + ".json")) as f:
-            pair = json.load(f)
-        inputs = []
-        for which in ("a", "b"):
-            with open(os.path.join(view_dir, pair[which] + ".json")) as f:
-                meta = json.load(f)
-            cam, h, _ = view_inputs(meta)
-            image = read_image(os.path.join(view_dir, meta["image"]))
-            inputs.append((image, cam, h, scene_of(image, cam, h, 1, hyp_method, which.upper())[0]))
-        (ia, ca, ha, sa), (ib, cb, hb, sb) = inputs
+        _, photos = pair_inputs(pair_dir, view_dir, pid)
+        (ia, ca, ha, sa), (ib, cb, hb, sb) = [
+            (image, cam, h, scene_of(image, cam, h, 1, hyp_method, which)[0])
+            for (image, cam, h), which in zip(photos, "AB")]
         for method, r in motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods).items():
             if isinstance(r, FindmeError):
                 errs[method] = str(r)

@@ -36,7 +36,9 @@ def scene_of(image, camera: Camera, height: float, rank: int = 1,
     photo has no hypothesis at all (the motion then says whether it can do without); a rank
     beyond the hypotheses found is a bad input (HypothesisError)."""
     t0 = clock()
-    hs = hypothesize(image, camera, hypothesis_method, max(10, rank))
+    # the first ``rank`` hypotheses do not depend on how many more are asked for (greedy
+    # duplicate suppression keeps them in order): build no more than needed
+    hs = hypothesize(image, camera, hypothesis_method, rank if rank >= 1 else 10)
     ms = 1e3 * (clock() - t0)
     if rank < 1 or rank > max(1, len(hs.hypotheses)):
         raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "

@@ -224,7 +224,7 @@ class FoxgloveView:
                              sc.camera.intrinsics.height or 480, 0.5)
         tx = ann.texts.add(text=f"chosen: {sc.rank}", font_size=16.0,
                            text_color=Color(r=1.0, g=0.85, b=0.0, a=1.0),
-                           background_color=Color(r=0, g=0, b=0, a=0.7))
+                           background_color=_BLACK)
         tx.timestamp.CopyFrom(self._ts(sc.index, t))
         tx.position.x, tx.position.y = u + d, v + d
         return [(view_topic(self.session, "boundary"), ImageAnnotations, ann.SerializeToString())]

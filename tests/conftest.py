@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,23 @@ from findme_core.synth import Box, Pose, Room, render
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 EVAL_DIR = Path(os.environ.get("FINDME_EVAL_DIR", SHARED / "data" / "findme-eval"))
 SCORER = Path(os.environ.get("FINDME_SCORER", SHARED / "eval" / "score.py"))
+
+# The start of a script run in a fresh interpreter that must work without our code: any
+# import of the project's packages or of Foxglove's generated classes fails there.
+WITHOUT_PROJECT_CODE = textwrap.dedent("""
+    import importlib.abc, json, sys
+
+    BLOCKED = ("schemas", "findme_core", "findme", "services", "foxglove_schemas_protobuf",
+               "foxglove")
+
+    class Block(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name.split(".")[0] in BLOCKED:
+                raise ModuleNotFoundError(f"blocked in this test: {name}")
+            return None
+
+    sys.meta_path.insert(0, Block())
+""")
 
 
 def needs_eval_data():

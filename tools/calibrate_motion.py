@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from findme.evaluate import view_inputs  # noqa: E402
+from findme.evaluate import pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion import MotionParams  # noqa: E402
 from findme_core.pair import motion_pair, scene_of  # noqa: E402
@@ -38,13 +38,7 @@ def raw_motions(split: Path, subset: str) -> dict:
     p0 = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0)
     rows = []
     for pid in index["subsets"][subset]["pairs"]:
-        pair = json.loads((split / "pairs" / f"{pid}.json").read_text())
-        views = []
-        for v in (pair["a"], pair["b"]):
-            meta = json.loads((split / "views" / f"{v}.json").read_text())
-            cam, h, _ = view_inputs(meta)
-            views.append((cv2.imread(str(split / "views" / meta["image"])), cam, h))
-        (ia, ca, ha), (ib, cb, hb) = views
+        pair, ((ia, ca, ha), (ib, cb, hb)) = pair_inputs(split / "pairs", split / "views", pid)
         try:
             sa, sb = scene_of(ia, ca, ha)[0], scene_of(ib, cb, hb)[0]
             r = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, ("findme",), params=p0)["findme"]

@@ -13,22 +13,11 @@ import pytest
 
 from services.mcap_reader import read_recording
 
+from tests.conftest import WITHOUT_PROJECT_CODE
+
 from .conftest import GOLDENS
 
-READER = textwrap.dedent("""
-    import importlib.abc, json, sys
-
-    BLOCKED = ("schemas", "findme_core", "findme", "services", "foxglove_schemas_protobuf",
-               "foxglove")
-
-    class Block(importlib.abc.MetaPathFinder):
-        def find_spec(self, name, path=None, target=None):
-            if name.split(".")[0] in BLOCKED:
-                raise ModuleNotFoundError(f"blocked in this test: {name}")
-            return None
-
-    sys.meta_path.insert(0, Block())
-
+READER = WITHOUT_PROJECT_CODE + textwrap.dedent("""
     from google.protobuf.json_format import MessageToDict
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
