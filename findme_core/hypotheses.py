@@ -22,7 +22,7 @@ import numpy as np
 from .appearance import FloorLikelihood, RegionStats, to_lab
 from .camera import Camera
 from .errors import InputError
-from .lines import Lines, LineKind, classify, detect_segments, merge_collinear
+from .lines import Lines, LineKind, classify, detect_segments, horizon_top_row, merge_collinear
 from .refine import SnapParams, snap_polyline
 from .ranking import RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
 from .search import (SearchParams, best_paths, events, path_features, path_pieces,
@@ -65,6 +65,7 @@ class HypothesisSet:
 class HypothesisParams:
     segment_method: str = "lsd"
     lsd_scale: float = 0.5
+    below_horizon_only: bool = True  # detect lines only below the horizon (less work)
     min_segment_px: float = 12.0
     min_line_support_px: float = 25.0
     max_lines: int = 30
@@ -135,8 +136,9 @@ def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams
     Returns:
         (Lines, kinds (N,), indices of floor-candidate lines, indices of vertical lines).
     """
+    top = horizon_top_row(camera) if params.below_horizon_only else 0
     segs = detect_segments(image, params.segment_method, params.min_segment_px,
-                           lsd_scale=params.lsd_scale)
+                           lsd_scale=params.lsd_scale, top_row=top)
     lines = merge_collinear(segs)
     kinds = classify(lines, camera, horizon_margin=params.horizon_margin)
     floor = np.isin(kinds, (LineKind.LEFT, LineKind.FRONT, LineKind.RIGHT))
