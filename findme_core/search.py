@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from itertools import chain
 
 import numpy as np
 
@@ -187,61 +188,67 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
     """
     n_tracks, W1 = A.shape
     W = W1 - 1
-    Al = A.tolist()
     left = valid[:, 0].tolist()
     right = valid[:, -1].tolist()
-    src, dst, col = ev.src.tolist(), ev.dst.tolist(), ev.col.tolist()
+    src, dst = ev.src.tolist(), ev.dst.tolist()
+    Ai = A[ev.src, ev.col].tolist()   # reward tables at each event's column, before / after
+    Aj = A[ev.dst, ev.col].tolist()
     cost = np.where(ev.step, step_cost, corner_cost).tolist()
-    order = sorted(range(len(src)), key=col.__getitem__)
+    order = np.argsort(ev.col, kind="stable").tolist()
     # forward: potential F[t] so that the best prefix value on t at column k is F[t] + A[t][k]
-    F = [(-Al[t][0] if left[t] else NEG) for t in range(n_tracks)]
+    F = np.where(valid[:, 0], -A[:, 0], NEG).tolist()
     ptr = [-1] * n_tracks
     fval, pred = [NEG] * len(src), [-1] * len(src)
     for e in order:
-        i, j, k = src[e], dst[e], col[e]
+        i, j = src[e], dst[e]
         if F[i] <= NEG:
             continue
-        val = F[i] + Al[i][k] - cost[e]
+        val = F[i] + Ai[e] - cost[e]
         fval[e], pred[e] = val, ptr[i]
-        if val - Al[j][k] > F[j]:
-            F[j], ptr[j] = val - Al[j][k], e
+        if val - Aj[e] > F[j]:
+            F[j], ptr[j] = val - Aj[e], e
     # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
-    B = [(Al[t][W] if right[t] else NEG) for t in range(n_tracks)]
+    B = np.where(valid[:, -1], A[:, W], NEG).tolist()
     ptrb = [-1] * n_tracks
     sval, succ = [NEG] * len(src), [-1] * len(src)
     for e in reversed(order):
-        i, j, k = src[e], dst[e], col[e]
+        i, j = src[e], dst[e]
         if B[j] <= NEG:
             continue
-        suf = B[j] - Al[j][k]
+        suf = B[j] - Aj[e]
         sval[e], succ[e] = suf, ptrb[j]
-        if suf - cost[e] + Al[i][k] > B[i]:
-            B[i], ptrb[i] = suf - cost[e] + Al[i][k], e
-    cands = [(Al[t][W] - Al[t][0], t, -1) for t in range(n_tracks) if left[t] and right[t]]
-    cands += [(fval[e] + sval[e], src[e], e) for e in range(len(src))
-              if fval[e] > NEG and sval[e] > NEG]
-    cands.sort(key=lambda c: -c[0])
+        if suf - cost[e] + Ai[e] > B[i]:
+            B[i], ptrb[i] = suf - cost[e] + Ai[e], e
+    # candidates: single tracks spanning the image, then the best path through each event
+    single = np.nonzero(valid[:, 0] & valid[:, -1])[0]
+    fv, sv = np.array(fval), np.array(sval)
+    through = np.nonzero((fv > NEG) & (sv > NEG))[0]
+    total = np.concatenate([A[single, W] - A[single, 0], fv[through] + sv[through]])
+    which = np.concatenate([-1 - single, through])   # < 0: a single track
+    keep = total > -FORBIDDEN / 2
+    total, which = total[keep], which[keep]
     out, seen = [], set()
-    for total, start, e in cands:
-        if total <= -FORBIDDEN / 2 or len(out) >= limit:
+    for c in np.argsort(-total, kind="stable").tolist():
+        if len(out) >= limit:
             break
+        e = int(which[c])
         if e < 0:
-            out.append((total, start, ()))
+            out.append((float(total[c]), -1 - e, ()))
             continue
-        chain = [e]
+        chain_ = [e]
         p = pred[e]
         while p >= 0:
-            chain.append(p)
+            chain_.append(p)
             p = pred[p]
-        chain.reverse()
+        chain_.reverse()
         q = succ[e]
         while q >= 0:
-            chain.append(q)
+            chain_.append(q)
             q = succ[q]
-        key = tuple(chain)
+        key = tuple(chain_)
         if key not in seen:
             seen.add(key)
-            out.append((total, src[chain[0]], key))
+            out.append((float(total[c]), src[chain_[0]], key))
     return out
 
 
@@ -301,18 +308,30 @@ def path_pieces(paths, ev: Events, width: int):
     Returns:
         (piece_path, piece_track, k0, k1) arrays over all pieces (column boundaries
         [k0, k1)), and (K, 2) counts of corners / crossings and of steps per path.
+        The pieces of each path are consecutive, left to right, and cover [0, width).
     """
-    col, dst, step = ev.col.tolist(), ev.dst.tolist(), ev.step.tolist()
-    pp, pt, a, b = [], [], [], []
-    counts = np.zeros((len(paths), 2))
-    for i, (_, track, chain) in enumerate(paths):
-        k = 0
-        for e in chain:
-            pp.append(i), pt.append(track), a.append(k), b.append(col[e])
-            counts[i, int(step[e])] += 1
-            track, k = dst[e], col[e]
-        pp.append(i), pt.append(track), a.append(k), b.append(width)
-    return np.array(pp), np.array(pt), np.array(a), np.array(b), counts
+    K = len(paths)
+    n_ev = np.fromiter((len(p[2]) for p in paths), int, K)
+    flat = np.fromiter(chain.from_iterable(p[2] for p in paths), int, int(n_ev.sum()))
+    starts = np.fromiter((p[1] for p in paths), int, K)
+    n_pc = n_ev + 1
+    first = np.cumsum(n_pc) - n_pc                      # index of each path's first piece
+    pp = np.repeat(np.arange(K), n_pc)
+    is_first = np.zeros(len(pp), bool)
+    is_first[first] = True
+    is_last = np.zeros(len(pp), bool)
+    is_last[first + n_ev] = True
+    pt = np.empty(len(pp), int)
+    pt[is_first] = starts
+    pt[~is_first] = ev.dst[flat]
+    a = np.zeros(len(pp), int)
+    a[~is_first] = ev.col[flat]
+    b = np.full(len(pp), width)
+    b[~is_last] = ev.col[flat]
+    counts = np.zeros((K, 2))
+    if len(flat):
+        np.add.at(counts, (np.repeat(np.arange(K), n_ev), ev.step[flat].astype(int)), 1)
+    return pp, pt, a, b, counts
 
 
 def path_features(pieces, F: np.ndarray, n_paths: int) -> np.ndarray:
@@ -327,9 +346,7 @@ def path_features(pieces, F: np.ndarray, n_paths: int) -> np.ndarray:
 
 def path_rows(pieces, rows: np.ndarray, n_paths: int) -> np.ndarray:
     """(K, W) boundary row of each path at every column, from the track rows (N + 2, W)."""
-    pp, pt, a, b, _ = pieces
+    _, pt, a, b, _ = pieces
     W = rows.shape[1]
-    out = np.empty((n_paths, W))
-    for i, t, k0, k1 in zip(pp.tolist(), pt.tolist(), a.tolist(), b.tolist()):
-        out[i, k0:k1] = rows[t, k0:k1]
-    return out
+    track = np.repeat(pt, b - a).reshape(n_paths, W)   # pieces tile [0, W) path by path
+    return rows[track, np.arange(W)[None, :]]
