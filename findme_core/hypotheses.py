@@ -93,18 +93,27 @@ def suppress_duplicates(rows: np.ndarray, order: np.ndarray, nms_px: float, max_
     rows differ from a kept one by less than ``nms_px`` on average."""
     rows = rows[order]
     head = min(len(rows), 4 * max_n + 8)  # the kept ones nearly always come from the head
-    near = np.abs(rows[:head, None, :] - rows[None, :head, :]).mean(2) < nms_px
+    near = (np.abs(rows[:head, None, :] - rows[None, :head, :]).mean(2) < nms_px).tolist()
     kept: list[int] = []
-    for i in range(len(order)):
-        if kept:
-            dup = (near[i, kept].any() if i < head else
-                   (np.abs(rows[kept] - rows[i]).mean(1) < nms_px).any())
-            if dup:
-                continue
+    dup = [False] * head   # near a kept one (the distance is symmetric)
+    for i in range(head):
+        if dup[i]:
+            continue
         kept.append(i)
         if len(kept) >= max_n:
-            break
-    return [int(order[i]) for i in kept]
+            return [int(order[k]) for k in kept]
+        dup = [a or b for a, b in zip(dup, near[i])]
+    if head < len(rows):  # the tail, against every kept one (those of the head at once)
+        dup_t = (np.abs(rows[head:, None, :] - rows[kept][None, :, :]).mean(2) < nms_px).any(1)
+        tail: list[int] = []
+        for i in range(head, len(rows)):
+            if dup_t[i - head] or (tail and (np.abs(rows[tail] - rows[i]).mean(1) < nms_px).any()):
+                continue
+            kept.append(i)
+            tail.append(i)
+            if len(kept) >= max_n:
+                break
+    return [int(order[k]) for k in kept]
 
 
 def vertical_in_floor(rows: np.ndarray, verticals: np.ndarray, n_samples: int = 8,
@@ -204,7 +213,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)),
                              scale=params.likelihood_scale)
         if fl.valid:  # second pass with colour evidence inside the search
-            F, _ = track_tables(table, camera, sp, fl.below(rows_t))
+            F, _ = track_tables(table, camera, sp, fl.below(rows_t), valid)
             ranked = None
     if ranked is None:
         ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import cv2
 import numpy as np
 
@@ -114,46 +116,55 @@ def _intersect(p, d, q, e):
     return p + t[0] * d
 
 
+def _median0(x: np.ndarray) -> np.ndarray:
+    """np.median(x, axis=0), by one partition (same values, less overhead)."""
+    n = x.shape[0]
+    k = n // 2
+    if n % 2:
+        return np.partition(x, k, axis=0)[k]
+    q = np.partition(x, (k - 1, k), axis=0)
+    return (q[k - 1] + q[k]) / 2
+
+
 def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
     """Pixels to move the segment a-b along its normal (0 = keep; None = too little of it
     in the image to tell)."""
     H, W = lab.shape[:2]
-    length = np.hypot(*(b - a))
-    n_cols = int(length // p.step_px)
+    d = b - a
+    n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
     if n_cols < 4:
         return None
     t = (np.arange(n_cols) + 0.5) / n_cols
-    base = a[None, :] + t[:, None] * (b - a)[None, :]
+    base = a[None, :] + t[:, None] * d[None, :]
     inside = (base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0) & (base[:, 1] <= H - 1)
     base = base[inside]
     if len(base) < 4:
         return None
-    dep = _depression(camera, base)
-    dep = np.maximum(dep, 1.0)
-    s = np.arange(-0.02, p.floor_band[1] + 1e-9, p.s_step)
+    dep = np.maximum(_depression(camera, base), 1.0)
+    s = _offsets(p)
     pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
-    ok = ((pts[..., 0] >= 0) & (pts[..., 0] <= W - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= H - 1))
-    cols = ok.all(1)
-    if cols.sum() < 4:
+    # a column of samples is a straight run: inside the image iff both its ends are
+    ends = pts[:, [0, -1]]
+    cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
+            & (ends[..., 1] <= H - 1)).all(1)
+    n_in = int(cols.sum())
+    if n_in < 4:
         return None
     P = pts[cols].reshape(-1, 2).astype(np.float32)
     prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
-    prof = prof.reshape(cols.sum(), len(s), 3)
-    prof = np.median(prof, axis=0) if p.robust else prof.mean(0)    # (S, 3) average profile
+    prof = prof.reshape(n_in, len(s), 3)
+    prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
-    floor = np.median(prof[fb], axis=0)
-    dist = np.linalg.norm(prof - floor, axis=1)
-    far = dist > p.settle_tol
+    floor = _median0(prof[fb])
+    diff = prof - floor
+    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
     win = max(1, int(round(p.settle_len / p.s_step)))
     # first offset >= 0 from which the profile stays at the floor colour for `win` samples
     start = int(np.searchsorted(s, 0.0))
-    settle = None
-    for k in range(start, len(s) - win):
-        if s[k] > p.max_rel:
-            break
-        if not far[k:k + win].any():
-            settle = k
-            break
+    cf = np.concatenate([[0], np.cumsum(far)])
+    ks = np.arange(start, len(s) - win)
+    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
+    settle = int(ks[hit[0]]) if len(hit) else None
     if settle is None or settle == start:
         return 0.0
     # the colour edge just before settling: largest profile gradient between the top edge
@@ -166,3 +177,9 @@ def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
         return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
     shift = float(s[k] * np.median(dep[cols]))
     return shift if shift >= p.min_shift_px else 0.0
+
+
+def _offsets(p: SnapParams) -> np.ndarray:
+    """Profile offsets s (relative to the depression), from just above the line to the
+    bottom of the floor band."""
+    return np.arange(-0.02, p.floor_band[1] + 1e-9, p.s_step)

@@ -74,13 +74,15 @@ def track_rows(table: SupportTable, height: int) -> np.ndarray:
 
 
 def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
-                 region: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 region: np.ndarray | None = None,
+                 valid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cumulative additive features of every track and per-column validity.
 
     Args:
         table: support of the N candidate lines.
         region: optional (N + 2, W) colour reward per column of the floor region each track
             implies (``appearance.FloorLikelihood.below`` of the track rows).
+        valid: the validity returned by an earlier call on the same table (not recomputed).
     Returns:
         F: (len(ADDITIVE), N + 2, W + 1) cumulative sums over column boundaries, in pixels
             (support and length: arc length; outside / top / bottom: columns; region: the
@@ -88,11 +90,12 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
         valid: (N + 2, W) bool, the track is a possible floor boundary in that column.
     """
     W = camera.width
-    rows = track_rows(table, camera.height)
-    u = np.broadcast_to(np.arange(W, dtype=float), rows.shape)
-    valid = camera.below_horizon(np.column_stack([u.ravel(), rows.ravel()]),
-                                 p.horizon_margin).reshape(rows.shape)
-    valid[-1] = True  # "no floor here" is always a possible answer
+    if valid is None:
+        rows = track_rows(table, camera.height)
+        u = np.broadcast_to(np.arange(W, dtype=float), rows.shape)
+        valid = camera.below_horizon(np.column_stack([u.ravel(), rows.ravel()]),
+                                     p.horizon_margin).reshape(rows.shape)
+        valid[-1] = True  # "no floor here" is always a possible answer
     n = len(table.S)
     F = np.zeros((len(ADDITIVE), n + 2, W + 1))
     F[0, :n], F[1, :n], F[2, :n] = table.S, table.L, table.O
