@@ -191,7 +191,9 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         return HypothesisSet(W, H, [], lines, kinds, reason, _timing(t, ("lines",)))
     coef = lines.coef[cand]
     lab = to_lab(image)
-    table = tabulate(EdgeField(image, params.support, color=lab), coef, params.substeps)
+    top = horizon_top_row(camera) if params.below_horizon_only else 0
+    table = tabulate(EdgeField(image, params.support, color=lab, top_row=top), coef,
+                     params.substeps)
     if clock:
         t.append(clock())
     sp, w, ws = params.search, params.weights.vector(), params.search_weights.vector()

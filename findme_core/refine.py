@@ -78,8 +78,8 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
         if shift is None:  # too short to measure: its corners follow the neighbours
             continue
         d = b - a
-        n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)
-        if n @ down < 0:
+        n = np.array([-d[1], d[0]]) / max(math.hypot(d[0], d[1]), 1e-12)
+        if n[0] * down[0] + n[1] * down[1] < 0:
             n = -n
         lines[s] = (a + shift * n, d)   # point on the moved line, direction
     if not lines:
@@ -96,7 +96,7 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
             if x is not None and abs(x[0] - poly[k, 0]) <= 2.0 and lo <= x[0] <= hi:
                 out[k] = x
             else:
-                out[k, 1] = np.mean([_row_at(*ln, poly[k, 0]) for ln in (left, right)])
+                out[k, 1] = (_row_at(*left, poly[k, 0]) + _row_at(*right, poly[k, 0])) / 2
             continue
         ln = left or right
         if ln is not None:
@@ -109,11 +109,12 @@ def _row_at(q, d, u):
 
 
 def _intersect(p, d, q, e):
-    A = np.array([[d[0], -e[0]], [d[1], -e[1]]])
-    if abs(np.linalg.det(A)) < 1e-9:
+    """Intersection of the lines p + t d and q + s e (None if nearly parallel)."""
+    det = e[0] * d[1] - d[0] * e[1]
+    if abs(det) < 1e-9:
         return None
-    t = np.linalg.solve(A, q - p)
-    return p + t[0] * d
+    t = (e[0] * (q[1] - p[1]) - e[1] * (q[0] - p[0])) / det
+    return p + t * d
 
 
 def _median0(x: np.ndarray) -> np.ndarray:
@@ -169,13 +170,17 @@ def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
         return 0.0
     # the colour edge just before settling: largest profile gradient between the top edge
     # (skipping its own blur, 2 samples) and the settling point
-    g = np.linalg.norm(np.gradient(prof, axis=0), axis=1)
+    grad = np.empty_like(prof)   # np.gradient(prof, axis=0)
+    grad[1:-1] = (prof[2:] - prof[:-2]) / 2.0
+    grad[0], grad[-1] = prof[1] - prof[0], prof[-1] - prof[-2]
+    g = np.sqrt((grad * grad).sum(1))
     lo = min(start + 3, settle)
     k = lo + int(np.argmax(g[lo:settle + 1]))
-    band = np.median(prof[start + 1:k + 1], axis=0) if k > start else prof[start]
-    if (np.linalg.norm(band[1:] - floor[1:]) < p.shadow_chroma and band[0] < floor[0]):
+    band = _median0(prof[start + 1:k + 1]) if k > start else prof[start]
+    if (math.hypot(band[1] - floor[1], band[2] - floor[2]) < p.shadow_chroma
+            and band[0] < floor[0]):
         return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
-    shift = float(s[k] * np.median(dep[cols]))
+    shift = float(s[k] * _median0(dep[cols]))
     return shift if shift >= p.min_shift_px else 0.0
 
 

@@ -60,18 +60,28 @@ class EdgeField:
         image: (H, W, 3) uint8 BGR.
         color: optional (H, W, 3) float32 image to compare colours in (e.g. Lab; default
             BGR); ``tau_c`` is in its units.
+        top_row: derivatives are computed from this row down (e.g. the rows below the
+            horizon, where floor lines are); above it they are 0 (no edge).
     """
 
     def __init__(self, image: np.ndarray, params: SupportParams = SupportParams(),
-                 color: np.ndarray | None = None):
+                 color: np.ndarray | None = None, top_row: int = 0):
         img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         self.params = params
         self.height, self.width = img.shape[:2]
         self.color = img.astype(np.float32) if color is None else color
-        gray = cv2.GaussianBlur(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32), (0, 0),
-                                params.blur_sigma)
-        self.gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-        self.gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+        # the blur and Sobel reach ~4 px: start a few rows higher so that rows >= top_row
+        # are exactly as on the whole image
+        top = int(np.clip(top_row - 8, 0, self.height - 1)) if top_row > 0 else 0
+        gray = cv2.GaussianBlur(cv2.cvtColor(img[top:], cv2.COLOR_BGR2GRAY).astype(np.float32),
+                                (0, 0), params.blur_sigma)
+        self.gx = np.zeros((self.height, self.width), np.float32)
+        self.gy = np.zeros((self.height, self.width), np.float32)
+        self.gx[top:] = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8.0
+        self.gy[top:] = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+        if top:
+            self.gx[top:top_row] = 0.0
+            self.gy[top:top_row] = 0.0
 
     def sample(self, arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
