@@ -20,9 +20,12 @@ _EPS_VAR = 4.0
 
 
 def to_lab(image: np.ndarray) -> np.ndarray:
-    """(H, W, 3) uint8 BGR (or (H, W) grey) -> (H, W, 3) float32 CIE Lab (OpenCV 8-bit scale)."""
+    """(H, W, 3) uint8 BGR (or (H, W) grey) -> (H, W, 3) uint8 CIE Lab (OpenCV 8-bit scale).
+
+    Kept in 8 bits: a quarter of the memory of float32, and the consumers sample it (remap,
+    resize) or take moments in float64 themselves."""
     img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    return cv2.cvtColor(img, cv2.COLOR_BGR2LAB).astype(np.float32)  # colour variance floor (grey levels^2): keeps log det finite on flat regions
+    return cv2.cvtColor(img, cv2.COLOR_BGR2LAB)  # colour variance floor (grey levels^2): keeps log det finite on flat regions
 
 
 class RegionStats:
@@ -87,7 +90,8 @@ class FloorLikelihood:
     def __init__(self, lab: np.ndarray, floor_rows: np.ndarray, clip: float = 3.0,
                  margin_px: float = 3.0, scale: int = 4):
         H, W = lab.shape[:2]
-        lab = cv2.resize(lab, (W // scale, H // scale), interpolation=cv2.INTER_AREA)
+        lab = cv2.resize(lab, (W // scale, H // scale),
+                         interpolation=cv2.INTER_AREA).astype(np.float32)
         h, w = lab.shape[:2]
         self.scale, self.height, self.width = scale, H, W
         b = np.interp((np.arange(w) + 0.5) * scale - 0.5, np.arange(W), floor_rows)

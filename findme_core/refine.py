@@ -52,7 +52,7 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     """Return a copy of ``polyline`` with WALL segments moved down to the wall base.
 
     Args:
-        image_lab: (H, W, 3) float32 Lab image.
+        image_lab: (H, W, 3) Lab image (``appearance.to_lab``: uint8; float32 works too).
         polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
         cache: optional dict reused across the hypotheses of one image.
         keys: optional cache key per segment, e.g. the id of the image line it lies on: the
@@ -153,7 +153,7 @@ def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
         return None
     P = pts[cols].reshape(-1, 2).astype(np.float32)
     prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
-    prof = prof.reshape(n_in, len(s), 3)
+    prof = prof.reshape(n_in, len(s), 3).astype(np.float32)
     prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
     floor = _median0(prof[fb])

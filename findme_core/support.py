@@ -110,6 +110,7 @@ class EdgeField:
         m = len(pts)
         far = pts + p.far_px * normals
         c = self.sample(self.color, np.concatenate([pts + p.near_px * normals, far]))
+        c = c.astype(np.float32)
         d = c[:m] - c[m:]
         floor = 1.0 - np.clip(np.sqrt((d * d).sum(1)) / p.tau_c, 0.0, 1.0)
         # where the far sample leaves the image the continuity is unknown: neutral
