@@ -24,9 +24,9 @@ from .camera import Camera
 from .errors import InputError
 from .lines import Lines, LineKind, classify, detect_segments, horizon_top_row, merge_collinear
 from .refine import SnapParams, snap_polyline
-from .ranking import RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
+from .ranking import IDX, N_ADDITIVE, RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
 from .search import (SearchParams, best_paths, events, path_features, path_pieces,
-                     path_polyline, path_rows, rewards, track_rows, track_tables)
+                     path_polyline, path_rows, rewards, track_rows, track_tables, with_region)
 from .support import EdgeField, SupportParams, tabulate
 
 
@@ -200,22 +200,23 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     rows_t = track_rows(table, H)
     verts = lines.ends[vert]
     stats = RegionStats(lab)
-    F, valid = track_tables(table, camera, sp)
+    F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT)
     ev = events(coef, rows_t, valid, verts, camera, sp)
     if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
-        paths = best_paths(rewards(F, valid, ws[:6]), valid, ev, -ws[6], -ws[7], limit=1)
+        paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],
+                           -ws[IDX["steps"]], limit=1)
         ranked, seed = None, (paths[0] if paths else None)
     else:
         ranked, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
                                         rows_t, params.seed_top)
-    if ws[5] != 0 and seed is not None:
+    if ws[IDX["region"]] != 0 and seed is not None:
         # the colour model is seeded by the best under the *search* weights, so the candidate
         # pool does not depend on the re-ranking weights (no feedback when fitting them)
         best = path_polyline(seed[1], seed[2], ev, coef, W, H)[0]
         fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)),
                              scale=params.likelihood_scale)
         if fl.valid:  # second pass with colour evidence inside the search
-            F, _ = track_tables(table, camera, sp, fl.below(rows_t), valid)
+            F = with_region(F, fl.below(rows_t))
             ranked = None
     if ranked is None:
         ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
@@ -239,7 +240,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         if params.snap:
             poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache, built[2])
         f = ranked[i][3]
-        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[10])))
+        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[IDX["fraction"]])))
     if clock:
         t.append(clock())
     return HypothesisSet(W, H, hyps, lines, kinds, None,
@@ -248,16 +249,21 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
 
 def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows_t,
                      top: int):
-    """Best paths under search weights ``ws``, re-scored under weights ``w``.
+    """Best paths under search weights ``ws``, re-scored under weights ``w``; the answer
+    "no floor visible" is always among them.
 
     Returns:
         (list of (score, path, rows at ``stats.cols``, features), best first;
          the best path under ``ws``). A path is (score, start track, event chain).
     """
-    A = rewards(F, valid, ws[:6])
-    paths = best_paths(A, valid, ev, -ws[6], -ws[7], limit=top)
+    A = rewards(F, valid, ws[:N_ADDITIVE])
+    paths = best_paths(A, valid, ev, -ws[IDX["corners"]], -ws[IDX["steps"]], limit=top)
     if not paths:
         return [], None
+    found = len(paths)
+    none = len(A) - 1   # the BOTTOM track alone: "no floor visible"
+    if not any(p[1] == none and not p[2] for p in paths):
+        paths.append((float(A[none, -1] - A[none, 0]), none, ()))
     pieces = path_pieces(paths, ev, W)
     full_rows = np.clip(path_rows(pieces, rows_t, len(paths)), 0.0, float(H))
     rows = full_rows[:, stats.cols]
@@ -265,7 +271,7 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows
                            vertical_in_floor(full_rows, verts), rows, W, H)
     score = feats @ w
     order = np.argsort(-score, kind="stable")
-    seed = paths[int(np.argmax(feats @ ws))]
+    seed = paths[int(np.argmax(feats[:found] @ ws))]   # among the search's own paths
     return [(float(score[i]), paths[i], rows[i], feats[i]) for i in order], seed
 
 

@@ -47,7 +47,7 @@ class SegKind(IntEnum):
 
 
 #: Additive features: summed along a path from cumulative per-column tables.
-ADDITIVE = ("support", "length", "outside", "top", "bottom", "region")
+ADDITIVE = ("support", "length", "outside", "top", "bottom", "region", "far")
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,7 @@ class SearchParams:
     step_min_jump_px: float = 15.0
     min_vertical_px: float = 25.0
     horizon_margin: float = 0.01
+    far_deg: float = 6.0   # a boundary seen less than this below the horizon is implausibly far
 
 
 @dataclass(frozen=True)
@@ -74,8 +75,8 @@ def track_rows(table: SupportTable, height: int) -> np.ndarray:
 
 
 def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
-                 region: np.ndarray | None = None,
-                 valid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 region: np.ndarray | None = None, valid: np.ndarray | None = None,
+                 front: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cumulative additive features of every track and per-column validity.
 
     Args:
@@ -83,10 +84,15 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
         region: optional (N + 2, W) colour reward per column of the floor region each track
             implies (``appearance.FloorLikelihood.below`` of the track rows).
         valid: the validity returned by an earlier call on the same table (not recomputed).
+        front: (N,) bool, the lines that run across the view (``lines.LineKind.FRONT``):
+            only those count as far (default all). A wall facing the camera stands at one
+            distance along its base, so a front line just below the horizon means a wall
+            implausibly far away (the edge of a counter top or a window sill seen level);
+            a receding line's far end approaches the horizon in any room or street.
     Returns:
         F: (len(ADDITIVE), N + 2, W + 1) cumulative sums over column boundaries, in pixels
             (support and length: arc length; outside / top / bottom: columns; region: the
-            per-column reward).
+            per-column reward; far: ``farness`` of a line's floor point in each column).
         valid: (N + 2, W) bool, the track is a possible floor boundary in that column.
     """
     W = camera.width
@@ -101,9 +107,34 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
     F[0, :n], F[1, :n], F[2, :n] = table.S, table.L, table.O
     cols = np.arange(W + 1, dtype=float)
     F[3, n], F[4, n + 1] = cols, cols
+    far = farness(table.v, camera, p.far_deg)
+    if front is not None:
+        far[~np.asarray(front, bool)] = 0.0
+    F[6, :n, 1:] = np.cumsum(far, axis=1)
     if region is not None:
         F[5, :, 1:] = np.cumsum(region, axis=1)
     return F, valid
+
+
+def with_region(F: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """A copy of the tables ``F`` (``track_tables``) with the colour reward (N + 2, W) of
+    each track's floor region."""
+    out = F.copy()
+    out[5, :, 1:] = np.cumsum(region, axis=1)
+    return out
+
+
+def farness(rows: np.ndarray, camera: Camera, far_deg: float) -> np.ndarray:
+    """(N, W) in [0, 1] for line rows (N, W) at columns 0..W-1: how implausibly far the
+    floor point of each pixel is, ``clip(1 - sin(d) / sin(far_deg), 0, 1)`` for its
+    depression d below the horizon (a wall at distance D from a camera at height h has its
+    base atan(h / D) below the horizon: 6 deg is ~13 m from 1.4 m). Scale-free: no camera
+    height needed. 1 at and above the horizon."""
+    u = np.arange(rows.shape[1], dtype=float)[None, :]
+    x, y = (u - camera.cx) / camera.fx, (rows - camera.cy) / camera.fy
+    R = camera.R_level_from_cam
+    s = (R[1, 0] * x + R[1, 1] * y + R[1, 2]) / np.sqrt(x * x + y * y + 1.0)  # sin(depression)
+    return np.clip(1.0 - s / np.sin(np.radians(far_deg)), 0.0, 1.0)
 
 
 def rewards(F: np.ndarray, valid: np.ndarray, weights: np.ndarray) -> np.ndarray:

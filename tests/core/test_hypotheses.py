@@ -95,3 +95,31 @@ def test_large_photo_is_processed_at_working_size(level_view):
     lab = cv2.resize(level_view.labels, (1280, 960), interpolation=cv2.INTER_NEAREST)
     assert hs.width == 1280 and hs.hypotheses[0].polyline[-1, 0] == 1279
     assert floor_pixel_error(hs.hypotheses[0].polyline, lab) < 0.03
+
+
+@pytest.mark.parametrize("row,top_is_none", [(124, True), (180, False)])
+def test_a_boundary_implausibly_far_gives_no_floor_visible(row, top_is_none):
+    """A level camera and one horizontal edge: 4 px below the horizon (row 119.5) its floor
+    would lie ~30 camera heights away (a counter top's edge, a window sill), so "no floor
+    visible" comes first; 60 px below, the edge is the boundary."""
+    img = np.full((240, 320, 3), 200, np.uint8)
+    img[row:, :] = 90
+    img = cv2.GaussianBlur(img, (0, 0), 1)
+    hs = H.generate(img, Camera.from_hfov(70, 320, 240))
+    kinds = [h.kinds.tolist() for h in hs.hypotheses]
+    assert (kinds[0] == [SegKind.NONE]) == top_is_none
+    assert [SegKind.NONE] in kinds   # both answers are offered either way
+    edge = [h for h in hs.hypotheses if h.kinds.tolist() != [SegKind.NONE]]
+    np.testing.assert_allclose(edge[0].polyline[:, 1], row, atol=2)
+
+
+def test_no_floor_visible_is_always_a_candidate(box_view):
+    """Even where 120 better-scoring boundaries exist, "no floor visible" (the bottom border
+    across the whole width) is among the re-ranked candidates, once."""
+    from findme_core.ranking import IDX
+    dbg: dict = {}
+    H.generate(box_view.image, box_view.camera, 10, debug=dbg)
+    ranked = dbg["ranked"]
+    nones = [r for r in ranked if r[3][IDX["bottom"]] > 0.999]
+    assert len(ranked) > 100 and len(nones) == 1 and not nones[0][1][2]
+    assert ranked.index(nones[0]) > 10   # a floor is visible: it ranks low
