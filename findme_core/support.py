@@ -77,8 +77,9 @@ class EdgeField:
                                 (0, 0), params.blur_sigma)
         self.gx = np.zeros((self.height, self.width), np.float32)
         self.gy = np.zeros((self.height, self.width), np.float32)
-        self.gx[top:] = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-        self.gy[top:] = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+        # scale 1/8: the Sobel kernel's weight, exact (a power of two)
+        cv2.Sobel(gray, cv2.CV_32F, 1, 0, dst=self.gx[top:], ksize=3, scale=0.125)
+        cv2.Sobel(gray, cv2.CV_32F, 0, 1, dst=self.gy[top:], ksize=3, scale=0.125)
         if top:
             self.gx[top:top_row] = 0.0
             self.gy[top:top_row] = 0.0
