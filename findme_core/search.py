@@ -224,35 +224,37 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
     W = W1 - 1
     left = valid[:, 0].tolist()
     right = valid[:, -1].tolist()
+    order = np.argsort(ev.col, kind="stable")
     src, dst = ev.src.tolist(), ev.dst.tolist()
-    Ai = A[ev.src, ev.col].tolist()   # reward tables at each event's column, before / after
-    Aj = A[ev.dst, ev.col].tolist()
-    cost = np.where(ev.step, step_cost, corner_cost).tolist()
-    order = np.argsort(ev.col, kind="stable").tolist()
+    # per event, in column order: reward tables at its column before / after it, its cost
+    Ai, Aj = A[ev.src, ev.col], A[ev.dst, ev.col]
+    cost = np.where(ev.step, step_cost, corner_cost)
+    seq = list(zip(order.tolist(), ev.src[order].tolist(), ev.dst[order].tolist(),
+                   Ai[order].tolist(), Aj[order].tolist(), cost[order].tolist()))
     # forward: potential F[t] so that the best prefix value on t at column k is F[t] + A[t][k]
     F = np.where(valid[:, 0], -A[:, 0], NEG).tolist()
     ptr = [-1] * n_tracks
     fval, pred = [NEG] * len(src), [-1] * len(src)
-    for e in order:
-        i, j = src[e], dst[e]
-        if F[i] <= NEG:
+    for e, i, j, ai, aj, c in seq:
+        fi = F[i]
+        if fi <= NEG:
             continue
-        val = F[i] + Ai[e] - cost[e]
+        val = fi + ai - c
         fval[e], pred[e] = val, ptr[i]
-        if val - Aj[e] > F[j]:
-            F[j], ptr[j] = val - Aj[e], e
+        if val - aj > F[j]:
+            F[j], ptr[j] = val - aj, e
     # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
     B = np.where(valid[:, -1], A[:, W], NEG).tolist()
     ptrb = [-1] * n_tracks
     sval, succ = [NEG] * len(src), [-1] * len(src)
-    for e in reversed(order):
-        i, j = src[e], dst[e]
-        if B[j] <= NEG:
+    for e, i, j, ai, aj, c in reversed(seq):
+        bj = B[j]
+        if bj <= NEG:
             continue
-        suf = B[j] - Aj[e]
+        suf = bj - aj
         sval[e], succ[e] = suf, ptrb[j]
-        if suf - cost[e] + Ai[e] > B[i]:
-            B[i], ptrb[i] = suf - cost[e] + Ai[e], e
+        if suf - c + ai > B[i]:
+            B[i], ptrb[i] = suf - c + ai, e
     # candidates: single tracks spanning the image, then the best path through each event
     single = np.nonzero(valid[:, 0] & valid[:, -1])[0]
     fv, sv = np.array(fval), np.array(sval)
