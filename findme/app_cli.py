@@ -4,7 +4,7 @@
 
 Open the printed address in a browser (a phone's, or a desktop's with a file picker).
 Everything runs on one in-process Zenoh session, like ``findme run``: the gateway (page +
-WebSocket bridge, services/gateway.py), hypotheses, measurement, and odometry and the
+WebSocket bridge, services/web/gateway.py), hypotheses, measurement, and odometry and the
 recorder (sessions to ``--out DIR``, default recordings/) when those modules are
 installed. The gateway preselects each photo's best hypothesis and publishes the user's
 choices, so no ``selection`` service runs here.
@@ -24,8 +24,8 @@ from __future__ import annotations
 import logging
 import sys
 
-from services.registry import _extra_services, add_service_args, make_handler, wait_for_signal
-from services.runtime import Group
+from services.runtime.registry import _extra_services, add_service_args, make_handler, wait_for_signal
+from services.runtime.service import Group
 
 from . import deploy
 
@@ -63,7 +63,7 @@ def register(sub) -> None:
 
 
 def _start_gateway(session, args, instance=None):
-    from services.gateway import Gateway, parse_http, ssl_context
+    from services.web.gateway import Gateway, parse_http, ssl_context
     host, port = parse_http(args.http or "127.0.0.1:8080")
     gw = Gateway(session, host, port, ssl_context(args.tls_cert, args.tls_key), instance=instance)
     url = gw.start()

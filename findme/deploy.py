@@ -22,10 +22,10 @@ import zenoh
 
 import schemas
 from findme_core.errors import BusError, InputError
-from services import bus
-from services.capture import CaptureHandler, Lens, publish_frames, sources
-from services.registry import add_service_args, make_handler, service_names, wait_for_signal
-from services.runtime import Group, Service
+from services.runtime import bus
+from services.pipeline.capture import CaptureHandler, Lens, publish_frames, sources
+from services.runtime.registry import add_service_args, make_handler, service_names, wait_for_signal
+from services.runtime.service import Group, Service
 
 from .options import add_camera_args, floats
 
@@ -214,7 +214,7 @@ def cmd_run(args) -> int:
     recorder = None
     try:
         if not args.no_record:  # first in, so stopped last: it records everything
-            from services.recorder import RecorderHandler
+            from services.recording.recorder import RecorderHandler
             recorder = group.add(RecorderHandler(args.out)).handler
         capture = group.add(CaptureHandler())
         names = []

@@ -11,7 +11,7 @@ import pytest
 import zenoh
 
 from findme.cli import build_parser
-from services.bus import BusConfig, open_session
+from services.runtime.bus import BusConfig, open_session
 from tests.services.conftest import free_port, spawn_findme, wait_logged
 
 COMPOSE = Path(__file__).resolve().parents[2] / "compose"

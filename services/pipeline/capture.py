@@ -21,12 +21,12 @@ from pathlib import Path
 
 import cv2
 
-from findme.imageio import MAX_BYTES, encode_jpeg, read_image
+from findme_io.imageio import MAX_BYTES, encode_jpeg, read_image
 from findme_core.errors import ImageError, InputError
 
-from . import bus
-from .convert import make_frame
-from .handler import Handler
+from ..runtime import bus
+from findme_io.convert import make_frame
+from ..runtime.handler import Handler
 
 IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
 VIDEO_EXT = {".mp4", ".avi", ".mov", ".mkv", ".webm"}
@@ -114,7 +114,7 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
         k = side.get("intrinsics")
         intr = ((k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"]) if k else None)
         if intr is None and lens.intrinsics is not None:
-            from findme.imageio import image_size
+            from findme_io.imageio import image_size
             w, h = image_size(data, name)
             intr = (*lens.intrinsics, w, h)
         yield make_frame(session, n, data, intrinsics=intr,
@@ -126,7 +126,7 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
 
 def publish_frames(service, session: str, srcs, lens: Lens = Lens()) -> int:
     """Publish every frame through a running capture ``service``; returns the count."""
-    from .handler import Output
+    from ..runtime.handler import Output
     n = 0
     for f in frames(session, srcs, lens):
         service.publish(Output(bus.key(session, "frame", f.index), f))
