@@ -234,9 +234,12 @@ class Service:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
             if not self._mine(key, msg):
                 return
+            t0 = time.perf_counter()
             outputs = self.handler.on_message(key, msg)
             for out in outputs:
                 self.publish(out)
+            log.info("%s: %s -> %s (%.0f ms)", self.ident, key,   # one line per message
+                     ", ".join(o.key for o in outputs) or "nothing", 1e3 * (time.perf_counter() - t0))
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
             self.report(key, exc)
 
@@ -249,6 +252,7 @@ class Service:
             reply = self.handler.on_query(key, msg)
             query.reply(key, schemas.encode(reply))
             self.counters.results_out += 1
+            log.info("%s: query %s answered", self.ident, key)
         except Exception as exc:  # noqa: BLE001 - the asker gets the error, the log the reason
             ekey, err = self.report(key, exc)
             query.reply_err(schemas.encode(err))
