@@ -383,12 +383,13 @@ def cmd_serve(args) -> int:
     _logging(args=args)
     if args.service == "capture" and (not args.photos or not args.session):
         raise InputError("capture needs --session and at least one photo")
+    stop = stop_on_signal()
     session = _open(args)
     svc = Service(make_handler(args.service, args), session, instance=args.instance).start()
     try:
         if args.service == "capture":
             return _serve_capture(args, session, svc)
-        wait_for_signal()
+        wait_for_signal(stop)
     finally:
         svc.stop()
         session.close()
@@ -399,6 +400,9 @@ def _serve_capture(args, session, svc) -> int:
     """Publish the photos, then stay (serving the frames to services that ask for them)
     until each photo's results are in, or ``--linger`` seconds; bad files are reported (log
     and an Error on the session) and the rest is sent. Exit status 2 if any was bad."""
+    import signal
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)          # a one-shot command: stop now
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     log = logging.getLogger("findme.services")
     for name in args.wait_for:
         bus.wait_alive(session, name)
@@ -426,15 +430,27 @@ def _serve_capture(args, session, svc) -> int:
 
 
 # ------------------------------------------------------------------------------ router
+def stop_on_signal() -> threading.Event:
+    """An event set by SIGTERM/SIGINT from now on: opening a session can take a while (the
+    router routes before ``zenoh.open`` returns), and a stop asked meanwhile must still be a
+    clean one (``wait_for_signal(event)`` then returns at once)."""
+    import signal
+    stop = threading.Event()
+    for s in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(s, lambda *_: stop.set())
+    return stop
+
+
 def cmd_router(args) -> int:
-    _logging()
+    _logging(args=args)
     if not args.listen and not args.config:
         raise InputError("router needs --listen ENDPOINT (e.g. tcp/127.0.0.1:7447)")
+    stop = stop_on_signal()
     session = _open(args, mode="router")
     logging.getLogger("findme.services").info("router %s listening on %s", session.zid(),
                                               ", ".join(args.listen) or args.config)
     try:
-        wait_for_signal()
+        wait_for_signal(stop)
     finally:
         session.close()
     return 0

@@ -157,6 +157,7 @@ def cmd_up(args) -> int:
                                     name="system", colour=None))
 
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    sys.stdout.reconfigure(line_buffering=True)   # lines as they come, also into a pipe
     m = _Manager()
     for name, argv in procs:
         # exec: the shell honcho starts is replaced, so signals reach the service itself
