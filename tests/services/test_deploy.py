@@ -4,6 +4,7 @@ keys (run for real with generated certificates)."""
 
 import json
 import shlex
+import signal
 import sys
 import threading
 from pathlib import Path
@@ -13,6 +14,7 @@ import zenoh
 
 from findme.cli import build_parser
 from services.runtime.bus import BusConfig, open_session
+from tests.cli.conftest import run_findme
 from tests.services.conftest import free_port, spawn_findme, wait_logged
 
 COMPOSE = Path(__file__).resolve().parents[2] / "compose"
@@ -152,3 +154,27 @@ def test_tls_passwords_and_per_device_keys(tls_router):
         with pytest.raises(Exception, match="cannot open the Zenoh session"):
             open_session(bad)
     server.close()
+
+
+def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
+    """``findme send`` as device alice (her password, the CA) to services joined as the
+    server user: the report of findme run, in a session named after her."""
+    endpoint, tls = tls_router
+    server_pw, alice_pw = tmp_path / "server.pw", tmp_path / "alice.pw"
+    server_pw.write_text("change-me-server\n")
+    alice_pw.write_text("change-me-alice\n")
+    auth = ["--connect", endpoint, "--ca", tls["root_ca_certificate"]]
+    procs = [spawn_findme("serve", name, *auth, "--user", "server", "--password-file", server_pw)
+             for name in ("hypotheses", "measurement", "odometry")]
+    try:
+        for p in procs:
+            wait_logged(p, " started")
+        p = run_findme("send", *auth, "--user", "alice", "--password-file", alice_pw,
+                       "--wait", "30", check=False)
+        assert p.returncode == 0, p.stderr
+        assert "motion 0 -> 1: x +0.385 m" in p.stdout and "session alice-" in p.stdout
+    finally:
+        for p in procs:
+            p.send_signal(signal.SIGTERM)
+        for p in procs:
+            p.wait(20)
