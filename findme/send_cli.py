@@ -29,7 +29,7 @@ from services.runtime import bus
 from services.runtime.handler import Input, Output
 from services.runtime.service import Service
 
-from . import deploy
+from . import deploy, report
 from .options import add_camera_args
 
 
@@ -78,8 +78,8 @@ def cmd_send(args) -> int:
     deploy._logging(logging.WARNING)
     if not args.connect and not args.config:
         raise InputError("send needs --connect ENDPOINT (e.g. tcp/127.0.0.1:7447) or --config")
-    photos = args.photos or deploy._example_paths()
-    srcs, errors = deploy.read_photos(photos)
+    photos = args.photos or report._example_paths()
+    srcs, errors = report.read_photos(photos)
     prefix = f"{args.user}-" if args.user else "send-"
     session_id = args.session or f"{prefix}{uuid.uuid4().hex[:8]}"
     bus.key(session_id, "frame")                      # a valid session id, or say why now
@@ -96,12 +96,12 @@ def cmd_send(args) -> int:
                                f"the services: findme up, or findme serve {name} --connect "
                                "...)") from None
         select = "selection" not in deploy.alive_services(session, args.wait)
-        printer = deploy.Printer(session_id)
+        printer = report.Printer(session_id)
         sub = session.declare_subscriber(f"findme/{session_id}/**", printer)
         svc = Service(ClientHandler(session_id, select), session).start()
-        deploy.report_session(printer, svc, session_id, srcs, deploy._lens(args),
+        report.report_session(printer, svc, session_id, srcs, deploy._lens(args),
                               "odometry" in needed, args.timeout)
-        deploy._measure(session, session_id, args, photos)
+        report._measure(session, session_id, args, photos)
     finally:
         if sub is not None:
             sub.undeclare()
