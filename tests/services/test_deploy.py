@@ -178,3 +178,31 @@ def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
             p.send_signal(signal.SIGTERM)
         for p in procs:
             p.wait(20)
+
+
+def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
+    """``findme app --https`` uses certs/gateway.pem; a client trusting ca.pem (as a phone
+    with ca.crt installed) gets the page. Without the files: one line, exit 2."""
+    import ssl
+    import subprocess
+    import urllib.request
+    no = subprocess.run([sys.executable, "-m", "findme.cli", "app", "--https"], cwd=tmp_path,
+                        capture_output=True, text=True, timeout=60)
+    assert no.returncode == 2 and no.stderr.count("\n") == 1 and "make_certs.py" in no.stderr
+    pytest.importorskip("cryptography", reason="cryptography makes the certificates")
+    sys.path.insert(0, str(COMPOSE.parent / "tools"))
+    from make_certs import make_certs
+    make_certs(tmp_path / "certs")
+    app = subprocess.Popen([sys.executable, "-m", "findme.cli", "app", "--https", "--http",
+                            "127.0.0.1:0", "--no-record"], cwd=tmp_path, text=True,
+                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        line = app.stdout.readline()              # the readiness line
+        assert "serving https://127.0.0.1:" in line, line
+        url = line.split("serving ", 1)[1].split()[0]
+        ctx = ssl.create_default_context(cafile=str(tmp_path / "certs" / "ca.pem"))
+        with urllib.request.urlopen(url, context=ctx, timeout=30) as r:
+            assert r.status == 200 and b"<html" in r.read().lower()
+    finally:
+        app.send_signal(signal.SIGTERM)
+        assert app.wait(30) == 0

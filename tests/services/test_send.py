@@ -153,3 +153,22 @@ def test_send_without_a_router_or_a_service_fails_in_one_line(bus):
     finally:
         router.send_signal(signal.SIGTERM)
         router.wait(20)
+
+
+def test_video_frames_are_timed_by_their_position(tmp_path):
+    """A video without a creation time (OpenCV writes none): the file's time minus its
+    duration, plus each frame's position (5 fps: 200 ms apart)."""
+    import cv2
+    import numpy as np
+
+    from services.pipeline.capture import sources
+    path = tmp_path / "walk.mp4"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 5.0, (64, 48))
+    for i in range(5):
+        w.write(np.full((48, 64, 3), 40 * i, np.uint8))
+    w.release()
+    times = [side["capture_time_ns"] for _, _, side in sources([path])]
+    assert len(times) == 5
+    assert np.diff(times) == pytest.approx([200_000_000] * 4, abs=1_000_000)
+    assert times[-1] <= path.stat().st_mtime_ns
+    assert path.stat().st_mtime_ns - times[0] == pytest.approx(1_000_000_000, abs=1_000_000)
