@@ -132,8 +132,10 @@ def _open(args, mode=None, connect_timeout_s: float | None = None) -> zenoh.Sess
                     {"router": -1, "peer": -1, "client": int(connect_timeout_s * 1000)}))
             return zenoh.open(conf)
         except zenoh.ZError as e:
-            raise BusError(f"cannot open the Zenoh session from {path}: "
-                           f"{bus.zenoh_reason(e)}") from None
+            reason = bus.zenoh_reason(e)
+            if "Timeout" in reason:
+                reason = f"no router answered ({reason})"
+            raise BusError(f"cannot open the Zenoh session from {path}: {reason}") from None
     if connect_timeout_s is not None:
         cfg = dataclasses.replace(cfg, connect_timeout_ms=int(connect_timeout_s * 1000))
     return bus.open_session(cfg)
