@@ -25,8 +25,9 @@ from .errors import InputError
 from .lines import Lines, LineKind, classify, detect_segments, horizon_top_row, merge_collinear
 from .refine import SnapParams, snap_polyline
 from .ranking import IDX, N_ADDITIVE, RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
-from .search import (SearchParams, best_paths, events, path_features, path_pieces,
-                     path_polyline, path_rows, rewards, track_rows, track_tables, with_region)
+from .paths import path_features, path_pieces, path_polyline, path_rows
+from .search import (SearchParams, best_paths, events, rewards, track_rows, track_tables,
+                     with_region)
 from .support import EdgeField, SupportParams, tabulate
 
 

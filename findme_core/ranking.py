@@ -3,7 +3,7 @@
     score = w . f,   f = [support, length, outside, top, bottom, region, far] / W
                          + [corners, steps, gain, vertical / W, fraction, row]
 
-The first nine features add up along a boundary (``search.path_features``). The search
+The first nine features add up along a boundary (``paths.path_features``). The search
 maximises those under ``SEARCH_WEIGHTS`` (hand-set for a high-recall candidate pool: the best
 of its candidates is close to the truth), and the candidates are then re-ranked with all
 features under ``RANK_WEIGHTS``, fitted on the dev split by ``tools/fit_ranker.py``. Keeping

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from findme_core.camera import Camera
-from findme_core.search import (ADDITIVE, FORBIDDEN, Events, best_paths, farness, path_features,
-                                path_pieces, path_rows)
+from findme_core.paths import path_features, path_pieces, path_rows
+from findme_core.search import ADDITIVE, FORBIDDEN, Events, best_paths, farness
 
 
 def _cam(pitch_deg=0.0):
