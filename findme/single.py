@@ -13,7 +13,7 @@ import numpy as np
 from findme_core.errors import HypothesisError, InputError
 from findme_core.methods import METHODS, hypothesize
 from findme_core.overlay import draw_hypotheses
-from findme_core.scene import Scene, distances
+from findme_core.scene import Scene, boundary_sigma_px, distances
 from findme_core.search import SegKind
 
 from findme_io.camera_source import camera_json
@@ -205,7 +205,8 @@ def cmd_locate(args) -> int:
             f"hypothesis {args.hypothesis} does not exist: this photo has "
             f"{len(hs.hypotheses)} hypotheses" + (f" ({hs.reason})" if hs.reason else ""))
     hyp = hs.hypotheses[args.hypothesis - 1]
-    scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov)
+    scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov,
+                  boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
     out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov)
     if args.json:
         print(json.dumps(out))

@@ -41,6 +41,16 @@ REASONS = {
     _NOT_FINITE: "the pixel is not finite",
 }
 _SURFACES = {1: "floor", 2: "wall"}
+#: 1-sigma of a chosen boundary's position on real photos, pixels of the ~640 px working
+#: size (the hypotheses' resolution): fitted on the dev split so that 68 % of wall and
+#: non-floor points lie within their 1-sigma (tools/calibrate_sigma.py).
+BOUNDARY_SIGMA_WORK_PX = 34.0
+WORK_SIZE_PX = 640
+
+
+def boundary_sigma_px(width: int, height: int) -> float:
+    """``BOUNDARY_SIGMA_WORK_PX`` in pixels of a ``width`` x ``height`` photo."""
+    return BOUNDARY_SIGMA_WORK_PX * max(width, height) / WORK_SIZE_PX
 
 
 @dataclass(frozen=True)
@@ -102,8 +112,10 @@ class Scene:
         if not np.all(np.isfinite(self.gravity_cov)):
             raise GeometryError(f"gravity_cov must be finite, got {self.gravity_cov.tolist()}")
         self._pieces = self._build(poly)
-        shifted = poly + np.array([0.0, boundary_sigma_px])
-        self._pieces_shifted = self._build(shifted)
+        # the boundary part is linearised: the scene under the boundary moved down by at
+        # most one pixel, the displacement scaled up to ``boundary_sigma_px``
+        self._shift_px = min(self.boundary_sigma_px, 1.0)
+        self._pieces_shifted = self._build(poly + np.array([0.0, self._shift_px]))
 
     def _build(self, poly, cam: Camera | None = None):
         """Pieces: (az0, az1, kind, normal (2,), offset) with n . (x, z) = offset on the wall."""
@@ -208,7 +220,8 @@ class Scene:
             return np.where(np.isfinite(d), d, np.inf)
 
         parts = {"height": np.linalg.norm(P, axis=1) * self.height_sigma / self.height,
-                 "boundary": moved(self._pieces_shifted, rays),
+                 "boundary": moved(self._pieces_shifted, rays) * (
+                     self.boundary_sigma_px / self._shift_px if self._shift_px > 0 else 0.0),
                  "pixel": np.hypot(moved(self._pieces, cam.rays_level(pxs + (1.0, 0.0))),
                                    moved(self._pieces, cam.rays_level(pxs + (0.0, 1.0))))}
         jac = self._gravity_jac(pxs, P, surface)

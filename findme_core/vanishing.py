@@ -54,7 +54,8 @@ class GravityParams:
     min_vertical_lines: int = 2
     min_horizontal_lines: int = 2
     iterations: int = 4
-    sigma_scale: float = 1.0        # model error: sigma = hypot(scale * sigma_fit, floor)
+    sigma_scale: float = 2.0        # model error: sigma = hypot(scale * sigma_fit, floor),
+                                    # fitted by tools/calibrate_sigma.py
     sigma_floor_deg: float = 0.3
     max_sigma_deg: float = 4.0      # a worse estimate is not used: level assumed
     level_sigma_deg: float = 10.0   # 1-sigma of "level" when nothing better is known
