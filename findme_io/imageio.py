@@ -301,13 +301,13 @@ def encode_png(image: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def image_size(data: bytes, name: str = "image") -> tuple[int, int]:
-    """(width, height) of encoded image bytes as ``decode_image`` returns them (upright),
-    from the header and the EXIF orientation, without decoding the pixels when the header
-    can be read."""
+def probe(data: bytes, name: str = "image"):
+    """(width, height, ExifInfo) of encoded image bytes as ``decode_photo`` returns them
+    (upright), from the header and the EXIF block without decoding the pixels when the
+    header can be read (else by decoding, which raises ImageError for bad data)."""
+    from .exif import ExifInfo, read_exif
     kind = sniff(data)
     if kind is not None:
-        from .exif import read_exif
         Image = _pillow()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -316,9 +316,15 @@ def image_size(data: bytes, name: str = "image") -> tuple[int, int]:
                     w, h = im.size
                     info = read_exif(im, kind)
                 if w * h <= MAX_PIXELS and min(w, h) >= 16:
-                    turned = info.orientation_applies and info.orientation in (5, 6, 7, 8)
-                    return (h, w) if turned else (w, h)
-            except Exception:   # noqa: BLE001 - unreadable header: decoding says why
+                    turned = info.orientation_applies and info.transposed
+                    return (h, w, info) if turned else (w, h, info)
+            except Exception:   # noqa: BLE001 - unreadable header: decoding below says why
                 pass
-    img = decode_image(data, name)
-    return img.shape[1], img.shape[0]
+    photo = decode_photo(data, name)
+    return photo.image.shape[1], photo.image.shape[0], photo.exif or ExifInfo()
+
+
+def image_size(data: bytes, name: str = "image") -> tuple[int, int]:
+    """(width, height) of encoded image bytes as ``decode_image`` returns them (upright)."""
+    w, h, _ = probe(data, name)
+    return w, h
