@@ -7,24 +7,24 @@ in the camera frame (OpenCV: x right, y down, z forward); angles in radians.
 Method (``estimate_gravity``):
 
 1. LSD segments of the photo at a ~640 px working size, merged into lines
-   (``lines.detect_segments`` / ``merge_collinear``); each line's weight is its support
-   (pixels of segments merged into it).
-2. Vertical direction: every pair of the longest near-vertical lines proposes D = n_i x n_j
-   (n = K^T l, the normal of a line's interpretation plane); proposals outside the tilt
-   prior (pitch in ``pitch_range``, roll in ``roll_range``: an upright photo, camera not
-   turned upside down) are dropped; each is scored by the support of the lines pointing at
-   its vanishing point K D within ``inlier_deg`` (truncated quadratic).
-3. Horizontal directions: with D, every other line defines the one horizontal direction in
-   its interpretation plane (n x D); the azimuths modulo 90 deg vote for the two
-   orthogonal horizontal directions (Manhattan).
-4. The frame R = [h1, g, h2] is refined by Gauss-Newton on the signed image angles between
-   each inlier line and the line from its midpoint to its vanishing point (weights =
-   support); its covariance is sigma^2 (J^T W J)^-1, projected on gravity's two degrees of
-   freedom (about the level frame's x axis = pitch, z axis = roll), then inflated by the
-   calibrated model error (``GravityParams.sigma_scale``, ``sigma_floor_deg``).
-5. Too little evidence (fewer than ``min_vertical_lines`` vertical lines and no two
-   horizontal directions to fix the horizon) or a 1-sigma above ``max_sigma_deg``: "level"
-   is assumed, with ``level_sigma_deg``, and said.
+   (``lines.detect_segments`` / ``merge_collinear``); a line's weight is its support (pixels
+   of the segments merged into it). n = K^T l is the normal of its interpretation plane.
+2. Search: gravity hypotheses g on a 3 deg grid over the tilt prior (pitch in
+   ``pitch_range``, roll in ``roll_range``: an upright hand-held photo), each completed to a
+   Manhattan frame: the horizontal directions' azimuth is the weighted mode (modulo 90 deg)
+   of the other lines' horizontal directions n x g. Every line counts for the nearest of the
+   frame's three vanishing points (image angle between the line and the line from its
+   midpoint to the point, truncated quadratic within the inlier angle), never for a point
+   on or just past its own segment (a room corner where lines meet is not a vanishing
+   point). The best peaks are searched again on a 0.5 deg grid.
+3. The frame R = [h1, g, h2] is refined by Gauss-Newton on the signed image angles of its
+   inlier lines (weights = support); the covariance sigma^2 (J^T W J)^-1 of the rotation is
+   projected on gravity's two degrees of freedom (about the level x axis = pitch, z axis =
+   roll) and inflated by the model error fitted on the dev split (``sigma_scale``,
+   ``sigma_floor_deg``; tools/calibrate_sigma.py).
+4. Too little evidence (fewer than 4 inlier lines, no vertical line and not two horizontal
+   directions, a degenerate fit) or a 1-sigma above ``max_sigma_deg``: "level" is assumed,
+   with ``level_sigma_deg``, and the reason is given.
 """
 
 from __future__ import annotations
@@ -51,8 +51,6 @@ class GravityParams:
     pitch_range: tuple = (-25.0, 60.0)   # degrees; > 0 looking down
     roll_range: tuple = (-40.0, 40.0)
     inlier_deg: float = 1.5
-    min_vertical_lines: int = 2
-    min_horizontal_lines: int = 2
     iterations: int = 4
     sigma_scale: float = 2.0        # model error: sigma = hypot(scale * sigma_fit, floor),
                                     # fitted by tools/calibrate_sigma.py
@@ -127,6 +125,20 @@ class _Lines:
     dir2: np.ndarray     # (N, 2) unit normals of the image lines
     n: np.ndarray        # (N, 3) unit interpretation-plane normals
     w: np.ndarray        # (N,) support, pixels
+    half: np.ndarray     # (N,) half the extent, pixels
+
+    def subset(self, sel) -> "_Lines":
+        return _Lines(self.mid[sel], self.dir2[sel], self.n[sel], self.w[sel], self.half[sel])
+
+
+def _too_near(L: _Lines, vps: np.ndarray) -> np.ndarray:
+    """(N, M) True where vanishing point j lies on or just beyond line i's segment: the image
+    of a 3D line never reaches its vanishing point, while lines meeting at a corner of the
+    room do meet there (a corner is not a vanishing point)."""
+    w = vps[None, :, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = np.hypot(vps[None, :, 0] / w - L.mid[:, None, 0], vps[None, :, 1] / w - L.mid[:, None, 1])
+    return np.isfinite(d) & (d < 1.25 * L.half[:, None] + 10.0)
 
 
 def _lines(image: np.ndarray, cam: Camera, p: GravityParams) -> tuple[_Lines, Camera]:
@@ -145,14 +157,8 @@ def _lines(image: np.ndarray, cam: Camera, p: GravityParams) -> tuple[_Lines, Ca
     mid = np.column_stack([(ln.ends[:, :2] + ln.ends[:, 2:]) / 2, np.ones(len(ln))])
     n = ln.coef @ cam.K                                   # K^T l, as rows
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    return _Lines(mid, ln.coef[:, :2].copy(), n, ln.support.astype(float)), cam
-
-
-def _score(L: _Lines, vps: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """(M,) truncated-quadratic support of each vanishing point, (N, M) |sin angle|."""
-    r = np.abs(_signed_angles(L.mid, L.dir2, vps))
-    r = np.where(np.isfinite(r), r, 1.0)
-    return (L.w[:, None] * np.clip(1 - (r / tau) ** 2, 0, None)).sum(0), r
+    half = ln.length / 2
+    return _Lines(mid, ln.coef[:, :2].copy(), n, ln.support.astype(float), half), cam
 
 
 # ------------------------------------------------------------------------------ stages
@@ -177,13 +183,14 @@ def _manhattan_score(L: _Lines, K: np.ndarray, G: np.ndarray, tau_deg: float,
     """Score of each gravity hypothesis G (M, 3) as a Manhattan frame: the horizontal
     directions' azimuth is the mode (modulo 90 deg) of the other lines' horizontal
     directions n x g; then every line counts for the nearest of the three vanishing points
-    (image angle within ``tau_deg``, truncated quadratic), and each point scores the support
-    of its lines beyond its single heaviest one (one line alone is no evidence of a point).
+    (image angle within ``tau_deg``, truncated quadratic, never a point on or just past the
+    line's own segment); the score is the total weighted support.
     Returns ((M,) scores, (M,) azimuths in radians)."""
     tau = math.sin(math.radians(tau_deg))
     M = len(G)
-    rv = np.abs(_signed_angles(L.mid, L.dir2, G @ K.T))           # (N, M)
-    rv = np.where(np.isfinite(rv), rv, 1.0)
+    Gv = G @ K.T
+    rv = np.abs(_signed_angles(L.mid, L.dir2, Gv))                # (N, M)
+    rv = np.where(np.isfinite(rv) & ~_too_near(L, Gv), rv, 1.0)
     x = np.cross(G, [0.0, 0.0, 1.0])
     x /= np.linalg.norm(x, axis=1, keepdims=True)
     z = np.cross(x, G)
@@ -199,12 +206,14 @@ def _manhattan_score(L: _Lines, K: np.ndarray, G: np.ndarray, tau_deg: float,
     a = (np.argmax(sm, axis=1) + 0.5) * (np.pi / 2) / nb
     h1 = np.sin(a)[:, None] * x + np.cos(a)[:, None] * z
     h2 = np.cross(h1, G)
-    r = np.stack([rv] + [np.abs(_signed_angles(L.mid, L.dir2, hh @ K.T)) for hh in (h1, h2)])
+    r = np.stack([rv] + [np.where(_too_near(L, hh @ K.T), 1.0,
+                                  np.abs(_signed_angles(L.mid, L.dir2, hh @ K.T)))
+                         for hh in (h1, h2)])
     r = np.where(np.isfinite(r), r, 1.0)                           # (3, N, M)
     near = np.argmin(r, axis=0)
     c = L.w[None, :, None] * np.clip(1 - (r / tau) ** 2, 0, None)
     c = np.where(np.arange(3)[:, None, None] == near[None], c, 0.0)
-    score = (c.sum(1) - c.max(1, initial=0)).sum(0)
+    score = c.sum((0, 1))
     return score, a
 
 
@@ -213,7 +222,7 @@ def _search(L: _Lines, K: np.ndarray, p: GravityParams) -> tuple[np.ndarray, flo
     few peaks. Returns (g (3,), horizontal azimuth) or None."""
     G = _grid(p, 3.0)
     top = slice(0, p.coarse_lines)                        # heaviest lines first
-    s, _ = _manhattan_score(_Lines(L.mid[top], L.dir2[top], L.n[top], L.w[top]), K, G, 3.0, p)
+    s, _ = _manhattan_score(L.subset(top), K, G, 3.0, p)
     order = np.argsort(-s)
     peaks: list[np.ndarray] = []
     for i in order:                                   # up to 4 peaks 6 deg apart
@@ -292,7 +301,7 @@ def estimate_gravity(image: np.ndarray, camera: Camera,
     p = params
     L, cam = _lines(image, camera, p)
     K = cam.K
-    if len(L.w) < p.min_vertical_lines:
+    if len(L.w) < 3:
         return level_estimate(f"only {len(L.w)} straight lines in the photo: level assumed",
                               p.level_sigma_deg)
     found = _search(L, K, p)

@@ -123,3 +123,21 @@ def test_bad_input_is_one_line_and_exit_2(argv, msg, level_jpg, tmp_path):
     assert p.returncode == 2, p.stderr
     assert msg in p.stderr and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+def test_run_refuses_a_nan_field_of_view():
+    p = run_findme("run", "--hfov", "nan", "--no-record", check=False)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "finite" in p.stderr
+
+
+def test_run_into_a_closed_pipe_is_quiet(tmp_path):
+    """``findme run | head -3``: the reader leaves early; no traceback, exit 0."""
+    import subprocess
+    import sys
+    run = subprocess.Popen([sys.executable, "-m", "findme.cli", "run", "--out", str(tmp_path)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    head = [run.stdout.readline() for _ in range(3)]
+    run.stdout.close()                      # what head does after its third line
+    err = run.stderr.read().decode()
+    assert run.wait(timeout=120) == 0, err
+    assert all(head) and "Error" not in err and "Traceback" not in err, err
