@@ -266,6 +266,30 @@ def read_image(path: str | os.PathLike, **limits) -> np.ndarray:
     return read_photo(path, **limits).image
 
 
+#: Formats a bus Frame may carry as they are (Foxglove's CompressedImage names).
+BUS_FORMATS = ("jpeg", "png", "webp")
+
+
+def for_bus(data: bytes, name: str = "image") -> tuple[bytes, dict]:
+    """(bytes a Frame can carry, lens facts) of a photo: JPEG, PNG and WebP as they are (the
+    server reads their EXIF); any other format (HEIC, AVIF, BMP, TIFF) decoded, turned
+    upright and re-encoded as JPEG (quality 95), with its EXIF focal length returned as
+    ``{"intrinsics": {fx, fy, cx, cy, width, height}}`` since the JPEG has no EXIF.
+
+    Raises:
+        ImageError: as ``decode_photo``.
+    """
+    if sniff(data) in BUS_FORMATS:
+        return data, {}
+    from .exif import focal_px
+    photo = decode_photo(data, name)
+    H, W = photo.image.shape[:2]
+    f, _, _ = focal_px(photo.exif, W, H) if photo.exif is not None else (None, "", [])
+    lens = {} if f is None else {"intrinsics": {"fx": f[0], "fy": f[1], "cx": (W - 1) / 2.0,
+                                                "cy": (H - 1) / 2.0, "width": W, "height": H}}
+    return encode_jpeg(photo.image, 95), lens
+
+
 def _declared_size(data: bytes) -> tuple[int, int]:
     """(width, height) from a PNG or JPEG header, (0, 0) if not found."""
     if data.startswith(b"\x89PNG") and len(data) >= 24:

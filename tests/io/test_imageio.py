@@ -9,11 +9,18 @@ import sys
 import zlib
 
 import numpy as np
+import pillow_heif
 import pytest
 from PIL import Image
 
 from findme_core.errors import ImageError
 from findme_io.imageio import MAX_JPEG_SCANS, decode_photo, image_size, probe, sniff
+
+
+@pytest.fixture(autouse=True, scope="module")
+def heif_writer():
+    """pillow-heif's writer for the test files (the decoder registers its own opener)."""
+    pillow_heif.register_heif_opener()
 
 
 def upright_pattern(w=160, h=120):
@@ -161,3 +168,32 @@ def test_broken_files_print_one_line(tmp_path):
             assert "warning" not in p.stderr.lower() and "Corrupt" not in p.stderr
         else:
             assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+
+
+def test_heic_goes_on_the_bus_as_an_upright_jpeg_with_its_exif_lens():
+    from findme_io.imageio import for_bus
+    up = upright_pattern(320, 240)
+    buf = io.BytesIO()
+    Image.fromarray(up).transpose(STORED[8]).save(buf, format="HEIF", quality=90,
+                                                  exif=exif_block(8, f35=26).tobytes())
+    data, lens = for_bus(buf.getvalue(), "IMG.HEIC")
+    assert sniff(data) == "jpeg" and image_size(data) == (320, 240)
+    k = lens["intrinsics"]
+    assert (k["width"], k["height"]) == (320, 240) and k["fx"] == pytest.approx(26 * 400 / 43.2666, rel=1e-3)
+    jpg = encode(up, "JPEG")
+    assert for_bus(jpg) == (jpg, {})        # JPEG, PNG, WebP travel as they are
+
+
+def test_findme_run_takes_a_heic_photo(tmp_path):
+    """The capture service turns a HEIC file into a frame the pipeline measures in."""
+    import shutil
+    from importlib import resources
+    src = resources.files("findme") / "examples" / "room_a.jpg"
+    rgb = np.asarray(Image.open(str(src)).convert("RGB"))
+    heic = tmp_path / "room.heic"
+    Image.fromarray(rgb).save(heic, format="HEIF", quality=90)
+    shutil.copy(resources.files("findme") / "examples" / "room_a.json", tmp_path / "room.json")
+    p = subprocess.run([sys.executable, "-m", "findme.cli", "run", str(heic), "--no-record"],
+                       capture_output=True, text=True, timeout=180, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert "hypotheses" in p.stdout and "room.heic" in p.stdout
