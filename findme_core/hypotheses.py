@@ -251,7 +251,8 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
 def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows_t,
                      top: int):
     """Best paths under search weights ``ws``, re-scored under weights ``w``; the answer
-    "no floor visible" is always among them.
+    "no floor visible" is among them when the search found it or when the search's best
+    boundary lies partly implausibly far (``search.farness``).
 
     Returns:
         (list of (score, path, rows at ``stats.cols``, features), best first;
@@ -263,7 +264,10 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows
         return [], None
     found = len(paths)
     none = len(A) - 1   # the BOTTOM track alone: "no floor visible"
-    if not any(p[1] == none and not p[2] for p in paths):
+    if (not any(p[1] == none and not p[2] for p in paths)
+            and path_features(path_pieces(paths[:1], ev, W), F, 1)[0, IDX["far"]] > 0):
+        # the search's best boundary puts a wall implausibly far (a counter top's edge seen
+        # level): then "no floor visible" is a candidate even when 120 paths score higher
         paths.append((float(A[none, -1] - A[none, 0]), none, ()))
     pieces = path_pieces(paths, ev, W)
     full_rows = np.clip(path_rows(pieces, rows_t, len(paths)), 0.0, float(H))

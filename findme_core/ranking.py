@@ -77,9 +77,9 @@ SEARCH_WEIGHTS = RankWeights()
 #: ``far`` was added later and chosen from a grid (``fit_ranker.py --grid
 #: far=0,-4,-8,-12,-16,-24,-32``: a prior that only acts on implausible candidates, where the
 #: smooth fit is flat), the other weights fixed: 11 of 12 leave-one-group-out folds chose -16
-#: (one -12). Held-out top-1 medians: zind-pairs-level 1.83 -> 1.27 % (1.83 with "no floor
-#: visible" always a candidate and far = 0), the other subsets unchanged (zind-level 1.19,
-#: lowfloor 2.57, tilted 1.87, pairs-tilted 2.53, tum-cabinet 9.99, rooms 2.51 %).
+#: (one -12). Held-out top-1 medians: zind-pairs-level 1.61 % (in-sample 1.27 %), the other
+#: subsets unchanged (zind-level 1.19, lowfloor 2.57, tilted 1.87, pairs-tilted 2.53,
+#: tum-cabinet 9.99, rooms 2.51 %).
 RANK_WEIGHTS = RankWeights(support=1, length=-1.1721, outside=0.67205, top=-0.30439, bottom=-0.20098, region=2.9207, far=-16.0, corners=0.026536, steps=0.023782, gain=0.47699, vertical=-1.1809, fraction=1.4741, row=-0.62771)
 
 
