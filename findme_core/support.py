@@ -36,6 +36,24 @@ class SupportParams:
     blur_sigma: float = 1.0
 
 
+def sample_bilinear(arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Bilinear samples of a float32 image ``arr`` ((H, W) or (H, W, C)) at (..., 2) pixel
+    positions (border replicated): shape pts.shape[:-1] (+ (C,))."""
+    shape = pts.shape[:-1]
+    flat = pts.reshape(-1, 2)
+    m = len(flat)
+    cols = 1024  # cv2.remap maps must stay under SHRT_MAX columns
+    rows = max(1, -(-m // cols))
+    mx = np.zeros(rows * cols, np.float32)
+    my = np.zeros(rows * cols, np.float32)
+    mx[:m], my[:m] = flat[:, 0], flat[:, 1]
+    out = cv2.remap(arr, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    if arr.ndim == 3:
+        return out.reshape(rows * cols, -1)[:m].reshape(*shape, -1)
+    return out.reshape(-1)[:m].reshape(shape)
+
+
 @dataclass(frozen=True)
 class SupportTable:
     """Cumulative per-column tables for N lines over an image W columns wide.
@@ -86,15 +104,7 @@ class EdgeField:
 
     def sample(self, arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
-        m = len(pts)
-        cols = 1024  # cv2.remap maps must stay under SHRT_MAX columns
-        rows = max(1, -(-m // cols))
-        mx = np.zeros(rows * cols, np.float32)
-        my = np.zeros(rows * cols, np.float32)
-        mx[:m], my[:m] = pts[:, 0], pts[:, 1]
-        out = cv2.remap(arr, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
-        return out.reshape(rows * cols, -1)[:m] if arr.ndim == 3 else out.reshape(-1)[:m]
+        return sample_bilinear(arr, pts)
 
     def evidence(self, pts: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(M,) evidence in [0, 1] of (M, 2) points with (M, 2) unit normals (floor side)."""
