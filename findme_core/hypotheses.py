@@ -205,15 +205,19 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     coef = lines.coef[cand]
     lab = to_lab(image)
     top = horizon_top_row(camera) if params.below_horizon_only else 0
-    table = tabulate(EdgeField(image, params.support, color=lab, top_row=top), coef,
-                     params.substeps)
+    field = EdgeField(image, params.support, color=lab, top_row=top)
+    table = tabulate(field, coef, params.substeps)
     if clock:
         t.append(clock())
     sp, w, ws = params.search, params.weights.vector(), params.search_weights.vector()
     rows_t = track_rows(table, H)
     verts = lines.ends[vert]
     stats = RegionStats(lab)
-    F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT)
+    front = kinds[cand] == LineKind.FRONT
+    texture = np.zeros(table.v.shape)
+    if front.any():   # only front lines count as far: the band below them
+        texture[front] = field.band_texture(table.v[front])
+    F, valid = track_tables(table, camera, sp, front=front, texture=texture)
     ev = events(coef, rows_t, valid, verts, camera, sp)
     if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
         paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],

@@ -106,6 +106,21 @@ class EdgeField:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
         return sample_bilinear(arr, pts)
 
+    def band_texture(self, rows: np.ndarray, offset_px: int = 3, band_px: int = 24) -> np.ndarray:
+        """(N, W) mean gradient magnitude (grey levels per pixel) in the band of rows
+        [row + offset, row + offset + band) of each column, below line rows (N, W); 0 where
+        the band lies outside the image (or above the rows with derivatives)."""
+        if not hasattr(self, "_mag_cum"):
+            mag = np.sqrt(self.gx * self.gx + self.gy * self.gy)
+            cum = np.zeros((self.height + 1, self.width), np.float64)
+            np.cumsum(mag, axis=0, out=cum[1:])
+            self._mag_cum = cum
+        r0 = np.clip(np.floor(rows + offset_px), 0, self.height).astype(int)
+        r1 = np.clip(r0 + band_px, 0, self.height)
+        cols = np.broadcast_to(np.arange(self.width), rows.shape)
+        total = self._mag_cum[r1, cols] - self._mag_cum[r0, cols]
+        return np.where(r1 > r0, total / np.maximum(r1 - r0, 1), 0.0)
+
     def evidence(self, pts: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(M,) evidence in [0, 1] of (M, 2) points with (M, 2) unit normals (floor side)."""
         p = self.params
