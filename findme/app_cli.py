@@ -42,6 +42,13 @@ def _web_args(p, default_http: str | None) -> None:
     p.add_argument("--tls-cert", metavar="CERT.pem", help="gateway: serve HTTPS with this "
                    "certificate (phones need HTTPS for the camera preview and motion sensors)")
     p.add_argument("--tls-key", metavar="KEY.pem", help="gateway: the certificate's private key")
+    p.add_argument("--allow-origin", action="append", default=[], metavar="URL",
+                   help="gateway: a web origin allowed to open the page's WebSocket, e.g. "
+                        "https://findme.example.org behind a proxy (repeatable; pages loaded "
+                        "from this server by IP address or localhost are always allowed)")
+    p.add_argument("--trusted-proxy", action="append", default=[], metavar="IP",
+                   help="gateway: a reverse proxy whose X-Forwarded-For names the client "
+                        "(per-client page limits count clients, not the proxy; repeatable)")
 
 
 def register(sub) -> None:
@@ -65,7 +72,8 @@ def register(sub) -> None:
 def _start_gateway(session, args, instance=None):
     from services.web.gateway import Gateway, parse_http, ssl_context
     host, port = parse_http(args.http or "127.0.0.1:8080")
-    gw = Gateway(session, host, port, ssl_context(args.tls_cert, args.tls_key), instance=instance)
+    gw = Gateway(session, host, port, ssl_context(args.tls_cert, args.tls_key), instance=instance,
+                 allowed_origins=args.allow_origin, trusted_proxies=args.trusted_proxy)
     url = gw.start()
     if host not in ("127.0.0.1", "localhost", "::1"):
         log.warning("the page is reachable from other machines on %s:%d%s", host, port,
