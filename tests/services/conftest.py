@@ -58,11 +58,12 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def spawn_findme(*args):
-    """Spawn ``findme ARGS`` (a new interpreter); its stderr lines are collected (and the pipe
-    drained) by a thread into ``proc.lines``, announced on ``proc.new_line`` (Condition)."""
+def spawn_findme(*args, **popen):
+    """Spawn ``findme ARGS`` (a new interpreter; ``popen``: more Popen arguments); its stderr
+    lines are collected (and the pipe drained) by a thread into ``proc.lines``, announced on
+    ``proc.new_line`` (Condition)."""
     proc = subprocess.Popen([sys.executable, "-m", "findme.cli", *map(str, args)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, **popen)
     proc.lines, proc.new_line = [], threading.Condition()
 
     def drain():
