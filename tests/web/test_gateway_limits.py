@@ -221,3 +221,20 @@ def test_nested_and_huge_json_answered_on_the_page(gateway, monkeypatch):
     assert "nested more than" in got[0]["message"] and "5000 characters" in got[1]["message"]
     assert "NaN" in got[2]["message"] and "upload header" in got[3]["message"]
     assert "ZeroDivisionError" in got[4]["message"]
+
+
+def test_a_compressed_upload_is_bounded_after_decompression(gateway):
+    """permessage-deflate: 40 MB of zeros travel as ~40 kB; the server stops inflating at its
+    upload limit and closes the socket with 1009 (message too big)."""
+    gw, url = gateway
+
+    async def run():
+        async with aiohttp.ClientSession() as http, \
+                http.ws_connect(ws_url(url), compress=15) as ws:
+            assert ws.compress and (await ws.receive_json(timeout=10))["type"] == "hello"
+            await ws.send_bytes(bytes(40 << 20))
+            while (m := await ws.receive(timeout=30)).type == aiohttp.WSMsgType.TEXT:
+                pass
+            return m.type, ws.close_code
+
+    assert asyncio.run(run()) == (aiohttp.WSMsgType.CLOSE, aiohttp.WSCloseCode.MESSAGE_TOO_BIG)

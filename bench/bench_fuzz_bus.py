@@ -1,0 +1,672 @@
+"""Fuzz the bus: malformed messages on every key every service subscribes to or answers, into
+a router and every service as separate processes (issue 11).
+
+    python bench/bench_fuzz_bus.py [--messages 100000] [--seed 1] [--json OUT.json]
+
+Services: capture, hypotheses, selection (--auto), measurement, odometry, recorder, viewer
+(.rrd files) and gateway (with one page open on a WebSocket), each ``findme serve`` in its
+own process, clients of a ``findme router``. The keys come from the handlers themselves
+(``inputs``, ``queries``, ``cache_keys``) plus every service's status queryable and the
+page's session.
+
+Messages (``--messages`` is the number of MALFORMED ones, each refused by decoding, the
+schema checks or the key authority exactly as a service does it, checked here before
+sending): random bytes, truncated and bit-flipped protobufs, valid messages of the wrong
+type, absurd values (NaN, infinities, huge sizes and counts, empty ids, out-of-range enums,
+index 2^32-1 against a key that says otherwise), key/payload mismatches (another photo,
+another kind, a foreign session in the payload) and keys whose session is not valid
+(too long, "..", spaces, non-ASCII; keys like "-1" or "007" for a photo number). A mutation
+that happens to be a VALID message is sent too, counted apart ("valid-shaped"), and what
+each service did with it is reported.
+
+Expected: every typed subscriber of a put's key answers it with exactly one Error
+(``findme/<session>/error``, or ``findme/@errors`` when the key names no valid session);
+every measure query gets one error reply and one Error; cache and status queries are
+answered with what the service has (garbage payloads are ignored there); raw subscribers
+(recorder, viewer) and the page do not answer: they record, skip, or drop. Counted: errors
+received vs expected per service, queries completed, crashes (a process gone before the
+end or not exiting 0 on SIGTERM), hangs (a service that does not drain its queue), INTERNAL
+errors and tracebacks in the logs, RSS before/after per service. Then a two-photo session
+through the same processes must print the same numbers as ``findme run``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import faulthandler
+import functools
+import json
+import math
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter, defaultdict
+from importlib import resources
+from pathlib import Path
+
+import cv2
+import numpy as np
+import zenoh
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+import schemas  # noqa: E402
+from findme.deploy import Printer  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
+from findme_io.convert import make_frame  # noqa: E402
+from services.runtime import authority  # noqa: E402
+from services.runtime.bus import BusConfig, SERVICES, open_session, wait_alive  # noqa: E402
+from services.runtime.registry import make_handler, service_names  # noqa: E402
+
+EXAMPLES = resources.files("findme") / "examples"
+SESSIONS = [f"fz{i:02d}" for i in range(64)]
+BAD_SESSIONS = ["x" * 200, "..", ".hidden", "a b", "séance"]
+U32 = 2 ** 32 - 1
+
+
+# ------------------------------------------------------------------------------ processes
+class Proc:
+    def __init__(self, name, args, tmp, stdout=False):
+        self.name = name
+        self.err = open(tmp / f"{name}.stderr", "w")
+        self.p = subprocess.Popen([sys.executable, "-m", "findme.cli", *map(str, args)],
+                                  stdout=subprocess.PIPE if stdout else subprocess.DEVNULL,
+                                  stderr=self.err, text=True,
+                                  env=dict(os.environ, OPENCV_NUM_THREADS="1"))
+
+    def rss_mb(self, field="VmRSS"):
+        try:
+            for line in Path(f"/proc/{self.p.pid}/status").read_text().splitlines():
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024
+        except FileNotFoundError:
+            return float("nan")
+        return float("nan")
+
+    def log(self):
+        return Path(self.err.name).read_text(errors="replace")
+
+
+def wait_line(proc, pattern, timeout=60):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if re.search(pattern, proc.log()):
+            return
+        if proc.p.poll() is not None:
+            break
+        time.sleep(0.05)   # a log file, not a pipe: polled (a benchmark, not a test)
+    raise RuntimeError(f"{proc.name}: no {pattern!r}: {proc.log()[-2000:]}")
+
+
+# ------------------------------------------------------------------------------ templates
+@functools.cache
+def tiny_jpeg():
+    img = np.zeros((48, 64, 3), np.uint8)
+    cv2.rectangle(img, (5, 30), (60, 47), (200, 200, 200), -1)
+    return cv2.imencode(".jpg", img)[1].tobytes()
+
+
+def templates(session: str, i: int) -> dict:
+    """A valid message of every type whose key rule is kind/<i> (motion: <i>/<i+1>)."""
+    jpg = tiny_jpeg()
+    f = make_frame(session, i, jpg, hfov_deg=60.0, gravity=(0.0, 1.0, 0.0), camera_height_m=1.4,
+                   device="fuzz")
+    poly = schemas.polyline_to_msg(np.array([[0, 40.0], [63, 40.0]]), np.array([0]))
+    hs = schemas.HypothesisSet(session=session, index=i, width=64, height=48, method="fuzz",
+                               hypotheses=[schemas.Hypothesis(rank=1, score=0.5, support=0.5,
+                                                              polyline=poly)])
+    sel = schemas.Selection(session=session, index=i, rank=1, by=schemas.SELECTED_BY_USER,
+                            time_ns=1)
+    cam = schemas.Camera(intrinsics=schemas.Intrinsics(fx=50, fy=50, cx=31.5, cy=23.5, width=64,
+                                                       height=48),
+                         gravity=schemas.Vec3(x=0, y=1, z=0))
+    sc = schemas.Scene(session=session, index=i, rank=1, camera=cam, camera_height_m=1.4,
+                       metric=True, polyline=poly, time_ns=1)
+    mo = schemas.Motion(session=session, index_a=i, index_b=i + 1, x_m=0.1, z_m=0.2, yaw_rad=0.1,
+                        sigma_x_m=0.01, sigma_z_m=0.01, sigma_yaw_rad=0.01, method="fuzz")
+    po = schemas.Pose(session=session, index=i, x_m=0.1, z_m=0.2, yaw_rad=0.1, time_ns=1)
+    tr = schemas.Trajectory(session=session, poses=[schemas.Pose(index=0)], time_ns=1)
+    er = schemas.Error(session=session, key=f"findme/{session}/frame/{i}", code=1, message="m",
+                       time_ns=1, service="fuzz")
+    rq = schemas.MeasureRequest(session=session, index=i, pixels=[schemas.Pixel(u=1, v=40)])
+    mr = schemas.MeasureReply(session=session, index=i, error="none")
+    out = {"frame": f, "hypotheses": hs, "selection": sel, "scene": sc, "motion": mo,
+           "pose": po, "trajectory": tr, "error": er, "measured": mr, "measure": rq}
+    for m in out.values():
+        m.schema = m.DESCRIPTOR.full_name
+    return out
+
+
+KIND_TYPE = {k: type(m) for k, m in templates("s", 0).items()}
+
+
+def key_of_kind(session, kind, i):
+    if kind == "motion":
+        return f"findme/{session}/motion/{i}/{i + 1}"
+    if kind in ("trajectory", "error", "measure"):
+        return f"findme/{session}/{kind}"
+    return f"findme/{session}/{kind}/{i}"
+
+
+# ------------------------------------------------------------------------------ mutations
+def absurd(rng, m):
+    """Set one field to something absurd: NaN, infinities, huge numbers or counts, empty or
+    unknown values (the message is serialised without the schema checks)."""
+    choices = []
+    for fd in m.DESCRIPTOR.fields:
+        if fd.is_repeated or fd.message_type is not None:
+            continue
+        choices.append(fd)
+    fd = rng.choice(choices)
+    t = fd.type
+    if t in (fd.TYPE_DOUBLE, fd.TYPE_FLOAT):
+        setattr(m, fd.name, rng.choice([math.nan, math.inf, -math.inf, 1e308, -1e308, 0.0, -1.0]))
+    elif t in (fd.TYPE_UINT32, fd.TYPE_UINT64, fd.TYPE_INT32, fd.TYPE_INT64, fd.TYPE_ENUM):
+        setattr(m, fd.name, rng.choice({fd.TYPE_UINT32: [0, U32, 1234567],
+                                        fd.TYPE_UINT64: [0, 2 ** 64 - 1],
+                                        fd.TYPE_ENUM: [0, 999, 2 ** 31 - 1]}.get(t, [-1, 0])))
+    elif t == fd.TYPE_STRING:
+        setattr(m, fd.name, rng.choice(["", "x" * 5000, "../../etc", "\u202e\x00"]))
+    elif t == fd.TYPE_BOOL:
+        setattr(m, fd.name, True)
+    # nested absurdities where the type has them
+    name = m.DESCRIPTOR.name
+    if name == "Frame" and rng.random() < 0.5:
+        g = rng.choice([(math.nan, 1, 0), (0, 0, 0), (0, 0, 1), (1e300, 1e300, 1e300)])
+        m.gravity.x, m.gravity.y, m.gravity.z = g
+    if name == "Frame" and rng.random() < 0.3:
+        m.intrinsics.width, m.intrinsics.height = U32, U32
+        m.intrinsics.fx = m.intrinsics.fy = rng.choice([-1.0, 0.0, math.nan, 1e-300])
+    if name == "HypothesisSet" and rng.random() < 0.3:
+        h = m.hypotheses[0] if m.hypotheses else m.hypotheses.add()
+        h.polyline.points.add(u=math.nan, v=-1e9)
+        if rng.random() < 0.05:
+            for _ in range(5000):
+                m.hypotheses.add(rank=0)
+    if name == "MeasureRequest" and rng.random() < 0.5:
+        for _ in range(rng.choice([0] * 9 + [10000])):
+            m.pixels.add(u=math.nan, v=math.inf)
+    return m.SerializeToString()
+
+
+def mutate(rng, kind, session, i, good):
+    """(category, key, payload) of one mutation of ``good`` (kind's template)."""
+    key = key_of_kind(session, kind, i)
+    enc = good.SerializeToString()
+    c = rng.choices(["random", "truncated", "bitflip", "wrong_type", "absurd", "mismatch",
+                     "bad_key"], [15, 15, 15, 10, 20, 15, 10])[0]
+    if c == "random":
+        n = min(int(rng.expovariate(1 / 200)), 1 << 20) if rng.random() > 0.002 else 4 << 20
+        return c, key, rng.randbytes(n)
+    if c == "truncated":
+        return c, key, enc[:rng.randrange(len(enc))]
+    if c == "bitflip":
+        b = bytearray(enc)
+        for _ in range(rng.randint(1, 8)):
+            op, p = rng.random(), rng.randrange(len(b))
+            if op < 0.6:
+                b[p] ^= 1 << rng.randrange(8)
+            elif op < 0.8:
+                b.insert(p, rng.randrange(256))
+            elif len(b) > 1:
+                del b[p]
+        return c, key, bytes(b)
+    if c == "wrong_type":
+        other = rng.choice([k for k in KIND_TYPE if KIND_TYPE[k] is not type(good)])
+        return c, key, templates(session, i)[other].SerializeToString()
+    if c == "absurd":
+        m = type(good)()
+        m.CopyFrom(good)
+        return c, key, absurd(rng, m)
+    if c == "mismatch":
+        m = type(good)()
+        m.CopyFrom(good)
+        what = rng.choice(["session", "index", "kind"]) if key.count("/") > 2 and \
+            kind not in ("measure", "trajectory", "error") else "session"
+        if what == "session" or not any(f.name.startswith("index") for f in m.DESCRIPTOR.fields):
+            m.session = rng.choice(["bob-1", "web-0123456789ab", session + "x"])
+        elif what == "index":
+            f = [f.name for f in m.DESCRIPTOR.fields if f.name.startswith("index")][0]
+            setattr(m, f, rng.choice([U32, getattr(m, f) + 1, 0 if getattr(m, f) else 7]))
+        else:
+            other = rng.choice([k for k in ("frame", "hypotheses", "selection") if k != kind])
+            return c, key_of_kind(session, other, i), enc     # a message on another kind's key
+        return c, key, m.SerializeToString()
+    # bad_key: a valid payload on a key whose session or photo number is not valid
+    how = rng.random()
+    if how < 0.6 or kind in ("trajectory", "error", "measure"):
+        s = rng.choice(BAD_SESSIONS)
+        return c, key_of_kind(s, kind, i), enc
+    part = rng.choice(["-1", f"{i:07d}", "x", "4294967296", "1e3"])
+    return c, key.rsplit("/", 1)[0] + "/" + part if kind != "motion" else \
+        f"findme/{session}/motion/{part}/{i + 1}", enc
+
+
+def verdict(kind, key, payload):
+    """What a service with a typed input on ``kind`` does with it: 'refused' (decode, schema
+    checks or the key authority, as Service.process does) or 'valid'."""
+    try:
+        msg = schemas.decode(KIND_TYPE[kind], payload)
+        authority.check(key, msg)
+    except FindmeError:
+        return "refused"
+    return "valid"
+
+
+# ------------------------------------------------------------------------------ the run
+class Tally:
+    """Every Error and every output seen on the bus, by key and service."""
+
+    def __init__(self):
+        self.cv = threading.Condition()
+        self.errors = Counter()           # (key, service name) -> count
+        self.codes = Counter()
+        self.error_total = 0
+        self.internal = []
+
+    def on_error(self, sample):
+        try:
+            e = schemas.decode(schemas.Error, sample.payload.to_bytes())
+        except FindmeError:
+            return
+        with self.cv:
+            self.errors[(e.key, e.service.split("/")[0])] += 1
+            self.codes[schemas.ErrorCode.Name(e.code)] += 1
+            self.error_total += 1
+            if e.code == schemas.ErrorCode.ERROR_CODE_INTERNAL and len(self.internal) < 20:
+                self.internal.append(f"{e.service}: {e.key[:80]}: {e.message[:200]}")
+            self.cv.notify_all()
+
+
+def page_thread(url, stats, stop):
+    """One page open on the gateway for the whole run: its session id, messages received,
+    and a ping answered at the end."""
+    import aiohttp
+
+    async def run():
+        async with aiohttp.ClientSession() as http, \
+                http.ws_connect(url.replace("http", "ws", 1) + "ws") as ws:
+            hello = await ws.receive_json(timeout=30)
+            stats["sid"] = hello["session"]
+            stats["ready"].set()
+            while not stop.is_set():
+                try:
+                    m = await ws.receive(timeout=0.5)
+                except asyncio.TimeoutError:
+                    continue
+                if m.type != aiohttp.WSMsgType.TEXT:
+                    stats["closed"] = True
+                    return
+                stats["received"][json.loads(m.data)["type"]] += 1
+            await ws.send_str('{"type": "ping"}')
+            while (await ws.receive_json(timeout=30))["type"] != "pong":
+                pass
+            stats["pong"] = True
+
+    try:
+        asyncio.run(run())
+    except Exception as e:  # noqa: BLE001 - reported
+        stats["failure"] = repr(e)
+        stats["ready"].set()
+
+
+def run_session(client, sid, ep, tmp, procs_extra):
+    """The bundled two-photo example through the running services (a capture process);
+    returns the lines ``findme run`` would print for motion and measurement."""
+    printer = Printer(sid)
+    sub = client.declare_subscriber(f"findme/{sid}/**", printer)
+    try:
+        return _session_lines(client, sid, ep, tmp, procs_extra, printer)
+    finally:
+        sub.undeclare()
+
+
+def _session_lines(client, sid, ep, tmp, procs_extra, printer):
+    photos = [str(EXAMPLES / "room_a.jpg"), str(EXAMPLES / "room_b.jpg")]
+    cap = Proc(f"capture-{sid}", ["serve", "capture", "--connect", ep, "--session", sid,
+                                  "--instance", sid, *photos], tmp)
+    procs_extra.append(cap)
+    if not printer.wait(lambda seen: f"findme/{sid}/trajectory" in seen and len(
+            seen[f"findme/{sid}/trajectory"].poses) == 2, 300):
+        raise RuntimeError(f"session {sid}: no trajectory of two poses")
+    lines = [Printer.describe(k, m) for k, m in printer.seen.items()
+             if "/motion/" in k]
+    meta = json.loads((EXAMPLES / "room_a.json").read_text())
+    pixels = [tuple(q["px"]) for q in meta["ground_truth"]["floor_points"][1:3]]
+    req = schemas.MeasureRequest(session=sid, index=0, pixels=schemas.pixels_to_msg(pixels))
+    (r,) = list(client.get(f"findme/{sid}/measure", payload=schemas.encode(req), timeout=30))
+    rep = schemas.decode(schemas.MeasureReply, r.ok.payload.to_bytes())
+    for p in rep.points:
+        lines.append(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): "
+                     f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at ({p.xyz.x:+.3f},"
+                     f" {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) m ± {p.sigma_m:.3f}")
+    for d in rep.distances:
+        lines.append(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} m ± {d.sigma_m:.3f}")
+    return lines
+
+
+def findme_run_lines():
+    out = subprocess.run([sys.executable, "-m", "findme.cli", "run", "--no-record"],
+                         capture_output=True, text=True, timeout=600, check=True).stdout
+    return [ln for ln in out.splitlines() if ln.startswith(("motion ", "measure ", "distance "))]
+
+
+def statuses(client):
+    out = {}
+    for r in client.liveliness().get(f"{SERVICES}/**", timeout=5):
+        if r.ok is None:
+            continue
+        tok = str(r.ok.key_expr)
+        for q in client.get(tok + "/status", timeout=10):
+            if q.ok is not None:
+                s = schemas.decode(schemas.ServiceStatus, q.ok.payload.to_bytes())
+                out[s.service + "/" + s.instance] = s
+    return out
+
+
+def drain_all(client, patience=60.0):
+    """(statuses, hung services): polls every service's status until each has an empty queue
+    and no new input twice in a row; one whose queue does not move for ``patience`` seconds
+    is hung."""
+    last, moved, quiet = {}, {}, Counter()
+    while True:
+        st = statuses(client)
+        now = time.monotonic()
+        for n, s in st.items():
+            sig = (s.frames_in, s.queue_depth, s.results_out, s.errors)
+            if sig != last.get(n):
+                last[n], moved[n], quiet[n] = sig, now, 0
+            elif s.queue_depth == 0:
+                quiet[n] += 1
+        hung = [n for n, s in st.items() if s.queue_depth and now - moved[n] > patience]
+        if all(quiet[n] >= 2 or n in hung for n in st):
+            return st, hung
+        time.sleep(0.5)   # polling status counters (a benchmark, not a test)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--messages", type=int, default=100_000, help="malformed messages to send")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", help="write the results here")
+    ap.add_argument("--keep", action="store_true", help="keep the temporary folder (logs)")
+    a = ap.parse_args(argv)
+    faulthandler.register(signal.SIGUSR1)   # kill -USR1 <pid>: where is it?
+    rng = random.Random(a.seed)
+    tmp = Path(tempfile.mkdtemp(prefix="findme-fuzz-"))
+    print(f"logs and recordings in {tmp}", flush=True)
+    expected_run = findme_run_lines()
+
+    # every key of every service, from the handlers themselves
+    class Args:
+        method, max, latest, auto, interactive, out = "findme", 10, None, True, False, str(tmp)
+    inputs, queries, caches = defaultdict(list), defaultdict(list), defaultdict(list)
+    for name in service_names():
+        h = make_handler(name, Args)
+        for inp in h.inputs:
+            kind = inp.key.split("/")[2]
+            (inputs[kind] if inp.type is not None else inputs["*raw*"]).append(name)
+        for q in h.queries:
+            queries[q.key.split("/")[2]].append(name)
+        for ck in h.cache_keys:
+            caches[ck].append(name)
+        h.close()
+    typed = {k: v for k, v in inputs.items() if k != "*raw*"}
+    print(f"typed inputs {dict(typed)}; raw: {inputs['*raw*']}; queries {dict(queries)}; "
+          f"caches {dict(caches)}", flush=True)
+
+    port = __import__("tests.services.conftest", fromlist=["free_port"]).free_port()
+    ep = f"tcp/127.0.0.1:{port}"
+    procs, extra, closers = {}, [], []
+    try:
+        return fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expected_run)
+    finally:   # whatever happened: no process of ours left running
+        for close in reversed(closers):
+            try:
+                close()
+            except zenoh.ZError as e:   # already closed on the normal path
+                print(f"cleanup: {e}", file=sys.stderr)
+        for p in [*extra, *reversed(list(procs.values()))]:
+            if p.p.poll() is None:
+                p.p.kill()
+                p.p.wait(10)
+        if not a.keep:
+            import shutil
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expected_run):
+    """Start everything, fuzz, drain, run a correct session, stop, report (see main)."""
+    procs["router"] = Proc("router", ["router", "--listen", ep], tmp)
+    wait_line(procs["router"], "listening on")
+    warm = "warm-1"
+    photos = [str(EXAMPLES / "room_a.jpg"), str(EXAMPLES / "room_b.jpg")]
+    for name in ("hypotheses", "selection", "measurement", "odometry", "recorder", "viewer",
+                 "gateway", "capture"):
+        flags = {"selection": ["--auto"], "recorder": ["--out", tmp / "rec"],
+                 "viewer": ["--out", tmp / "rrd"], "gateway": ["--http", "127.0.0.1:0"],
+                 "capture": ["--session", warm, *photos, *sum(
+                     (["--wait-for", s] for s in ("hypotheses", "selection", "measurement",
+                                                  "odometry")), [])]}.get(name, [])
+        procs[name] = Proc(name, ["serve", name, "--connect", ep, "--instance", name, *flags],
+                           tmp, stdout=name == "gateway")
+    client = open_session(BusConfig(mode="client", connect=(ep,)))
+    closers.append(client.close)
+    for name in procs:
+        if name != "router":
+            wait_alive(client, name, 120)
+    url = procs["gateway"].p.stdout.readline().split("serving ", 1)[1].split()[0]
+    tally = Tally()
+    subs = [client.declare_subscriber("findme/*/error", tally.on_error),
+            client.declare_subscriber("findme/@errors", tally.on_error)]
+    # the warm-up session must be complete before measuring anything
+    pr = Printer(warm)
+    subs.append(client.declare_subscriber(f"findme/{warm}/**", pr))
+    closers.append(lambda: [s.undeclare() for s in subs])   # else exit waits on their threads
+    if not pr.wait(lambda s: any(k.endswith("/trajectory") and len(m.poses) == 2
+                                 for k, m in s.items()), 300):
+        raise RuntimeError("the warm-up session did not complete")
+    page = {"received": Counter(), "ready": threading.Event(), "closed": False, "pong": False}
+    stop_page = threading.Event()
+    pt = threading.Thread(target=page_thread, args=(url, page, stop_page), daemon=True)
+    pt.start()
+    page["ready"].wait(60)
+    sessions = SESSIONS + [page["sid"]]
+    before = {n: p.rss_mb() for n, p in procs.items()}
+    st0 = statuses(client)
+
+    # ---------------------------------------------------------------- fuzz
+    expected = Counter()        # (key, service) -> errors expected
+    sent = Counter()            # category -> messages
+    by_kind = Counter()
+    valid_shaped = defaultdict(list)   # kind -> keys
+    valid_keys = set()
+    gets = {"sent": 0, "done": 0, "ok": 0, "err": 0}
+    gcv = threading.Condition()
+
+    def on_reply(reply):
+        with gcv:
+            gets["ok" if reply.ok is not None else "err"] += 1
+
+    def on_done():
+        with gcv:
+            gets["done"] += 1
+            gcv.notify_all()
+
+    def get(key, payload):
+        with gcv:   # at most 64 queries in flight
+            gcv.wait_for(lambda: gets["sent"] - gets["done"] < 64, 600)
+            gets["sent"] += 1
+        client.get(key, zenoh.handlers.Callback(on_reply, on_done), payload=payload, timeout=30)
+
+    put_kinds = sorted(set(KIND_TYPE) - {"measure"})
+    weights = {k: (20 if k in typed else 3) for k in put_kinds}
+    weights["measure"] = 10
+    kinds, w = zip(*weights.items())
+    cache_keys = [k for k in caches]
+    status_keys = [f"{SERVICES}/{n}/{n}/status" for n in procs if n != "router"]
+    malformed, i, t0 = 0, 0, time.perf_counter()
+    while malformed < a.messages:
+        i += 1
+        r = rng.random()
+        if r < 0.02:   # a cache or status query with garbage: answered with what it has
+            k = rng.choice(cache_keys).replace("*", rng.choice(sessions), 1).replace("*", str(i))
+            get(rng.choice([k, rng.choice(status_keys)]), rng.randbytes(rng.randrange(64)))
+            sent["cache/status query"] += 1
+            continue
+        kind = rng.choices(kinds, w)[0]
+        session = rng.choice(sessions)
+        good = templates(session, i)[kind]
+        cat, key, payload = mutate(rng, kind, session, i, good)
+        key_kind = key.split("/")[2] if key.count("/") >= 2 else kind
+        v = verdict(key_kind, key, payload) if key_kind in KIND_TYPE else "refused"
+        try:
+            zenoh.KeyExpr(key)
+        except zenoh.ZError:
+            sent["key zenoh refuses (not sent)"] += 1
+            continue
+        if v == "valid":
+            valid_shaped[key_kind].append(key)
+            valid_keys.add(key)
+            sent[f"valid-shaped ({cat})"] += 1
+        else:
+            malformed += 1
+            sent[cat] += 1
+            by_kind[key_kind] += 1
+            answer = queries.get(key_kind, []) if kind == "measure" else typed.get(key_kind, [])
+            if len(key.split("/")) != (5 if key_kind == "motion" else 3 if key_kind in
+                                       ("trajectory", "error", "measure") else 4):
+                answer = []   # no subscription matches a key of another shape
+            for svc in answer:
+                expected[(key, svc)] += 1
+        if kind == "measure":
+            get(key, payload)
+        else:
+            client.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+        if i % 20000 == 0:
+            print(f"  {i} sent ({malformed} malformed), {tally.error_total} errors back, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    send_s = time.perf_counter() - t0
+    total_expected = sum(expected.values())
+
+    # ---------------------------------------------------------------- drain
+    def settled():
+        with tally.cv:
+            got = sum(min(tally.errors[k], n) for k, n in expected.items())
+        return got
+
+    last, last_t = -1, time.monotonic()
+    while True:
+        got = settled()
+        with gcv:
+            qdone = gets["done"] == gets["sent"]
+        if got >= total_expected and qdone:
+            break
+        if got != last:
+            last, last_t = got, time.monotonic()
+        elif time.monotonic() - last_t > 60:
+            break      # no progress for a minute: whatever is missing is reported
+        with tally.cv:
+            tally.cv.wait(1.0)
+    st1, hangs = drain_all(client)
+    drain_s = time.perf_counter() - t0 - send_s
+    after_fuzz = {n: p.rss_mb() for n, p in procs.items()}
+
+    # ---------------------------------------------------------------- a correct session
+    got_lines = run_session(client, "after-1", ep, tmp, extra)
+    same = sorted(got_lines) == sorted(expected_run)
+    after = {n: p.rss_mb() for n, p in procs.items()}
+    peak = {n: p.rss_mb("VmHWM") for n, p in procs.items()}
+    stop_page.set()
+    pt.join(60)
+    alive_at_end = {n: p.p.poll() is None for n, p in procs.items()}
+    for close in reversed(closers):
+        close()
+    closers.clear()
+    for p in [*extra, *reversed(list(procs.values()))]:
+        if p.p.poll() is None:
+            p.p.send_signal(signal.SIGTERM)
+    codes = {}
+    for p in [*procs.values(), *extra]:
+        try:
+            codes[p.name] = p.p.wait(60)
+        except subprocess.TimeoutExpired:
+            p.p.kill()
+            codes[p.name] = "hung on SIGTERM"
+    tracebacks = {n: p.log().count("Traceback") for n, p in procs.items()}
+
+    # ---------------------------------------------------------------- report
+    per_service = {}
+    for (key, svc), n in expected.items():
+        d = per_service.setdefault(svc, Counter())
+        d["expected"] += n
+        d["received"] += min(tally.errors[(key, svc)], n)
+    for (key, svc), n in tally.errors.items():
+        extra_n = n - expected.get((key, svc), 0)
+        if extra_n > 0:
+            tag = "for valid-shaped" if key in valid_keys else "other (cascades)"
+            per_service.setdefault(svc, Counter())[tag] += extra_n
+    crashes = [n for n, alive in alive_at_end.items() if not alive] + \
+        [n for n, c in codes.items() if c != 0]
+    print()
+    print(f"sent: {i} messages in {send_s:.0f} s (+{drain_s:.0f} s to drain): {malformed} "
+          f"malformed, {sum(v for k, v in sent.items() if k.startswith('valid'))} valid-shaped, "
+          f"{sent['cache/status query']} cache/status queries")
+    print("by mutation: " + ", ".join(f"{k} {v}" for k, v in sorted(sent.items())))
+    print("malformed by key kind: " + ", ".join(f"{k} {v}" for k, v in sorted(by_kind.items())))
+    print()
+    print(f"{'service':12s} {'errors expected':>15s} {'received':>9s} {'missing':>8s} "
+          f"{'extra (valid-shaped, cascades)':>31s} {'in':>8s} {'RSS before':>11s} "
+          f"{'after fuzz':>11s} {'after':>7s} {'peak':>7s} {'tracebacks':>10s} exit")
+    for n, p in procs.items():
+        d = per_service.get(n, Counter())
+        s0, s1 = st0.get(f"{n}/{n}"), st1.get(f"{n}/{n}")
+        fin = (s1.frames_in - s0.frames_in) if s0 and s1 else 0
+        print(f"{n:12s} {d['expected']:15d} {d['received']:9d} {d['expected'] - d['received']:8d} "
+              f"{d['for valid-shaped']:>15d}, {d['other (cascades)']:<14d} {fin:8d} "
+              f"{before[n]:8.0f} MB {after_fuzz[n]:8.0f} MB {after[n]:4.0f} MB {peak[n]:4.0f} MB "
+              f"{tracebacks[n]:10d} {codes[n]}")
+    print()
+    print(f"measure queries and cache/status queries: {gets['sent']} sent, {gets['done']} "
+          f"completed, {gets['err']} error replies, {gets['ok']} data replies")
+    print("error codes received: " + ", ".join(f"{k.removeprefix('ERROR_CODE_')} {v}"
+                                               for k, v in tally.codes.most_common()))
+    if tally.internal:
+        print("INTERNAL errors (bugs):")
+        for line in tally.internal:
+            print("   ", line)
+    vs = {k: len(v) for k, v in valid_shaped.items()}
+    print(f"valid-shaped messages by kind: {vs} (answered per service above as 'extra')")
+    print(f"page {page.get('sid')}: received {dict(page['received'])}, socket closed "
+          f"{page['closed']}, pong at the end {page['pong']}, failure {page.get('failure')}")
+    print(f"crashes {len(crashes)} {crashes}; hangs {len(hangs)} {hangs}")
+    print(f"two-photo session afterwards equals findme run: {same}")
+    for ln in got_lines:
+        print("   bus:", ln)
+    if not same:
+        for ln in expected_run:
+            print("   run:", ln)
+    res = {"messages": i, "malformed": malformed, "sent": dict(sent), "send_s": send_s,
+           "drain_s": drain_s, "per_service": {k: dict(v) for k, v in per_service.items()},
+           "rss_mb": {"before": before, "after_fuzz": after_fuzz, "after": after, "peak": peak},
+           "queries": gets, "codes": dict(tally.codes), "internal": tally.internal,
+           "crashes": crashes, "hangs": hangs, "exit": codes, "tracebacks": tracebacks,
+           "same_as_findme_run": same, "bus_lines": got_lines, "run_lines": expected_run,
+           "page": {k: (dict(v) if isinstance(v, Counter) else v) for k, v in page.items()
+                    if k != "ready"}}
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1, default=str))
+    ok = not crashes and not hangs and same and all(
+        d["expected"] == d["received"] for d in per_service.values())
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
