@@ -484,6 +484,7 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
 
     # ---------------------------------------------------------------- fuzz
     expected = Counter()        # (key, service) -> errors expected
+    what = {}                   # (key, service) -> "mutation kind" of the last message there
     sent = Counter()            # category -> messages
     by_kind = Counter()
     valid_shaped = defaultdict(list)   # kind -> keys
@@ -546,6 +547,7 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
                 answer = []   # no subscription matches a key of another shape
             for svc in answer:
                 expected[(key, svc)] += 1
+                what[(key, svc)] = f"{cat} {key_kind}"
         if kind == "measure":
             get(key, payload)
         else:
@@ -642,6 +644,19 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
         print("INTERNAL errors (bugs):")
         for line in tally.internal:
             print("   ", line)
+    missing = Counter()
+    examples = defaultdict(list)
+    for ks, n in expected.items():
+        short = n - min(tally.errors[ks], n)
+        if short:
+            missing[(ks[1], what[ks])] += short
+            if len(examples[ks[1]]) < 5:
+                examples[ks[1]].append(f"{ks[0][:90]} ({what[ks]})")
+    if missing:
+        print("missing errors by service and mutation: " + ", ".join(
+            f"{svc} {w}: {n}" for (svc, w), n in missing.most_common(20)))
+        for svc, ex in examples.items():
+            print(f"   e.g. {svc}: " + "; ".join(ex))
     vs = {k: len(v) for k, v in valid_shaped.items()}
     print(f"valid-shaped messages by kind: {vs} (answered per service above as 'extra')")
     print(f"page {page.get('sid')}: received {dict(page['received'])}, socket closed "
@@ -658,7 +673,8 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
            "rss_mb": {"before": before, "after_fuzz": after_fuzz, "after": after, "peak": peak},
            "queries": gets, "codes": dict(tally.codes), "internal": tally.internal,
            "crashes": crashes, "hangs": hangs, "exit": codes, "tracebacks": tracebacks,
-           "same_as_findme_run": same, "bus_lines": got_lines, "run_lines": expected_run,
+           "same_as_findme_run": same,
+           "missing": {f"{svc} {w}": n for (svc, w), n in missing.items()}, "bus_lines": got_lines, "run_lines": expected_run,
            "page": {k: (dict(v) if isinstance(v, Counter) else v) for k, v in page.items()
                     if k != "ready"}}
     if a.json:

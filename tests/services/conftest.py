@@ -51,6 +51,17 @@ class Collector:
     def decoded(self, cls, n=1):
         return [schemas.decode(cls, p) for _, p in self.wait(n)]
 
+    def until(self, done, timeout=60.0, what="messages"):
+        """Block until ``done(items)`` ((key, payload) in arrival order); returns them."""
+        with self.cv:
+            assert self.cv.wait_for(lambda: done(self.items), timeout), \
+                f"{what}: not within {timeout:.0f} s; seen {[k for k, _ in self.items]}"
+            return list(self.items)
+
+    def keys(self):
+        with self.cv:
+            return [k for k, _ in self.items]
+
 
 def free_port() -> int:
     with socket.socket() as s:

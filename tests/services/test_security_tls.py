@@ -29,7 +29,7 @@ import schemas
 from findme_io.convert import make_frame
 from services.runtime.bus import BusConfig, open_session, put
 from tests.cli.conftest import run_findme
-from tests.services.conftest import spawn_findme, start_tls_router
+from tests.services.conftest import Collector, spawn_findme, start_tls_router
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -48,27 +48,8 @@ def example_frame(session, n, name, **override):
                       **kw)
 
 
-class Seen:
-    """Every put on a key expression, in arrival order; waits for a condition on them."""
-
-    def __init__(self, session, key):
-        self.items, self.cv = [], threading.Condition()
-        self.sub = session.declare_subscriber(key, self._cb)
-
-    def _cb(self, sample):
-        with self.cv:
-            self.items.append((str(sample.key_expr), sample.payload.to_bytes()))
-            self.cv.notify_all()
-
-    def until(self, done, timeout=60.0, what=""):
-        with self.cv:
-            assert self.cv.wait_for(lambda: done(self.items), timeout), \
-                f"{what}: not within {timeout:.0f} s; seen {[k for k, _ in self.items]}"
-            return list(self.items)
-
-    def keys(self):
-        with self.cv:
-            return [k for k, _ in self.items]
+class Seen(Collector):
+    """Every put on a key expression, in arrival order, and the Errors among them."""
 
     def errors(self):
         with self.cv:
