@@ -26,8 +26,14 @@ answered with what the service has (garbage payloads are ignored there); raw sub
 (recorder, viewer) and the page do not answer: they record, skip, or drop. Counted: errors
 received vs expected per service, queries completed, crashes (a process gone before the
 end or not exiting 0 on SIGTERM), hangs (a service that does not drain its queue), INTERNAL
-errors and tracebacks in the logs, RSS before/after per service. Then a two-photo session
-through the same processes must print the same numbers as ``findme run``.
+errors and tracebacks in the logs, RSS before/after per service, liveliness tokens lost
+during the run (a link Zenoh closed). Then a two-photo session through the same processes
+must print the same numbers as ``findme run``.
+
+Sending is paced: at most ``--window`` expected errors outstanding (a hostile client, not a
+flood). ``--window 0`` floods: a consumer that stays behind for more than 5 s then has its
+link closed by Zenoh (``transport/link/tx/queue/congestion_control/block/wait_before_close``),
+and what was queued on it is lost: reported as missing errors and lost liveliness tokens.
 """
 
 from __future__ import annotations
@@ -263,8 +269,10 @@ def verdict(kind, key, payload):
 class Tally:
     """Every Error and every output seen on the bus, by key and service."""
 
-    def __init__(self):
+    def __init__(self, expected: Counter):
         self.cv = threading.Condition()
+        self.expected = expected          # (key, service name) -> errors expected (shared)
+        self.matched = 0                  # errors received that were expected
         self.errors = Counter()           # (key, service name) -> count
         self.codes = Counter()
         self.error_total = 0
@@ -276,7 +284,9 @@ class Tally:
         except FindmeError:
             return
         with self.cv:
-            self.errors[(e.key, e.service.split("/")[0])] += 1
+            ks = (e.key, e.service.split("/")[0])
+            self.errors[ks] += 1
+            self.matched += self.errors[ks] <= self.expected.get(ks, 0)
             self.codes[schemas.ErrorCode.Name(e.code)] += 1
             self.error_total += 1
             if e.code == schemas.ErrorCode.ERROR_CODE_INTERNAL and len(self.internal) < 20:
@@ -370,6 +380,16 @@ def statuses(client):
     return out
 
 
+def depths(client) -> dict:
+    """Queue depth of every live service instance (one status query to all)."""
+    out = {}
+    for q in client.get(f"{SERVICES}/*/*/status", timeout=10):
+        if q.ok is not None:
+            s = schemas.decode(schemas.ServiceStatus, q.ok.payload.to_bytes())
+            out[f"{s.service}/{s.instance}"] = s.queue_depth
+    return out
+
+
 def drain_all(client, patience=60.0):
     """(statuses, hung services): polls every service's status until each has an empty queue
     and no new input twice in a row; one whose queue does not move for ``patience`` seconds
@@ -397,6 +417,9 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", help="write the results here")
     ap.add_argument("--keep", action="store_true", help="keep the temporary folder (logs)")
+    ap.add_argument("--window", type=int, default=4000,
+                    help="at most this many expected errors outstanding while sending "
+                         "(0 = flood: send as fast as the bus takes it)")
     a = ap.parse_args(argv)
     faulthandler.register(signal.SIGUSR1)   # kill -USR1 <pid>: where is it?
     rng = random.Random(a.seed)
@@ -463,8 +486,13 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
         if name != "router":
             wait_alive(client, name, 120)
     url = procs["gateway"].p.stdout.readline().split("serving ", 1)[1].split()[0]
-    tally = Tally()
-    subs = [client.declare_subscriber("findme/*/error", tally.on_error),
+    expected = Counter()        # (key, service) -> errors expected
+    tally = Tally(expected)
+    blips = Counter()   # liveliness tokens that went away during the run (a link closed)
+    lsub = client.liveliness().declare_subscriber(
+        f"{SERVICES}/**", lambda smp: smp.kind == zenoh.SampleKind.DELETE and
+        blips.update([str(smp.key_expr).split("/")[-2]]))
+    subs = [lsub, client.declare_subscriber("findme/*/error", tally.on_error),
             client.declare_subscriber("findme/@errors", tally.on_error)]
     # the warm-up session must be complete before measuring anything
     pr = Printer(warm)
@@ -483,7 +511,6 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
     st0 = statuses(client)
 
     # ---------------------------------------------------------------- fuzz
-    expected = Counter()        # (key, service) -> errors expected
     what = {}                   # (key, service) -> "mutation kind" of the last message there
     sent = Counter()            # category -> messages
     by_kind = Counter()
@@ -513,7 +540,7 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
     kinds, w = zip(*weights.items())
     cache_keys = [k for k in caches]
     status_keys = [f"{SERVICES}/{n}/{n}/status" for n in procs if n != "router"]
-    malformed, i, t0 = 0, 0, time.perf_counter()
+    malformed, i, t0, total_expected, slack, stalls = 0, 0, time.perf_counter(), 0, 0, []
     while malformed < a.messages:
         i += 1
         r = rng.random()
@@ -545,24 +572,39 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
             if len(key.split("/")) != (5 if key_kind == "motion" else 3 if key_kind in
                                        ("trajectory", "error", "measure") else 4):
                 answer = []   # no subscription matches a key of another shape
-            for svc in answer:
-                expected[(key, svc)] += 1
-                what[(key, svc)] = f"{cat} {key_kind}"
+            with tally.cv:
+                for svc in answer:
+                    ks = (key, svc)
+                    expected[ks] += 1
+                    what[ks] = f"{cat} {key_kind}"
+                    # an error already here beyond what was expected (e.g. about a valid-shaped
+                    # message on the same key) now counts as this one's
+                    tally.matched += tally.errors[ks] >= expected[ks]
+                total_expected += len(answer)
+                if a.window and not tally.cv.wait_for(   # paced: `window` errors outstanding
+                        lambda: total_expected - tally.matched - slack < a.window, 10):
+                    slack = total_expected - tally.matched   # lost or late: stop waiting on them
+                    stalls.append(f"message {i}: {slack} errors outstanding for 10 s")
         if kind == "measure":
             get(key, payload)
         else:
             client.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+        if a.window and i % 250 == 0:   # and every queue at most half full (the viewer, ...)
+            t_wait = time.monotonic()
+            while max(depths(client).values(), default=0) > 128:
+                if time.monotonic() - t_wait > 120:
+                    stalls.append(f"message {i}: a queue stayed over 128 for 120 s")
+                    break
+                time.sleep(0.05)   # polling queue depths (a benchmark, not a test)
         if i % 20000 == 0:
             print(f"  {i} sent ({malformed} malformed), {tally.error_total} errors back, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
     send_s = time.perf_counter() - t0
-    total_expected = sum(expected.values())
 
     # ---------------------------------------------------------------- drain
     def settled():
         with tally.cv:
-            got = sum(min(tally.errors[k], n) for k, n in expected.items())
-        return got
+            return tally.matched
 
     last, last_t = -1, time.monotonic()
     while True:
@@ -574,9 +616,12 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
         if got != last:
             last, last_t = got, time.monotonic()
         elif time.monotonic() - last_t > 60:
-            break      # no progress for a minute: whatever is missing is reported
+            print(f"  no progress for 60 s: {got} of {total_expected} errors, queries "
+                  f"{gets['done']} of {gets['sent']} done", flush=True)
+            break      # whatever is missing is reported
         with tally.cv:
             tally.cv.wait(1.0)
+    errors_s = time.perf_counter() - t0 - send_s
     st1, hangs = drain_all(client)
     drain_s = time.perf_counter() - t0 - send_s
     after_fuzz = {n: p.rss_mb() for n, p in procs.items()}
@@ -618,7 +663,8 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
     crashes = [n for n, alive in alive_at_end.items() if not alive] + \
         [n for n, c in codes.items() if c != 0]
     print()
-    print(f"sent: {i} messages in {send_s:.0f} s (+{drain_s:.0f} s to drain): {malformed} "
+    print(f"sent: {i} messages in {send_s:.0f} s (then {errors_s:.0f} s until the last error, "
+          f"{drain_s:.0f} s until every queue was empty): {malformed} "
           f"malformed, {sum(v for k, v in sent.items() if k.startswith('valid'))} valid-shaped, "
           f"{sent['cache/status query']} cache/status queries")
     print("by mutation: " + ", ".join(f"{k} {v}" for k, v in sorted(sent.items())))
@@ -661,7 +707,9 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
     print(f"valid-shaped messages by kind: {vs} (answered per service above as 'extra')")
     print(f"page {page.get('sid')}: received {dict(page['received'])}, socket closed "
           f"{page['closed']}, pong at the end {page['pong']}, failure {page.get('failure')}")
-    print(f"crashes {len(crashes)} {crashes}; hangs {len(hangs)} {hangs}")
+    print(f"pacing stalls: {len(stalls)} {stalls[:5]}")
+    print(f"crashes {len(crashes)} {crashes}; hangs {len(hangs)} {hangs}; liveliness "
+          f"tokens lost during the run (a link closed): {dict(blips) or 0}")
     print(f"two-photo session afterwards equals findme run: {same}")
     for ln in got_lines:
         print("   bus:", ln)
@@ -672,7 +720,7 @@ def fuzz(a, rng, tmp, ep, procs, extra, closers, typed, queries, caches, expecte
            "drain_s": drain_s, "per_service": {k: dict(v) for k, v in per_service.items()},
            "rss_mb": {"before": before, "after_fuzz": after_fuzz, "after": after, "peak": peak},
            "queries": gets, "codes": dict(tally.codes), "internal": tally.internal,
-           "crashes": crashes, "hangs": hangs, "exit": codes, "tracebacks": tracebacks,
+           "crashes": crashes, "hangs": hangs, "stalls": stalls, "liveliness_lost": dict(blips), "exit": codes, "tracebacks": tracebacks,
            "same_as_findme_run": same,
            "missing": {f"{svc} {w}": n for (svc, w), n in missing.items()}, "bus_lines": got_lines, "run_lines": expected_run,
            "page": {k: (dict(v) if isinstance(v, Counter) else v) for k, v in page.items()
