@@ -15,7 +15,7 @@ import schemas
 from findme_core.methods import hypothesize
 
 from ..runtime import authority, bus
-from findme_io.convert import frame_inputs, hypothesis_set_msg
+from findme_io.convert import frame_photo_camera, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output
 
 
@@ -35,11 +35,11 @@ class HypothesesHandler(Handler):
         authority.check(key, frame)   # the key, not the payload, names session and n
         k = bus.parse_key(key)
         n = k.index()
-        image, cam = frame_inputs(frame)
+        image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
         t1 = time.perf_counter()
         hs = hypothesize(image, cam, self.method, self.max_n, clock=time.perf_counter)
         self.done += 1
-        msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1")
+        msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)
         return [Output(bus.key(k.session, "hypotheses", n), msg)]

@@ -55,7 +55,7 @@ from findme_io.imageio import MAX_PIXELS
 from findme_core.errors import BusError, InputError
 
 from ..runtime import bus
-from .page_guard import ClientPages, OriginPolicy, client_of
+from .page_guard import ClientPages, OriginPolicy, client_of, served_names
 from .page_input import MAX_HEADER_BYTES, MAX_MEASURE_PIXELS, MAX_UPLOAD_BYTES
 from .page_session import MAX_PHOTOS, PageSession
 from ..runtime.handler import Handler
@@ -101,13 +101,14 @@ class Gateway:
     def __init__(self, session: zenoh.Session, host: str = "127.0.0.1", port: int = 8080,
                  ssl_context: ssl.SSLContext | None = None, instance: str | None = None,
                  max_upload_bytes: int = MAX_UPLOAD_BYTES, allowed_origins=(),
-                 trusted_proxies=(), max_per_client: int = MAX_PAGES_PER_CLIENT,
+                 own_names=None, trusted_proxies=(), max_per_client: int = MAX_PAGES_PER_CLIENT,
                  idle_timeout: float = IDLE_TIMEOUT_S, header_timeout: float = HEADER_TIMEOUT_S):
         self.session, self.host, self.port, self.ssl = session, host, port, ssl_context
         self.handler = GatewayHandler()
         self.service = Service(self.handler, session, instance=instance)
         self.max_upload = max_upload_bytes
-        self.origins = OriginPolicy(allowed_origins)
+        self.origins = OriginPolicy(allowed_origins,
+                                    served_names() if own_names is None else own_names)
         self.trusted = frozenset(trusted_proxies)
         self.clients = ClientPages(max_per_client)
         self.idle_timeout, self.header_timeout = idle_timeout, header_timeout

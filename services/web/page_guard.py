@@ -5,10 +5,11 @@ Origin (what stops another web site, and DNS rebinding, from driving the gateway
 victim's browser): a browser always sends the Origin of the page that opens a WebSocket. It
 is allowed when it is in the configured allow-list (``--allow-origin``, e.g. the public
 ``https://findme.example.org`` behind a reverse proxy), or when the page was loaded from this
-very server by IP address or ``localhost``: the Origin names an IP literal (or localhost)
-and equals the address the browser connected to (the Host header). A DNS name is never
-accepted unless listed: in a DNS-rebinding attack Origin and Host both name the attacker's
-domain (``evil.example``, re-resolved to this server), so comparing them proves nothing.
+very server under a name it serves: an IP literal, ``localhost``, this machine's own names
+or the DNS names of its certificate (``served_names``), and the Origin equals the address
+the browser connected to (the Host header). Any other DNS name is refused: in a
+DNS-rebinding attack Origin and Host both name the attacker's domain (``evil.example``,
+re-resolved to this server), so comparing them alone proves nothing.
 No Origin at all is a native client or a script, not a browser page: allowed.
 
 Client address: the TCP peer, or, when the peer is a trusted reverse proxy, the nearest
@@ -20,6 +21,8 @@ Pure: no server, no bus.
 from __future__ import annotations
 
 import ipaddress
+import socket
+import ssl
 from collections import Counter
 from urllib.parse import urlsplit
 
@@ -44,7 +47,7 @@ def normalize_origin(origin: str) -> str | None:
     return f"{u.scheme}://{host}" + (f":{port}" if keep else "")
 
 
-def _names_this_machine_directly(host: str) -> bool:
+def _is_address(host: str) -> bool:
     """An IP literal or localhost: no DNS name an attacker could re-point."""
     if host == "localhost":
         return True
@@ -55,10 +58,24 @@ def _names_this_machine_directly(host: str) -> bool:
     return True
 
 
+def served_names(cert: str | None = None) -> set[str]:
+    """The DNS names this server is reached by: its host name, fully qualified name and
+    ``<name>.local`` (mDNS), and the DNS subjectAltNames of its HTTPS certificate ``cert``
+    (a PEM file), all lower-case."""
+    host = socket.gethostname().lower()
+    names = {host, socket.getfqdn().lower(), f"{host.split('.')[0]}.local"}
+    if cert:
+        # the standard library's own decoder (ssl has no public one for a file)
+        decoded = ssl._ssl._test_decode_cert(cert)
+        names |= {v.lower() for k, v in decoded.get("subjectAltName", ()) if k == "DNS"}
+    return {n for n in names if n and n != "localhost"}
+
+
 class OriginPolicy:
     """Which browser pages may open a WebSocket (see the module docstring)."""
 
-    def __init__(self, allowed=()):
+    def __init__(self, allowed=(), own_names=()):
+        self.own = {n.lower() for n in own_names}
         self.allowed = set()
         for o in allowed:
             n = normalize_origin(o)
@@ -76,7 +93,7 @@ class OriginPolicy:
         if o in self.allowed:
             return True
         host = urlsplit(o).hostname or ""
-        return (_names_this_machine_directly(host) and host_header is not None
+        return ((_is_address(host) or host in self.own) and host_header is not None
                 and o == normalize_origin(f"{scheme}://{host_header}"))
 
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 import asyncio
 import json
 import socket
+import sys
+from pathlib import Path
 
 import aiohttp
 import pytest
@@ -19,7 +21,8 @@ import pytest
 from services.runtime import bus
 from services.web import page_session
 from services.web.gateway import Gateway
-from services.web.page_guard import ClientPages, OriginPolicy, client_of, normalize_origin
+from services.web.page_guard import (ClientPages, OriginPolicy, client_of, normalize_origin,
+                                     served_names)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -68,9 +71,24 @@ def test_origin_policy():
     assert not p.allows("https://127.0.0.1:8080", "127.0.0.1:8080", "http")  # other scheme
     for bad in ("null", "file://", "http://a.example/path", "http://u@127.0.0.1:8080", ""):
         assert not p.allows(bad, "127.0.0.1:8080", "http"), bad
+    # a name the server is reached by (its certificate's, its own host name)
+    own = OriginPolicy(own_names=["findme.lan"])
+    assert own.allows("https://findme.lan:8443", "findme.lan:8443", "https")
+    assert not own.allows("https://findme.lan:8443", "evil.example:8443", "https")
+    assert not own.allows("https://evil.example:8443", "evil.example:8443", "https")
     assert normalize_origin("HTTPS://Findme.Example.org:443") == "https://findme.example.org"
     with pytest.raises(Exception, match="not scheme://host"):
         OriginPolicy(["findme.example.org"])
+
+
+def test_served_names_include_the_certificate_names(tmp_path):
+    pytest.importorskip("cryptography", reason="cryptography makes the certificate")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+    from make_certs import make_certs
+    make_certs(tmp_path, ("findme.lan", "192.168.1.20"))
+    names = served_names(str(tmp_path / "gateway.pem"))
+    assert {"findme.lan", "gateway"} <= names and socket.gethostname().lower() in names
+    assert "localhost" not in names and "192.168.1.20" not in names   # addresses need no name
 
 
 def test_client_address_and_page_counts():
