@@ -45,6 +45,10 @@ def register(sub) -> None:
                         "findme); with several, the first goes to --out and each other one to "
                         "OUT.<name>.json, from the same features and hypotheses")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
+                   help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
+                        "the view ids, as a capture app marks a new spot) or 'auto' (from "
+                        "rotation-only feature matches)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -180,6 +184,7 @@ def cmd_eval(args) -> int:
         for job in jobs:
             collect(*predict_pair(job))
     bar.close()
+    preds["rooms"] = predict_rooms(args.dataset, index, view_dir, args.room_spots, args.jobs)
     stem, ext = os.path.splitext(args.out)
     for i, m in enumerate(motion_methods):
         out = args.out if i == 0 else f"{stem}.{m}{ext or '.json'}"
@@ -201,3 +206,20 @@ def _collect(preds, failures, vid, pred, err):
         failures.append((vid, err))
     else:
         preds["views"][vid] = pred
+
+
+def predict_rooms(dataset, index, view_dir, spots: str, jobs: int) -> dict:
+    """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame."""
+    from findme.plan_cli import room_job   # rooms live in plan_cli (one hunk here)
+    room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
+    rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
+    out = {}
+    jobs_ = [(room_dir, view_dir, r, spots) for r in rooms]
+    with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("spawn")) as ex:
+        for rid, pred, err in tqdm(ex.map(room_job, jobs_), total=len(jobs_), desc="rooms",
+                                   unit="room", file=sys.stderr):
+            if err:
+                print(f"  {rid}: {err}", file=sys.stderr)
+            else:
+                out[rid] = pred
+    return out

@@ -1,0 +1,243 @@
+"""The floor plan of a room: its outline, walls with lengths and 1-sigma, doors and openings
+seen in them, and the pose of every photo, from posed layouts (``fuse``) and the outline
+(``polygon``).
+
+Frames and units: the room frame is the level frame of the session's first photo (x right,
+z forward, floor at y = camera height; metres). A photo's pose is (x, z, yaw) with yaw > 0
+turned right (radians inside, degrees in ``to_dict``). The polygon is counter-clockwise seen
+from above (positive shoelace area in (x, z)); wall k runs from vertex k to vertex k + 1.
+
+Wall length 1-sigma: a wall's ends are where its neighbours' lines cross it, so its length
+moves with the neighbours' offsets: sigma_L^2 = sum over both neighbours of
+(sigma_d / sin(angle))^2, plus the camera height's relative error times L (every distance
+scales with the height). A line's offset sigma is the spread of its observed segment ends
+about it over the square root of their number, floored at ``offset_floor_m``.
+
+Pure numpy + OpenCV rasterisation; no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from . import polygon, register
+from .layout import Layout
+from .search import SegKind
+
+
+@dataclass(frozen=True)
+class PlanParams:
+    """Outline and uncertainty settings.
+
+    Attributes:
+        polygon: clustering, Manhattan test and cell voting (``polygon.PolygonParams``).
+        height_rel: relative 1-sigma of the camera height (scales every length).
+        offset_floor_m: smallest 1-sigma of a wall line's offset.
+        aperture_min_m: a stretch of wall at least this long where floor was seen beyond it
+            (and no wall base) is a door or opening.
+        max_range_m: floor samples are cut at this distance from their camera.
+    """
+
+    polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)
+    height_rel: float = 0.02
+    offset_floor_m: float = 0.01
+    aperture_min_m: float = 0.5
+    max_range_m: float = 8.0
+
+
+@dataclass(frozen=True)
+class Wall:
+    """One edge of the outline: ends a, b (2,) metres, length and 1-sigma, whether it was
+    seen as a wall ("missing" edges close the outline where nothing was seen), and the
+    apertures (from_m, to_m measured from a) where the floor was seen beyond it."""
+
+    a: np.ndarray
+    b: np.ndarray
+    length_m: float
+    sigma_m: float
+    seen: bool
+    apertures: tuple = ()
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A room's floor plan (see the module docstring for frames and units).
+
+    Attributes:
+        polygon: (V, 2) outline vertices, counter-clockwise.
+        walls: V ``Wall`` s, wall k from vertex k to k + 1.
+        area_m2: floor area of the outline.
+        poses: (N, 3) (x, z, yaw) per photo, NaN rows for photos not placed.
+        manhattan: True when the walls were found on two perpendicular axes.
+        notes: per photo, why it was not placed (None when placed).
+        ambiguity: per photo, the score of the best clearly different pose over the chosen
+            pose's score (NaN when there was none; near 1: ambiguous).
+    """
+
+    polygon: np.ndarray
+    walls: tuple
+    area_m2: float
+    poses: np.ndarray
+    manhattan: bool
+    notes: tuple = ()
+    ambiguity: tuple = ()
+
+    @property
+    def closed(self) -> bool:
+        """Every edge of the outline was seen as a wall."""
+        return all(w.seen for w in self.walls)
+
+    @property
+    def missing(self) -> list[int]:
+        """Indices of the edges that close the outline where no wall was seen."""
+        return [k for k, w in enumerate(self.walls) if not w.seen]
+
+    def to_dict(self, ids=None) -> dict:
+        """JSON-ready dict: metres and degrees. ``ids`` name the photos (default 0..N-1)."""
+        ids = list(ids) if ids is not None else [str(i) for i in range(len(self.poses))]
+        poses = {}
+        for k, p in zip(ids, self.poses):
+            poses[k] = (None if not np.isfinite(p[0]) else
+                        {"x_m": round(float(p[0]), 4), "z_m": round(float(p[1]), 4),
+                         "yaw_deg": round(math.degrees(float(p[2])), 3)})
+        return {
+            "floor_polygon_m": np.round(self.polygon, 4).tolist(),
+            "area_m2": round(self.area_m2, 3),
+            "closed": self.closed,
+            "manhattan": self.manhattan,
+            "walls": [{"a": np.round(w.a, 4).tolist(), "b": np.round(w.b, 4).tolist(),
+                       "length_m": round(w.length_m, 4), "sigma_m": round(w.sigma_m, 4),
+                       "seen": w.seen,
+                       "apertures": [{"kind": "opening", "from_m": round(a, 3), "to_m": round(b, 3)}
+                                     for a, b in w.apertures]} for w in self.walls],
+            "missing_walls": self.missing,
+            "poses": poses,
+            "notes": {k: n for k, n in zip(ids, self.notes) if n},
+            "ambiguity": {k: round(float(a), 3) for k, a in zip(ids, self.ambiguity)
+                          if np.isfinite(a)},
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Plan":
+        """Inverse of ``to_dict`` (poses in the order of the dict)."""
+        walls = tuple(Wall(np.array(w["a"], float), np.array(w["b"], float),
+                           float(w["length_m"]), float(w.get("sigma_m", 0.0)),
+                           bool(w.get("seen", True)),
+                           tuple((a["from_m"], a["to_m"]) for a in w.get("apertures", ())))
+                      for w in d["walls"])
+        poses = np.array([[p["x_m"], p["z_m"], math.radians(p["yaw_deg"])] if p else
+                          [np.nan] * 3 for p in d.get("poses", {}).values()], float).reshape(-1, 3)
+        return cls(np.array(d["floor_polygon_m"], float).reshape(-1, 2), walls,
+                   float(d.get("area_m2", abs(polygon.area(d["floor_polygon_m"])))), poses,
+                   bool(d.get("manhattan", False)))
+
+
+def world_walls(L: Layout, pose) -> np.ndarray:
+    """(K, 2, 2) a layout's wall base segments in the room frame."""
+    if len(L.walls) == 0:
+        return np.zeros((0, 2, 2))
+    return register.rot2(np.array([pose[2]]), L.walls.reshape(-1, 2))[0].reshape(-1, 2, 2) + pose[:2]
+
+
+def floor_fans(L: Layout, pose, max_range_m: float = 8.0) -> list:
+    """Polygons (camera first, then boundary samples in azimuth order) of the floor a layout
+    saw, in the room frame; split where no floor was seen (NONE samples)."""
+    ok = np.isfinite(L.range) & (L.kind != SegKind.NONE)
+    r = np.minimum(np.where(ok, L.range, 0.0), max_range_m)
+    pts = r[:, None] * np.column_stack([np.sin(L.azimuth), np.cos(L.azimuth)])
+    out, cur = [], []
+    for k in range(len(pts)):
+        if ok[k]:
+            cur.append(pts[k])
+        elif cur:
+            out.append(cur)
+            cur = []
+    if cur:
+        out.append(cur)
+    fans = []
+    for c in out:
+        if len(c) >= 2:
+            P = np.vstack([np.zeros((1, 2)), np.array(c)])
+            fans.append(register.rot2(np.array([pose[2]]), P)[0] + pose[:2])
+    return fans
+
+
+def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=()) -> Plan:
+    """The plan from N photos' layouts (None for a photo without one) and poses (N, 3) (NaN
+    rows for photos not placed).
+
+    Raises:
+        GeometryError: no placed photo saw any floor.
+    """
+    poses = np.asarray(poses, float).reshape(-1, 3)
+    segs, fans, cams = [], [], []
+    for L, p in zip(layouts, poses):
+        if L is None or not np.isfinite(p[0]):
+            continue
+        segs.append(world_walls(L, p))
+        fans += floor_fans(L, p, params.max_range_m)
+        cams.append(p[:2])
+    lines = polygon.cluster(np.concatenate(segs) if segs else np.zeros((0, 2, 2)), params.polygon)
+    anchor = np.mean(cams, axis=0) if cams else np.zeros(2)
+    out = polygon.outline(lines, fans, params.polygon, anchor)
+    sig_d = _offset_sigmas(lines, params)
+    V = out.vertices
+    walls = []
+    for k in range(len(V)):
+        a, b = V[k], V[(k + 1) % len(V)]
+        length = float(np.linalg.norm(b - a))
+        s2 = (params.height_rel * length) ** 2
+        for j in (k - 1, (k + 1) % len(V)):
+            lk, lj = out.line[k], out.line[j]
+            if lk >= 0 and lj >= 0:
+                sin = abs(float(np.cross(lines.normals[lk], lines.normals[lj])))
+                s2 += (sig_d[lj] / max(sin, 0.2)) ** 2
+            else:
+                s2 += 0.1 ** 2   # an end not on a wall line: only the floor raster bounds it
+        walls.append(Wall(a, b, length, math.sqrt(s2), bool(out.seen[k]),
+                          _apertures(a, b, fans, params) if out.seen[k] else ()))
+    n = len(poses)
+    return Plan(V, tuple(walls), abs(polygon.area(V)), poses, lines.manhattan is not None,
+                tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n)
+
+
+def _offset_sigmas(lines: polygon.Lines, params: PlanParams) -> np.ndarray:
+    out = np.full(len(lines.normals), 0.1)
+    for k in range(len(lines.normals)):
+        m = lines.line_of == k
+        e = np.concatenate([lines.segments[m, 0], lines.segments[m, 1]]) @ lines.normals[k] \
+            - lines.offsets[k]
+        if len(e) >= 2:
+            out[k] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e) / 2)),
+                         params.offset_floor_m)
+    return out
+
+
+def _apertures(a, b, fans, params: PlanParams, beyond_m: float = 0.25, step_m: float = 0.05):
+    """Stretches of the wall a->b where some photo saw floor ``beyond_m`` past it."""
+    L = float(np.linalg.norm(b - a))
+    if L < params.aperture_min_m:
+        return ()
+    u = (b - a) / L
+    n_out = np.array([u[1], -u[0]])   # outward for a counter-clockwise polygon
+    s = np.arange(step_m / 2, L, step_m)
+    pts = a[None] + s[:, None] * u[None] + beyond_m * n_out[None]
+    hit = np.zeros(len(s), bool)
+    for f in fans:
+        c = f.astype(np.float32).reshape(-1, 1, 2)
+        hit |= np.array([cv2.pointPolygonTest(c, (float(x), float(z)), False) > 0
+                         for x, z in pts])
+    out, start = [], None
+    for i, h in enumerate(np.append(hit, False)):
+        if h and start is None:
+            start = i
+        elif not h and start is not None:
+            if (i - start) * step_m >= params.aperture_min_m:
+                out.append((round(float(s[start] - step_m / 2), 3),
+                            round(float(min(L, s[i - 1] + step_m / 2)), 3)))
+            start = None
+    return tuple(out)
