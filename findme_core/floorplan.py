@@ -194,7 +194,8 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
         for j in (k - 1, (k + 1) % len(V)):
             lk, lj = out.line[k], out.line[j]
             if lk >= 0 and lj >= 0:
-                sin = abs(float(np.cross(lines.normals[lk], lines.normals[lj])))
+                na, nb = lines.normals[lk], lines.normals[lj]
+                sin = abs(float(na[0] * nb[1] - na[1] * nb[0]))
                 s2 += (sig_d[lj] / max(sin, 0.2)) ** 2
             else:
                 s2 += 0.1 ** 2   # an end not on a wall line: only the floor raster bounds it

@@ -74,7 +74,7 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
             R = register.rot2(np.array([yaw]), pn[None])[0]   # rotated normals (K, 2)
             for j in order:
                 for m in np.flatnonzero(seen):
-                    if j == i or m == k or abs(np.cross(n_in[k], n_in[m])) < 0.5:
+                    if j == i or m == k or abs(n_in[k, 0] * n_in[m, 1] - n_in[k, 1] * n_in[m, 0]) < 0.5:
                         continue
                     if R[j] @ n_in[m] < 0.9:
                         continue
