@@ -115,8 +115,11 @@ def _motion(pa: Photo, pb: Photo, m):
         return None
 
 
-def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time.perf_counter):
-    """The floor plan of analysed photos (``analyse``), capture order.
+def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time.perf_counter,
+         relations=None):
+    """The floor plan of analysed photos (``analyse``), capture order. ``relations``: what
+    ``relate`` gives for these photos, when the caller already has it (a mapper that
+    relates each new photo once).
 
     Returns:
         (plan, placement, timing_ms).
@@ -127,7 +130,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     if not photos:
         raise GeometryError("a plan needs at least one photo")
     t0 = clock()
-    links, matches, motions = relate(photos, spots, params)
+    links, matches, motions = relations if relations is not None else relate(photos, spots,
+                                                                              params)
     t1 = clock()
     layouts = [p.layout for p in photos]
     pl = fuse.place(layouts, links, spots, matches, motions, params.fuse)
