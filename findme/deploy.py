@@ -29,7 +29,7 @@ from services.runtime.service import Group, Service
 
 from .options import add_camera_args, floats
 
-PIPELINE = ("hypotheses", "selection", "measurement", "odometry")
+PIPELINE = ("hypotheses", "selection", "measurement", "odometry", "mapper")
 
 
 def _bus_args(p, default_listen=()):
@@ -191,6 +191,15 @@ class Printer:
         if name == "Pose":
             return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
                     f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
+        if name == "Plan":
+            if m.reason:
+                return f"floor plan: none yet ({m.reason})"
+            placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
+            unit = "m" if m.metric else "camera heights"
+            return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
+                f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING else "")
+                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f}, "
+                f"{placed} of {len(m.poses)} photos placed")
         if name == "Error":
             return f"error on {m.key}: {m.message}"
         return None
@@ -229,6 +238,11 @@ def cmd_run(args) -> int:
             if not printer.wait(printer.photo_done(i, "odometry" in names), 600):
                 raise BusError(f"no result for photo {i} within 10 minutes")
             printer.report(i)
+        if "mapper" in names:   # the floor plan once it has taken in every photo
+            pk = f"findme/{session_id}/plan"
+            if printer.wait(lambda seen: pk in seen and len(seen[pk].poses) >= n and not any(
+                    q.reason.startswith("waiting") for q in seen[pk].poses), 600):
+                print(printer.describe(pk, printer.seen[pk]))
         print(f"session {session_id}: {n} photos processed in {time.perf_counter() - t0:.2f} s")
         _measure(session, session_id, args, photos)
     finally:
