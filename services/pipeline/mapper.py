@@ -3,7 +3,8 @@
     frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/plan   (findme.v1.Plan)
 
 Per photo, once, when its frame arrives: its camera and ORB features (the image is then
-dropped). When its hypotheses and selection are in: its layout under the selected boundary
+dropped). When its hypotheses and selection are in (in any order: what is missing is fetched
+from the bus when someone caches it, else awaited): its layout under the selected boundary
 (a new selection rebuilds it); a photo whose hypothesis set is empty takes part without a
 layout. Between photos: rotation-only yaws, feature matches and two-photo motions
 (``session.relate``), each pair computed once and kept. Then ``session.plan`` (placement of
@@ -118,17 +119,26 @@ class MapperHandler(Handler):
             self._frame(ph, msg)
         elif isinstance(msg, schemas.HypothesisSet):
             ph.hset = msg
-        else:
-            if ph.hset is None:
-                ph.hset = self.need(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
-            if not 1 <= msg.rank <= len(ph.hset.hypotheses):
+        else:   # the inputs it needs may still be on their way: fetched if cached, else awaited
+            ph.hset = ph.hset or self._fetch(bus.key(k.session, "hypotheses", n),
+                                             schemas.HypothesisSet)
+            if ph.hset is not None and not 1 <= msg.rank <= len(ph.hset.hypotheses):
                 raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which "
                                       f"has {len(ph.hset.hypotheses)} hypotheses")
             if ph.camera is None and ph.bad is None:
-                self._frame(ph, self.need(bus.key(k.session, "frame", n), schemas.Frame))
+                f = self._fetch(bus.key(k.session, "frame", n), schemas.Frame)
+                if f is not None:
+                    self._frame(ph, f)
             ph.selection = msg
         self._analyse(st, n, ph)
         return self._maybe_plan(k.session, st)
+
+    def _fetch(self, key: str, cls):
+        """A message this mapper has not received, from whoever caches it, or None."""
+        try:
+            return self.need(key, cls)
+        except HypothesisError:
+            return None
 
     def _frame(self, ph: _Photo, f) -> None:
         if ph.camera is not None:
@@ -147,8 +157,8 @@ class MapperHandler(Handler):
         if ph.camera is None or ph.hset is None:
             return
         hyps = msg_hypotheses(ph.hset)
-        if hyps and ph.selection is None:
-            return
+        if hyps and (ph.selection is None or not 1 <= ph.selection.rank <= len(hyps)):
+            return   # not selected yet (or a selection of a rank it does not have)
         sel = ph.selection
         height = (sel.camera_height_m if sel is not None and sel.HasField("camera_height_m")
                   else ph.frame_height)

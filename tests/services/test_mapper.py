@@ -153,8 +153,11 @@ def test_bad_input_is_a_clear_error(room):
     sel.rank = 4
     with pytest.raises(HypothesisError, match="hypothesis 4 of photo 0, which has 1"):
         m.on_message("findme/plan-test/selection/0", sel)
-    with pytest.raises(HypothesisError, match="not known"):   # no bus to fetch photo 5 from
-        m.on_message("findme/plan-test/selection/5", room.selections[5])
+    # a selection before its hypotheses and frame (nobody to fetch them from): it waits
+    assert m.on_message("findme/plan-test/selection/5", room.selections[5]) == []
+    assert m.on_message("findme/plan-test/hypotheses/5", room.hsets[5]) == []
+    (out,) = m.on_message("findme/plan-test/frame/5", room.frames[5])
+    assert out.msg.up_to_index == 5
 
 
 def test_sessions_are_bounded_and_expire(room):
