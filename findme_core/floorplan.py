@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from . import polygon, register
+from . import polygon, register, walls
 from .layout import Layout
 from .search import SegKind
 
@@ -34,7 +34,8 @@ class PlanParams:
     """Outline and uncertainty settings.
 
     Attributes:
-        polygon: clustering, Manhattan test and cell voting (``polygon.PolygonParams``).
+        polygon: free floor and cell voting (``polygon.PolygonParams``).
+        lines: wall line search and classification (``walls.WallParams``).
         height_rel: relative 1-sigma of the camera height (scales every length).
         offset_floor_m: smallest 1-sigma of a wall line's offset.
         aperture_min_m: a stretch of wall at least this long where floor was seen beyond it
@@ -43,6 +44,7 @@ class PlanParams:
     """
 
     polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)
+    lines: walls.WallParams = field(default_factory=walls.WallParams)
     height_rel: float = 0.02
     offset_floor_m: float = 0.01
     aperture_min_m: float = 0.5
@@ -174,19 +176,20 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
         GeometryError: no placed photo saw any floor.
     """
     poses = np.asarray(poses, float).reshape(-1, 3)
-    segs, fans, cams = [], [], []
+    ev = walls.evidence(layouts, poses)
+    wl = walls.classify(ev, walls.fit(ev, params.lines), params.lines)
+    lines = polygon.Lines.of(wl)
+    fans, cams = [], []
     for L, p in zip(layouts, poses):
-        if L is None or not np.isfinite(p[0]):
-            continue
-        segs.append(world_walls(L, p))
-        fans += floor_fans(L, p, params.max_range_m)
-        cams.append(p[:2])
-    lines = polygon.cluster(np.concatenate(segs) if segs else np.zeros((0, 2, 2)), params.polygon)
+        if L is not None and np.isfinite(p[0]):
+            fans += floor_fans(L, p, params.max_range_m)
+            cams.append(p[:2])
+    free = polygon.free_space(layouts, poses, lines, params.polygon)
     anchor = np.mean(cams, axis=0) if cams else np.zeros(2)
-    out = polygon.outline(lines, fans, params.polygon, anchor)
-    sig_d = _offset_sigmas(lines, params)
+    out = polygon.outline(lines, free, params.polygon, anchor)
+    sig_d = _offset_sigmas(ev, wl, params)
     V = out.vertices
-    walls = []
+    walls_ = []
     for k in range(len(V)):
         a, b = V[k], V[(k + 1) % len(V)]
         length = float(np.linalg.norm(b - a))
@@ -199,22 +202,23 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
                 s2 += (sig_d[lj] / max(sin, 0.2)) ** 2
             else:
                 s2 += 0.1 ** 2   # an end not on a wall line: only the floor raster bounds it
-        walls.append(Wall(a, b, length, math.sqrt(s2), bool(out.seen[k]),
+        walls_.append(Wall(a, b, length, math.sqrt(s2), bool(out.seen[k]),
                           _apertures(a, b, fans, params) if out.seen[k] else ()))
     n = len(poses)
-    return Plan(V, tuple(walls), abs(polygon.area(V)), poses, lines.manhattan is not None,
+    return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, wl.manhattan is not None,
                 tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n)
 
 
-def _offset_sigmas(lines: polygon.Lines, params: PlanParams) -> np.ndarray:
-    out = np.full(len(lines.normals), 0.1)
-    for k in range(len(lines.normals)):
-        m = lines.line_of == k
-        e = np.concatenate([lines.segments[m, 0], lines.segments[m, 1]]) @ lines.normals[k] \
-            - lines.offsets[k]
+def _offset_sigmas(ev: walls.Evidence, wl: walls.WallLines, params: PlanParams) -> np.ndarray:
+    """(K,) 1-sigma of each wall line's offset: the weighted spread of its samples about it
+    over the square root of their number (the wall lines of ``polygon.Lines.of``)."""
+    k_all = wl.walls
+    out = np.full(len(k_all), 0.1)
+    for i, k in enumerate(k_all):
+        m = wl.sample_line == k
+        e = ev.points[m] @ wl.normals[k] - wl.offsets[k]
         if len(e) >= 2:
-            out[k] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e) / 2)),
-                         params.offset_floor_m)
+            out[i] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e))), params.offset_floor_m)
     return out
 
 
