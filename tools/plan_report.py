@@ -48,7 +48,7 @@ def true_pose_plan(room, photos):
     """Plan from the photos' layouts placed at the TRUE planar poses (upper bound)."""
     poses = np.array([(p["x_m"], p["z_m"], math.radians(p["yaw_deg"]))
                       for p in (room["poses_planar"][v] for v in room["views"])])
-    return floorplan.build([ph.layout for ph in photos], poses)
+    return floorplan.build([ph.layout for ph in photos], poses, refine=False)
 
 
 def cached_photos(rdir, vdir, rid, cache):
