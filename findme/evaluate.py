@@ -4,7 +4,7 @@ the format ``shared/eval/score.py`` reads.
 Only inputs are used: the image, ``intrinsics``, ``gravity_cam``, ``camera_height_m`` and the
 query pixels (``px`` of ``floor_points`` / ``wall_points`` / ``nonfloor_points``); of a pair
 only its two view ids (``a``, ``b``): the motion comes from the two views' images and inputs
-(rank-1 hypothesis of each). The result is the same on a copy of the dataset with its ground
+(rank-1 hypothesis of each chosen, the next ranks as candidate layouts). The result is the same on a copy of the dataset with its ground
 truth removed.
 """
 
@@ -28,7 +28,7 @@ from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.scene import Scene
 
 from findme_io.imageio import read_image
-from findme_core.pair import motion_pair, scene_of
+from findme_core.pair import motion_photos, photo_of
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 
@@ -109,10 +109,9 @@ def predict_pair(args) -> tuple[str, dict, dict]:
     preds, errs = {}, {}
     try:
         _, photos = pair_inputs(pair_dir, view_dir, pid)
-        (ia, ca, ha, sa), (ib, cb, hb, sb) = [
-            (image, cam, h, scene_of(image, cam, h, 1, hyp_method, which)[0])
-            for (image, cam, h), which in zip(photos, "AB")]
-        for method, r in motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods).items():
+        pa, pb = [photo_of(image, cam, h, 1, hyp_method, which)
+                  for (image, cam, h), which in zip(photos, "AB")]
+        for method, r in motion_photos(pa, pb, methods).items():
             if isinstance(r, FindmeError):
                 errs[method] = str(r)
                 continue

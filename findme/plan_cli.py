@@ -143,29 +143,45 @@ def cmd_locate_in(args) -> int:
     return 0
 
 
+def room_photos(room_dir: str, view_dir: str, rid: str) -> tuple[list, list]:
+    """(view ids, analysed photos) of one findme-eval room set: only its ordered view ids
+    and their camera inputs are read."""
+    with open(os.path.join(room_dir, rid + ".json")) as f:
+        views = json.load(f)["views"]
+    photos = []
+    for v in views:
+        with open(os.path.join(view_dir, v + ".json")) as f:
+            meta = json.load(f)
+        k = meta["intrinsics"]
+        cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"],
+                     meta.get("gravity_cam"))
+        photos.append(session.analyse(read_image(os.path.join(view_dir, meta["image"])),
+                                      cam, float(meta["camera_height_m"])))
+    return views, photos
+
+
+def room_spots(views, spots_mode: str):
+    """Spot labels from the ids' ``_p<N>_`` token ('ids'), or None ('auto': from the photos)."""
+    if spots_mode != "ids":
+        return None
+    return [(_SPOT.search(v).group(1) if _SPOT.search(v) else v) for v in views]
+
+
+def room_prediction(views, photos, spots_mode: str) -> dict:
+    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON."""
+    plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
+    d = plan.to_dict(views)
+    d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
+    return d
+
+
 def room_job(args) -> tuple[str, dict | None, str | None]:
-    """Plan of one findme-eval room set: only its ordered view ids and their camera inputs
-    are read; spots from the ids' ``_p<N>_`` token ('ids') or from the photos ('auto')."""
+    """Plan of one findme-eval room set (``room_photos``); spots from the ids' ``_p<N>_``
+    token ('ids') or from the photos ('auto')."""
     room_dir, view_dir, rid, spots_mode = args
     cv2.setNumThreads(1)
     try:
-        with open(os.path.join(room_dir, rid + ".json")) as f:
-            views = json.load(f)["views"]
-        photos = []
-        for v in views:
-            with open(os.path.join(view_dir, v + ".json")) as f:
-                meta = json.load(f)
-            k = meta["intrinsics"]
-            cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"],
-                         meta.get("gravity_cam"))
-            photos.append(session.analyse(read_image(os.path.join(view_dir, meta["image"])),
-                                          cam, float(meta["camera_height_m"])))
-        spots = None
-        if spots_mode == "ids":
-            spots = [(_SPOT.search(v).group(1) if _SPOT.search(v) else v) for v in views]
-        plan, _, _ = session.plan(photos, spots)
-        d = plan.to_dict(views)
-        d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
-        return rid, d, None
+        views, photos = room_photos(room_dir, view_dir, rid)
+        return rid, room_prediction(views, photos, spots_mode), None
     except (FindmeError, OSError, KeyError, ValueError) as e:
         return rid, None, str(e)

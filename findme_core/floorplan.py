@@ -7,11 +7,12 @@ z forward, floor at y = camera height; metres). A photo's pose is (x, z, yaw) wi
 turned right (radians inside, degrees in ``to_dict``). The polygon is counter-clockwise seen
 from above (positive shoelace area in (x, z)); wall k runs from vertex k to vertex k + 1.
 
-Wall length 1-sigma: a wall's ends are where its neighbours' lines cross it, so its length
-moves with the neighbours' offsets: sigma_L^2 = sum over both neighbours of
-(sigma_d / sin(angle))^2, plus the camera height's relative error times L (every distance
-scales with the height). A line's offset sigma is the spread of its observed segment ends
-about it over the square root of their number, floored at ``offset_floor_m``.
+Steps: wall lines (``walls``), the outline on them (``polygon``), then poses and lines refined
+together (``adjust``), whose covariance gives each wall length its 1-sigma (plus the camera
+height's relative error times L: every distance scales with the height). Without the
+refinement a wall's ends move with its neighbours' offsets: sigma_L^2 = sum over both
+neighbours of (sigma_d / sin(angle))^2 plus the height term; a line's offset sigma is the
+spread of its samples about it over the square root of their number.
 
 Pure numpy + OpenCV rasterisation; no I/O.
 """
@@ -24,7 +25,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from . import polygon, register
+from . import adjust, polygon, register, walls
+from .errors import GeometryError
 from .layout import Layout
 from .search import SegKind
 
@@ -34,7 +36,9 @@ class PlanParams:
     """Outline and uncertainty settings.
 
     Attributes:
-        polygon: clustering, Manhattan test and cell voting (``polygon.PolygonParams``).
+        polygon: free floor and cell voting (``polygon.PolygonParams``).
+        lines: wall line search and classification (``walls.WallParams``).
+        adjust: the joint refinement (``adjust.RefineParams``).
         height_rel: relative 1-sigma of the camera height (scales every length).
         offset_floor_m: smallest 1-sigma of a wall line's offset.
         aperture_min_m: a stretch of wall at least this long where floor was seen beyond it
@@ -43,6 +47,8 @@ class PlanParams:
     """
 
     polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)
+    lines: walls.WallParams = field(default_factory=walls.WallParams)
+    adjust: adjust.RefineParams = field(default_factory=adjust.RefineParams)
     height_rel: float = 0.02
     offset_floor_m: float = 0.01
     aperture_min_m: float = 0.5
@@ -76,6 +82,8 @@ class Plan:
         notes: per photo, why it was not placed (None when placed).
         ambiguity: per photo, the score of the best clearly different pose over the chosen
             pose's score (NaN when there was none; near 1: ambiguous).
+        pose_sigma: (N, 3) 1-sigma of each pose (x, z metres, yaw radians) from the joint
+            refinement (NaN: not refined), or None.
     """
 
     polygon: np.ndarray
@@ -85,6 +93,7 @@ class Plan:
     manhattan: bool
     notes: tuple = ()
     ambiguity: tuple = ()
+    pose_sigma: np.ndarray | None = None
 
     @property
     def closed(self) -> bool:
@@ -100,10 +109,14 @@ class Plan:
         """JSON-ready dict: metres and degrees. ``ids`` name the photos (default 0..N-1)."""
         ids = list(ids) if ids is not None else [str(i) for i in range(len(self.poses))]
         poses = {}
-        for k, p in zip(ids, self.poses):
+        sig = self.pose_sigma if self.pose_sigma is not None else np.full((len(ids), 3), np.nan)
+        for k, p, s in zip(ids, self.poses, sig):
             poses[k] = (None if not np.isfinite(p[0]) else
                         {"x_m": round(float(p[0]), 4), "z_m": round(float(p[1]), 4),
                          "yaw_deg": round(math.degrees(float(p[2])), 3)})
+            if poses[k] is not None and np.all(np.isfinite(s)):
+                poses[k]["sigma_xz_m"] = round(float(np.hypot(s[0], s[1])), 4)
+                poses[k]["sigma_yaw_deg"] = round(math.degrees(float(s[2])), 3)
         return {
             "floor_polygon_m": np.round(self.polygon, 4).tolist(),
             "area_m2": round(self.area_m2, 3),
@@ -166,30 +179,62 @@ def floor_fans(L: Layout, pose, max_range_m: float = 8.0) -> list:
     return fans
 
 
-def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=()) -> Plan:
+def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=(),
+          spot=None, links=(), matches=None, focal=None, refine: bool = True) -> Plan:
     """The plan from N photos' layouts (None for a photo without one) and poses (N, 3) (NaN
-    rows for photos not placed).
+    rows for photos not placed); with ``refine``, poses and walls are then refined together
+    (``adjust.refine``: ``spot`` labels (N,) (default: one per photo), turns ``links`` and
+    feature ``matches`` as ``fuse.place`` takes them, ``focal`` (N,) pixels) and the wall
+    lengths' 1-sigma come from its covariance.
 
     Raises:
         GeometryError: no placed photo saw any floor.
     """
     poses = np.asarray(poses, float).reshape(-1, 3)
-    segs, fans, cams = [], [], []
+    ev = walls.evidence(layouts, poses)
+    wl = walls.classify(ev, walls.fit(ev, params.lines), params.lines)
+    lines = polygon.Lines.of(wl)
+    free = polygon.free_space(layouts, poses, lines, params.polygon)
+    cams = poses[np.isfinite(poses[:, 0]), :2]
+    anchor = cams.mean(0) if len(cams) else np.zeros(2)
+    out = polygon.outline(lines, free, params.polygon, anchor)
+    snapped = (wl.snapped[wl.walls] if wl.snapped is not None
+               else np.zeros(len(lines.normals), bool))
+    used = out.line[out.line >= 0]
+    manhattan = wl.manhattan is not None and bool(np.all(snapped[used]))
+    V, sig_len, pose_sig = out.vertices, None, None
+    if refine:
+        try:
+            r = adjust.refine(layouts, poses, np.arange(len(poses)) if spot is None else spot,
+                              out, wl.manhattan, snapped, links, matches, focal, params.adjust)
+            poses, V, sig_len, pose_sig = r.poses, r.vertices, r.sigma_length, r.sigma_pose
+        except GeometryError:
+            pass
+    if sig_len is None:
+        sig_len = _line_sigmas(out, lines, _offset_sigmas(ev, wl, params), params)
+    fans = []
     for L, p in zip(layouts, poses):
-        if L is None or not np.isfinite(p[0]):
-            continue
-        segs.append(world_walls(L, p))
-        fans += floor_fans(L, p, params.max_range_m)
-        cams.append(p[:2])
-    lines = polygon.cluster(np.concatenate(segs) if segs else np.zeros((0, 2, 2)), params.polygon)
-    anchor = np.mean(cams, axis=0) if cams else np.zeros(2)
-    out = polygon.outline(lines, fans, params.polygon, anchor)
-    sig_d = _offset_sigmas(lines, params)
-    V = out.vertices
-    walls = []
+        if L is not None and np.isfinite(p[0]):
+            fans += floor_fans(L, p, params.max_range_m)
+    walls_ = []
     for k in range(len(V)):
         a, b = V[k], V[(k + 1) % len(V)]
-        length = float(np.linalg.norm(b - a))
+        walls_.append(Wall(a, b, float(np.linalg.norm(b - a)), float(sig_len[k]),
+                           bool(out.seen[k]), _apertures(a, b, fans, params) if out.seen[k] else ()))
+    n = len(poses)
+    return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, manhattan,
+                tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n,
+                pose_sig if pose_sig is not None else np.full((n, 3), np.nan))
+
+
+def _line_sigmas(out: polygon.Outline, lines: polygon.Lines, sig_d, params: PlanParams):
+    """(V,) wall length 1-sigma without the refinement: each end moves with its neighbour's
+    offset, sigma_L^2 = sum over both neighbours of (sigma_d / sin(angle))^2, plus the camera
+    height's relative error times L."""
+    V = out.vertices
+    res = []
+    for k in range(len(V)):
+        length = float(np.linalg.norm(V[(k + 1) % len(V)] - V[k]))
         s2 = (params.height_rel * length) ** 2
         for j in (k - 1, (k + 1) % len(V)):
             lk, lj = out.line[k], out.line[j]
@@ -199,22 +244,20 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
                 s2 += (sig_d[lj] / max(sin, 0.2)) ** 2
             else:
                 s2 += 0.1 ** 2   # an end not on a wall line: only the floor raster bounds it
-        walls.append(Wall(a, b, length, math.sqrt(s2), bool(out.seen[k]),
-                          _apertures(a, b, fans, params) if out.seen[k] else ()))
-    n = len(poses)
-    return Plan(V, tuple(walls), abs(polygon.area(V)), poses, lines.manhattan is not None,
-                tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n)
+        res.append(math.sqrt(s2))
+    return np.array(res)
 
 
-def _offset_sigmas(lines: polygon.Lines, params: PlanParams) -> np.ndarray:
-    out = np.full(len(lines.normals), 0.1)
-    for k in range(len(lines.normals)):
-        m = lines.line_of == k
-        e = np.concatenate([lines.segments[m, 0], lines.segments[m, 1]]) @ lines.normals[k] \
-            - lines.offsets[k]
+def _offset_sigmas(ev: walls.Evidence, wl: walls.WallLines, params: PlanParams) -> np.ndarray:
+    """(K,) 1-sigma of each wall line's offset: the weighted spread of its samples about it
+    over the square root of their number (the wall lines of ``polygon.Lines.of``)."""
+    k_all = wl.walls
+    out = np.full(len(k_all), 0.1)
+    for i, k in enumerate(k_all):
+        m = wl.sample_line == k
+        e = ev.points[m] @ wl.normals[k] - wl.offsets[k]
         if len(e) >= 2:
-            out[k] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e) / 2)),
-                         params.offset_floor_m)
+            out[i] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e))), params.offset_floor_m)
     return out
 
 

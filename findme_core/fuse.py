@@ -61,6 +61,10 @@ class FuseParams:
             epipolar plane, in front of both cameras, scores up to ``feature_weight``
             (MSAC); the ``feature_top`` best candidates by layout are scored
             so.
+        register: the layout terms (``register.scores``). Samples count in full up to a
+            1-sigma of 1 m (``sigma_ref``): the gate already scales with the sigma, and in a
+            session every photo's far walls are the other photos' near ones (down-weighting
+            them from 0.1 m loses the L-shape's far wing).
     """
 
     yaw_merge_deg: float = 1.0
@@ -75,7 +79,8 @@ class FuseParams:
     motion_rel: float = 0.15
     motion_yaw_deg: float = 3.0
     feature_weight: float = 1.0
-    register: register.RegisterParams = field(default_factory=register.RegisterParams)
+    register: register.RegisterParams = field(
+        default_factory=lambda: register.RegisterParams(sigma_ref=1.0))
 
 
 @dataclass

@@ -1,20 +1,21 @@
-"""The room's floor polygon from walls and seen floor, all in the room frame.
+"""The room's floor polygon from its wall lines and the free floor the photos saw, all in the
+room frame.
 
 Frames and units: (x, z) floor points of the room frame (level frame of the session's first
-photo; metres). A wall line is a unit normal n (2,) and offset d with n . p = d.
+photo; metres). A wall line is a unit normal n (2,) and offset d with n . p = d (``walls``).
 
-1. Walls: observed wall base segments (from every photo, already posed) are clustered into
-   lines: same direction within ``angle_deg`` and both ends within ``gap_m`` of the line;
-   each line is the length-weighted total-least-squares fit of its segments.
-2. Manhattan where the evidence says so: when at least ``manhattan_share`` of the wall length
-   lies within ``manhattan_deg`` of two perpendicular axes, the lines near an axis are turned
-   onto it (the others keep their own direction: nothing is forced).
-3. Cell complex (as in floor-plan reconstruction from scans): the lines cut the plane into
-   convex cells; a cell is floor when most of it was seen as floor (the union of the photos'
-   floor fans). The outline of the floor cells, each edge on its line, is the polygon; its
-   vertices are intersections of consecutive lines, exact up to the lines themselves.
-4. Each polygon edge is a wall if enough of it was seen as a wall base, else "missing": the
-   floor ends there only because nothing was seen beyond (partial sessions).
+1. Free floor (``free_space``): every scan sample of every placed photo is a ray from its
+   camera; the floor is free along it up to the first wall line it crosses within the
+   wall's extent (``walls.crossing``): through furniture in front of the wall (the sample
+   stopped short of it) and not past a door or an opening in it (the sample went beyond).
+   A ray that crosses no wall keeps what the photo saw (its range; nothing for no floor).
+2. Cell complex (as in floor-plan reconstruction from scans): the wall lines cut the plane
+   into convex cells; a cell is floor when most of it is free floor. The outline of the
+   floor cells around the cameras, each edge on its line, is the polygon; its vertices are
+   intersections of consecutive lines, exact up to the lines themselves.
+3. Each polygon edge is a wall when it lies on a wall line whose extent covers most of it,
+   else "missing": the floor ends there only because nothing was seen beyond (partial
+   sessions).
 
 Pure numpy + OpenCV rasterisation; no I/O.
 """
@@ -26,60 +27,55 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from . import register, walls
 from .errors import GeometryError
+from .search import SegKind
 
 
 @dataclass(frozen=True)
 class PolygonParams:
-    """Clustering, Manhattan test and cell voting.
+    """Free floor and cell voting.
 
     Attributes:
-        angle_deg, gap_m: a segment joins a line within this angle and end distance.
-        min_wall_m: lines with less seen length are dropped.
-        max_lines: at most this many lines (longest seen first) cut the plane.
-        manhattan_deg, manhattan_share: the Manhattan test (see module docstring).
-        res_m: raster resolution of the floor evidence.
-        floor_share: a cell with at least this share seen as floor is floor.
-        seen_share: an edge with at least this share of its length seen as wall is a wall.
-        detail_m: dents and spurs of the floor thinner than this are smoothed away
-            (furniture bases, door reveals).
-        wall_clip_m, clip_margin_m: floor seen across a line with at least ``wall_clip_m``
-            seen, within its seen extent widened by ``clip_margin_m``, is beyond a wall (seen
-            through a door or an opening of it) and is not this room's floor.
+        res_m: raster resolution of the free floor.
+        floor_share: a cell with at least this share free is floor.
+        seen_share: an edge with at least this share of its length within its wall line's
+            extent is a wall.
+        detail_m: dents and spurs of the floor thinner than this are smoothed away, and
+            jogs shorter than this between near-parallel edges removed.
+        max_range_m: rays are cut at this distance from their camera.
+        clutter_m: a ray is carried on to a wall at most this far past what it saw.
     """
 
-    angle_deg: float = 8.0
-    gap_m: float = 0.15
-    min_wall_m: float = 0.3
-    max_lines: int = 40
-    manhattan_deg: float = 6.0
-    manhattan_share: float = 0.8
     res_m: float = 0.02
     floor_share: float = 0.5
-    seen_share: float = 0.3
-    wall_clip_m: float = 0.5
+    seen_share: float = 0.5
     detail_m: float = 0.3
-    clip_margin_m: float = 0.3
+    max_range_m: float = 8.0
+    clutter_m: float = 2.5
 
 
 @dataclass(frozen=True)
 class Lines:
-    """Wall lines: normals (K, 2), offsets (K,) (n . p = d), seen length (K,) metres, and
-    the observed segments (S, 2, 2) with their line index (S,) (-1: none)."""
+    """The wall lines an outline is drawn on: normals (K, 2), offsets (K,), extents (K, 2)
+    along u = (n_z, -n_x) (``walls.WallLines``)."""
 
     normals: np.ndarray
     offsets: np.ndarray
-    seen_m: np.ndarray
-    segments: np.ndarray
-    line_of: np.ndarray
-    manhattan: float | None   # axis angle (radians, [0, pi/2)) when Manhattan, else None
+    extent: np.ndarray
+
+    @classmethod
+    def of(cls, wl: "walls.WallLines") -> "Lines":
+        """The "wall" lines of ``wl``."""
+        k = wl.walls
+        return cls(wl.normals[k], wl.offsets[k], wl.extent[k])
 
 
 @dataclass(frozen=True)
 class Outline:
     """The floor polygon: vertices (V, 2) counter-clockwise seen from above (positive
     shoelace area in (x, z)); edge k runs from vertex k to k + 1 on line ``line[k]`` (-1: on
-    no wall line) and ``seen[k]`` tells whether it was seen as a wall."""
+    no wall line) and ``seen[k]`` tells whether it is a seen wall."""
 
     vertices: np.ndarray
     line: np.ndarray
@@ -94,87 +90,36 @@ def area(P) -> float:
     return 0.5 * float(np.sum(P[:, 0] * Q[:, 1] - Q[:, 0] * P[:, 1]))
 
 
-def _fit(segs, w):
-    """Total-least-squares line (n, d) through segment end points and midpoints."""
-    pts = np.concatenate([segs[:, 0], segs[:, 1], segs.mean(1)])
-    ww = np.concatenate([w, w, 2 * w])
-    c = (ww[:, None] * pts).sum(0) / ww.sum()
-    X = (pts - c) * np.sqrt(ww)[:, None]
-    _, _, vt = np.linalg.svd(X, full_matrices=False)
-    n = vt[-1]
-    return n, float(n @ c)
-
-
-def cluster(segments, params: PolygonParams = PolygonParams()) -> Lines:
-    """Wall lines from observed wall base segments (S, 2, 2) in the room frame."""
-    segs = np.asarray(segments, float).reshape(-1, 2, 2)
-    L = np.linalg.norm(segs[:, 1] - segs[:, 0], axis=1)
-    line_of = np.full(len(segs), -1)
-    lines = []   # [n, d, member indices]
-    cos_t = np.cos(np.radians(params.angle_deg))
-    for s in np.argsort(-L):
-        if L[s] < 1e-6:
+def free_space(layouts, poses, lines: Lines, params: PolygonParams = PolygonParams()) -> list:
+    """Polygons (F, 2) of free floor, one per run of rays of a photo (camera first, then the
+    rays' ends in azimuth order), room frame (see the module docstring)."""
+    out = []
+    for L, p in zip(layouts, np.asarray(poses, float).reshape(-1, 3)):
+        if L is None or not np.isfinite(p[0]) or len(L.azimuth) < 2:
             continue
-        u = (segs[s, 1] - segs[s, 0]) / L[s]
-        best, best_gap = -1, params.gap_m
-        for k, (n, d, _) in enumerate(lines):
-            if abs(u @ np.array([n[1], -n[0]])) < cos_t:
-                continue
-            gap = float(np.max(np.abs(segs[s] @ n - d)))
-            if gap < best_gap:
-                best, best_gap = k, gap
-        if best < 0:
-            n = np.array([-u[1], u[0]])
-            lines.append([n, float(n @ segs[s, 0]), [s]])
-            line_of[s] = len(lines) - 1
+        az = L.azimuth + p[2]
+        d = np.column_stack([np.sin(az), np.cos(az)])
+        c = np.broadcast_to(p[:2], d.shape)
+        R = params.max_range_m
+        seen = np.where(L.kind == SegKind.NONE, 0.0, np.minimum(L.range, R))
+        if len(lines.normals):
+            ok, t = walls.crossing(c, c + R * d, lines.normals, lines.offsets, lines.extent)
+            t_wall = np.where(ok.any(1), np.nanmin(np.where(ok, t, np.inf), axis=1) * R, np.inf)
         else:
-            lines[best][2].append(s)
-            line_of[s] = best
-            m = np.array(lines[best][2])
-            lines[best][0], lines[best][1] = _fit(segs[m], L[m])
-    if not lines:
-        return Lines(np.zeros((0, 2)), np.zeros(0), np.zeros(0), segs, line_of, None)
-    N = np.array([ln[0] for ln in lines])
-    D = np.array([ln[1] for ln in lines])
-    seen = np.bincount(line_of[line_of >= 0], weights=L[line_of >= 0], minlength=len(lines))
-    # keep the longest lines; renumber
-    keep = np.flatnonzero(seen >= params.min_wall_m)
-    keep = keep[np.argsort(-seen[keep])][: params.max_lines]
-    remap = np.full(len(lines), -1)
-    remap[keep] = np.arange(len(keep))
-    N, D, seen = N[keep], D[keep], seen[keep]
-    line_of = np.where(line_of >= 0, remap[np.maximum(line_of, 0)], -1)
-    axis = _manhattan(N, seen, params)
-    if axis is not None:
-        N, D = _snap(N, D, segs, line_of, L, axis, params)
-    return Lines(N, D, seen, segs, line_of, axis)
-
-
-def _manhattan(N, seen, params: PolygonParams):
-    """Axis angle (radians, [0, pi/2)) when the lines are Manhattan enough, else None."""
-    if len(N) < 2:
-        return None
-    ang = np.arctan2(N[:, 1], N[:, 0])
-    axis = float(np.angle(np.sum(seen * np.exp(4j * ang))) / 4.0) % (np.pi / 2)
-    off = np.abs(np.angle(np.exp(4j * (ang - axis)))) / 4.0
-    share = seen[off < np.radians(params.manhattan_deg)].sum() / seen.sum()
-    return axis if share >= params.manhattan_share else None
-
-
-def _snap(N, D, segs, line_of, L, axis, params: PolygonParams):
-    """Lines within 2 x ``manhattan_deg`` of the axes turned onto them; offsets refitted."""
-    N, D = N.copy(), D.copy()
-    for k in range(len(N)):
-        a = np.arctan2(N[k, 1], N[k, 0])
-        q = axis + np.round((a - axis) / (np.pi / 2)) * (np.pi / 2)
-        if abs(np.angle(np.exp(1j * (a - q)))) > np.radians(2 * params.manhattan_deg):
-            continue
-        N[k] = (np.cos(q), np.sin(q))
-        m = line_of == k
-        pts = np.concatenate([segs[m, 0], segs[m, 1]])
-        w = np.concatenate([L[m], L[m]])
-        D[k] = float((w * (pts @ N[k])).sum() / w.sum())
-    return N, D
+            t_wall = np.full(len(az), np.inf)
+        reach = np.isfinite(t_wall) & (t_wall <= seen + params.clutter_m)
+        r = np.where(reach, t_wall, seen)
+        ends = p[:2] + r[:, None] * d
+        run = []
+        for k in range(len(r) + 1):     # split where nothing was seen
+            if k < len(r) and r[k] > 1e-6:
+                run.append(ends[k])
+            elif len(run) >= 2:
+                out.append(np.vstack([p[None, :2], run]))
+                run = []
+            else:
+                run = []
+    return out
 
 
 def outline(lines: Lines, floor_fans, params: PolygonParams = PolygonParams(),
@@ -182,17 +127,15 @@ def outline(lines: Lines, floor_fans, params: PolygonParams = PolygonParams(),
     """The floor polygon from wall lines and the seen floor.
 
     Args:
-        lines: from ``cluster``.
-        floor_fans: list of (F, 2) polygons of floor seen by the photos (room frame), each
-            with the camera first and its boundary samples in azimuth order after it.
+        lines: the wall lines.
+        floor_fans: list of (F, 2) polygons of free floor (``free_space``; room frame).
         anchor: (2,) a point known to be on the floor (a camera position): the polygon is
             the floor component that contains it (or the largest one).
 
     Raises:
         GeometryError: no floor was seen at all.
     """
-    fans = [clip_fan(np.asarray(f, float).reshape(-1, 2), lines, params)
-            for f in floor_fans if len(f) >= 3]
+    fans = [np.asarray(f, float).reshape(-1, 2) for f in floor_fans if len(f) >= 3]
     if not fans:
         raise GeometryError("no floor was seen in any photo: there is no outline to draw")
     allp = np.concatenate(fans)
@@ -229,27 +172,6 @@ def outline(lines: Lines, floor_fans, params: PolygonParams = PolygonParams(),
     cnt = max(contours, key=cv2.contourArea)
     raw = cv2.approxPolyDP(cnt, 2.0, True).reshape(-1, 2).astype(float) * res + lo
     return _snap_outline(raw, lines, res, params)
-
-
-def clip_fan(fan: np.ndarray, lines: Lines, params: PolygonParams = PolygonParams()):
-    """A floor fan (camera first) with each ray cut where it crosses a seen wall (the wall
-    line within its seen extent): the floor beyond a door is another room's."""
-    c, pts = fan[0], fan[1:].copy()
-    strong = np.flatnonzero(lines.seen_m >= params.wall_clip_m)
-    for k in strong:
-        n, d = lines.normals[k], lines.offsets[k]
-        u = np.array([n[1], -n[0]])
-        m = lines.line_of == k
-        proj = np.concatenate([lines.segments[m, 0] @ u, lines.segments[m, 1] @ u])
-        lo, hi = proj.min() - params.clip_margin_m, proj.max() + params.clip_margin_m
-        den = (pts - c) @ n
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (d - c @ n) / den
-        hit = c[None] + t[:, None] * (pts - c)
-        s = hit @ u
-        cut = (t > 1e-6) & (t < 1.0) & (s >= lo) & (s <= hi)
-        pts[cut] = hit[cut]
-    return np.vstack([c[None], pts])
 
 
 def _snap_outline(raw, lines: Lines, res: float, params: PolygonParams) -> Outline:
@@ -349,24 +271,14 @@ def _simplify(o: Outline, params: PolygonParams) -> Outline:
 
 
 def _seen(verts, line, lines: Lines, params: PolygonParams) -> np.ndarray:
-    """(V,) whether each edge was seen as a wall over ``seen_share`` of its length."""
+    """(V,) whether each edge lies on a wall line whose extent covers ``seen_share`` of it."""
     V = len(verts)
     out = np.zeros(V, bool)
     for k in range(V):
         if line[k] < 0:
             continue
-        p, q = verts[k], verts[(k + 1) % V]
-        Lk = np.linalg.norm(q - p)
-        if Lk < 1e-9:
-            continue
-        u = (q - p) / Lk
-        m = lines.line_of == line[k]
-        iv = np.sort(np.stack([(lines.segments[m, 0] - p) @ u,
-                               (lines.segments[m, 1] - p) @ u], 1), 1)
-        iv = np.clip(iv, 0.0, Lk)
-        cover = np.zeros(max(2, int(Lk / 0.02)), bool)
-        grid = np.linspace(0, Lk, len(cover))
-        for a, b in iv:
-            cover |= (grid >= a) & (grid <= b)
-        out[k] = cover.mean() >= params.seen_share
+        u = walls.direction(lines.normals[line[k]])
+        a, b = sorted((float(verts[k] @ u), float(verts[(k + 1) % V] @ u)))
+        lo, hi = lines.extent[line[k]]
+        out[k] = max(0.0, min(b, hi) - max(a, lo)) >= params.seen_share * max(b - a, 1e-9)
     return out

@@ -34,6 +34,9 @@ class RegisterParams:
         parallel_deg: walls this close in direction may be one wall.
         min_angle_deg: two walls fix a translation when at least this far from parallel.
         min_wall_m: shorter walls give no yaw candidate.
+        sigma_ref: samples with a larger sigma (metres) count less (their weight falls as
+            (sigma_ref / sigma)^2).
+        outside: score lost when a camera lies beyond the other photo's walls.
     """
 
     gate: float = 3.0
@@ -42,6 +45,8 @@ class RegisterParams:
     parallel_deg: float = 6.0
     min_angle_deg: float = 30.0
     min_wall_m: float = 0.4
+    sigma_ref: float = 0.1
+    outside: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -102,15 +107,28 @@ def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
     return e, agree, near & bound & (e < -gate), j, k
 
 
+def _camera_outside(dst: Layout, yaw, t, into_a: bool, gate: float) -> np.ndarray:
+    """(C,) whether the other camera (B's centre t in A, or A's centre in B) lies beyond
+    dst's boundary in dst's view: outside the room dst sees."""
+    c = t if into_a else rot2(-yaw, -t[:, None])[:, 0]
+    az, rho = np.arctan2(c[:, 0], c[:, 1]), np.hypot(c[:, 0], c[:, 1])
+    j, near = _lookup(dst, az)
+    wall = dst.kind[j] == SegKind.WALL
+    return near & wall & (rho > dst.range[j] + gate * dst.sigma[j])
+
+
 def scores(la: Layout, lb: Layout, yaw, t, p: RegisterParams = RegisterParams()) -> np.ndarray:
-    """(C,) layout score of C motions (yaw (C,), t (C, 2)): agreeing samples (MSAC) minus
-    violations, both ways."""
+    """(C,) layout score of C motions (yaw (C,), t (C, 2)): agreeing samples (MSAC, each
+    weighted by min(1, (sigma_ref / sigma)^2): a far, uncertain wall says little) minus
+    violations, both ways, minus ``outside`` when a camera lies outside the other's room."""
     yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
     total = np.zeros(len(yaw))
     for dst, src, into_a in ((la, lb, True), (lb, la, False)):
-        e, agree, viol, _, _ = _one_way(dst, src, yaw, t, into_a, p.gate)
-        total += p.weight * np.sum(np.where(agree, 1.0 - (e / p.gate) ** 2, 0.0), 1) \
-            - p.violation * viol.sum(1)
+        e, agree, viol, j, k = _one_way(dst, src, yaw, t, into_a, p.gate)
+        w = np.minimum(1.0, (p.sigma_ref / np.hypot(dst.sigma[j], src.sigma[k])) ** 2)
+        total += p.weight * np.sum(np.where(agree, (1.0 - (e / p.gate) ** 2) * w, 0.0), 1) \
+            - p.violation * viol.sum(1) \
+            - p.outside * _camera_outside(dst, yaw, t, into_a, p.gate)
     return total
 
 
@@ -152,11 +170,14 @@ def _lines(L: Layout):
 
 def wall_yaws(la: Layout, lb: Layout, p: RegisterParams = RegisterParams()) -> np.ndarray:
     """Yaws that put a wall of B on a wall of A with the cameras on the same side (the
-    normals toward each camera agree): azimuth of A's normal minus azimuth of B's."""
+    normals toward each camera agree): azimuth of A's normal minus azimuth of B's; the
+    longest pairs (product of the lengths) first."""
     (na, _, sa), (nb, _, sb) = _lines(la), _lines(lb)
-    na, nb = na[sa >= p.min_wall_m], nb[sb >= p.min_wall_m]
+    ka, kb = sa >= p.min_wall_m, sb >= p.min_wall_m
+    na, nb, sa, sb = na[ka], nb[kb], sa[ka], sb[kb]
     az_a, az_b = np.arctan2(na[:, 0], na[:, 1]), np.arctan2(nb[:, 0], nb[:, 1])
-    return np.angle(np.exp(1j * (az_a[:, None] - az_b[None]))).ravel()
+    yaw = np.angle(np.exp(1j * (az_a[:, None] - az_b[None]))).ravel()
+    return yaw[np.argsort(-np.outer(sa, sb).ravel(), kind="stable")]
 
 
 def translations(la: Layout, lb: Layout, yaw: float, directions=None,

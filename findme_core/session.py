@@ -143,7 +143,9 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
             notes[i] = f"no layout: {p.reason}"
     amb = [float(pl.ambiguity[pl.block[i]] / pl.scores[pl.block[i]])
            if pl.scores[pl.block[i]] > 0 else float("nan") for i in range(len(photos))]
-    result = floorplan.build(layouts, pl.poses, params.plan, notes, amb)
+    result = floorplan.build(layouts, pl.poses, params.plan, notes, amb, spot=pl.spot,
+                             links=links, matches=matches,
+                             focal=np.array([p.camera.fx for p in photos]))
     t3 = clock()
     return result, pl, {"relate": 1e3 * (t1 - t0), "place": 1e3 * (t2 - t1),
                         "plan": 1e3 * (t3 - t2)}

@@ -1,13 +1,16 @@
 """Per-room floor-plan results on a findme-eval split, with the upper bound the walls allow.
 
     python tools/plan_report.py DATASET_DIR [--spots ids|auto] [--figures docs/plans]
+                                [--cache DIR]
 
 For every room set (zind-rooms): our plan (``findme.plan_cli.room_job``: only the inputs
 the dataset README allows), scored by ``shared/eval/score.py``; next to it the plan built
 from the same per-photo layouts placed at the TRUE poses (ground truth used on purpose: it
 shows what the walls alone allow, i.e. how much of the error comes from the poses). With
 --figures, one SVG per room: our plan drawn over the true outline (grey); the truth is read
-from the dataset at run time, only our drawing is written.
+from the dataset at run time, only our drawing is written. --cache keeps each room's
+analysed photos (hypotheses, layouts, features) in DIR between runs (delete it after a change
+to the per-photo stage).
 """
 
 from __future__ import annotations
@@ -17,16 +20,16 @@ import importlib.util
 import json
 import math
 import os
+import pickle
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.plan_cli import room_job  # noqa: E402
-from findme_core import floorplan, session  # noqa: E402
-from findme_core.camera import Camera  # noqa: E402
-from findme_io.imageio import read_image  # noqa: E402
+from findme.plan_cli import room_photos, room_prediction  # noqa: E402
+from findme_core import floorplan  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
 from findme_io.plan_svg import plan_svg  # noqa: E402
 
 
@@ -41,21 +44,25 @@ def _scorer(dataset):
     return mod
 
 
-def true_pose_plan(room, view_dir):
-    """Plan from the rank-1 layouts placed at the true planar poses (upper bound)."""
-    lays, poses = [], []
-    for v in room["views"]:
-        with open(os.path.join(view_dir, v + ".json")) as f:
-            meta = json.load(f)
-        k = meta["intrinsics"]
-        cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"],
-                     meta.get("gravity_cam"))
-        ph = session.analyse(read_image(os.path.join(view_dir, meta["image"])), cam,
-                             float(meta["camera_height_m"]))
-        lays.append(ph.layout)
-        p = room["poses_planar"][v]
-        poses.append((p["x_m"], p["z_m"], math.radians(p["yaw_deg"])))
-    return floorplan.build(lays, np.array(poses))
+def true_pose_plan(room, photos):
+    """Plan from the photos' layouts placed at the TRUE planar poses (upper bound)."""
+    poses = np.array([(p["x_m"], p["z_m"], math.radians(p["yaw_deg"]))
+                      for p in (room["poses_planar"][v] for v in room["views"])])
+    return floorplan.build([ph.layout for ph in photos], poses, refine=False)
+
+
+def cached_photos(rdir, vdir, rid, cache):
+    """(views, photos) of a room, from ``cache`` when it has them."""
+    path = os.path.join(cache, rid + ".pkl") if cache else None
+    if path and os.path.exists(path):
+        with open(path, "rb") as f:
+            return pickle.load(f)
+    out = room_photos(rdir, vdir, rid)
+    if path:
+        os.makedirs(cache, exist_ok=True)
+        with open(path, "wb") as f:
+            pickle.dump(out, f)
+    return out
 
 
 def main(argv=None) -> int:
@@ -64,6 +71,7 @@ def main(argv=None) -> int:
     ap.add_argument("dataset")
     ap.add_argument("--spots", default="ids", choices=("ids", "auto"))
     ap.add_argument("--figures", metavar="DIR")
+    ap.add_argument("--cache", metavar="DIR")
     a = ap.parse_args(argv)
     S = _scorer(a.dataset)
     idx = json.load(open(os.path.join(a.dataset, "index.json")))
@@ -76,9 +84,13 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for rid in rooms:
         room = json.load(open(os.path.join(rdir, rid + ".json")))
-        _, pred, err = room_job((rdir, vdir, rid, a.spots))
+        views, photos = cached_photos(rdir, vdir, rid, a.cache)
+        try:
+            pred, err = room_prediction(views, photos, a.spots), None
+        except FindmeError as e:
+            pred, err = None, str(e)
         ours = S.score_room(room, pred)
-        ub_plan = true_pose_plan(room, vdir)
+        ub_plan = true_pose_plan(room, photos)
         ub = S.score_room(room, {"floor_polygon_m": ub_plan.polygon.tolist(),
                                  "poses": room["poses_planar"]})
         rows.append((ours, ub))
@@ -102,6 +114,10 @@ def main(argv=None) -> int:
                                         for r in rows]))
     n_views = sum(r[0]["n_views_localised"] for r in rows)
     loc = sum((r[0]["loc_success_rate"] or 0) * r[0]["n_views_localised"] for r in rows) / n_views
+    def pooled(i):
+        n = sum(r[i]["n_walls_scored"] for r in rows)
+        return sum((r[i]["wall_frac_ok"] or 0.0) * r[i]["n_walls_scored"] for r in rows) / n
+    print(f"| pooled | | | {pooled(0):.2f} | | {loc:.2f} | | | {pooled(1):.2f} | |")
     print(f"| median | {med('iou', 0):.3f} | {med('wall_len_rel_err_median', 0):.3f} | "
           f"{med('wall_frac_ok', 0):.2f} | {med('corner_err_m', 0):.3f} | {loc:.2f} (pooled) | "
           f"{med('iou', 1):.3f} | {med('wall_len_rel_err_median', 1):.3f} | "

@@ -121,7 +121,7 @@ def test_to_dict_round_trip_and_relocalise():
 def test_degenerate_inputs_are_clear_errors():
     with pytest.raises(GeometryError, match="at least one photo"):
         fuse.place([])
-    lines = polygon.cluster(np.zeros((0, 2, 2)))
+    lines = polygon.Lines(np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2)))
     with pytest.raises(GeometryError, match="no floor"):
         polygon.outline(lines, [])
     empty = layout.Layout(np.zeros((0, 2, 2)), np.zeros((0, 2), int), np.zeros(0), np.zeros(0),
