@@ -8,9 +8,10 @@ from the bus when someone caches it, else awaited): its layout under the selecte
 (a new selection rebuilds it); a photo whose hypothesis set is empty takes part without a
 layout. Between photos: rotation-only yaws, feature matches and two-photo motions
 (``session.relate``), each pair computed once and kept. Then ``session.plan`` (placement of
-every photo, outline, walls) over the session's photos in index order, and each placed
-photo's 1-sigma from ``plan_pose.covariance``. The plan frame is the level frame of the
-first photo with a layout (``Plan.origin_index``; photo 0 normally).
+every photo, outline, walls, joint refinement) over the session's photos in index order;
+each placed photo's 1-sigma is the refinement's, else ``plan_pose.covariance``. The plan
+frame is the level frame of the first photo with a layout (``Plan.origin_index``; photo 0
+normally).
 
 Cost, bounded per session: at most ``max_photos`` photos per plan (the first ones; later
 ones are listed LEFT_OUT), a new plan after every ``every`` newly ready photos or when no
@@ -26,7 +27,6 @@ yet gets a Plan with the reason. Camera height: the selection's, else the frame'
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -281,10 +281,12 @@ def _fill(msg, plan, pl, timing, photos, order, status) -> None:
         if np.all(np.isfinite(p)):
             q.status = schemas.PLAN_PHOTO_STATUS_PLACED
             q.x_m, q.z_m, q.yaw_rad = float(p[0]), float(p[1]), float(fuse.wrap(p[2]))
-            C = plan_pose.covariance(plan, photos[a].layout, p)
-            if C is not None:
-                q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad = (math.sqrt(max(c, 0.0))
-                                                             for c in np.diag(C))
+            sig = plan.pose_sigma[a] if plan.pose_sigma is not None else np.full(3, np.nan)
+            if not np.all(np.isfinite(sig)):   # not refined jointly: from its wall samples
+                C = plan_pose.covariance(plan, photos[a].layout, p)
+                sig = np.sqrt(np.maximum(np.diag(C), 0.0)) if C is not None else sig
+            if np.all(np.isfinite(sig)):
+                q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad = map(float, sig)
             if a < len(plan.ambiguity) and np.isfinite(plan.ambiguity[a]):
                 q.ambiguity = max(float(plan.ambiguity[a]), 0.0)
         else:

@@ -2,8 +2,9 @@
 
 The session's hypothesis sets carry each photo's exact ground-wall boundary (tests/plan_room),
 so the plan must be the room within the core's tolerances (tests/core/test_floorplan.py:
-vertices 4 cm, lengths 3 cm, poses 1 cm and 0.2 deg); the frames are the rendered photos, so
-the spots and their turns come from the photos' own features.
+vertices 4 cm, lengths 3 cm, positions 1 cm); the frames are the rendered photos, so the spots
+and their turns come from the photos' own features (yaws within 0.5 deg, not the core tests'
+0.2 deg for exact turns).
 """
 
 from __future__ import annotations
@@ -60,11 +61,14 @@ def test_the_plan_of_the_rendered_room_is_exact(room, mapped):
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
     got = np.array([(q.x_m, q.z_m, q.yaw_rad) for q in plan.poses])
     assert np.abs(got[:, :2] - room.poses[:, :2]).max() < 0.01
-    assert np.abs(fuse.wrap(got[:, 2] - room.poses[:, 2])).max() < math.radians(0.2)
+    # the turns come from the JPEG photos' features here (the core tests give exact ones)
+    assert np.abs(fuse.wrap(got[:, 2] - room.poses[:, 2])).max() < math.radians(0.5)
     assert [q.spot for q in plan.poses] == [0] * 6 + [1] * 6      # found from the photos
-    with_sigma = [q for q in plan.poses if q.HasField("sigma_x_m")]
-    assert len(with_sigma) >= 8
-    assert all(0 < q.sigma_x_m < 0.1 and 0 < q.sigma_yaw_rad < math.radians(3) for q in with_sigma)
+    # 1-sigma relative to the plan frame: photo 0 defines it, its spot shares its position
+    assert all(q.HasField("sigma_x_m") and q.HasField("sigma_yaw_rad") for q in plan.poses)
+    assert (plan.poses[0].sigma_x_m, plan.poses[0].sigma_yaw_rad) == (0.0, 0.0)
+    assert all(0 < q.sigma_x_m < 0.1 and 0 < q.sigma_z_m < 0.1 for q in plan.poses[6:])
+    assert all(0 < q.sigma_yaw_rad < math.radians(3) for q in plan.poses[1:])
     assert set(plan.timing_ms) == {"relate", "place", "plan"}
 
 
