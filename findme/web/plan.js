@@ -99,14 +99,22 @@ window.FindMePlan = (function () {
     }
   }
 
-  function render(plan, units) {
+  let lastOutline = null;   // the latest plan with an outline: kept on screen when a newer
+                            // one has none (one more photo can leave too little agreement)
+  function render(latest, units) {
     const sec = document.getElementById('plan');
     if (!sec) return;
     sec.hidden = false;
-    sec.dataset.upTo = plan.up_to_index;
+    sec.dataset.upTo = latest.up_to_index;
+    if (!latest.reason) lastOutline = latest;
+    const plan = latest.reason && lastOutline ? lastOutline : latest;
+    sec.dataset.shown = plan.up_to_index;
     const text = document.getElementById('plan-text');
     const n = plan.poses.length, k = placed(plan).length;
-    if (plan.reason) {
+    if (plan !== latest) {
+      text.textContent = `With photo ${latest.up_to_index + 1} there is no outline yet (the server says: ` +
+        `${latest.reason}); the plan of the first ${plan.photos} photos is shown.`;
+    } else if (plan.reason) {
       text.textContent = `No floor plan yet from ${plan.photos} photo${plan.photos === 1 ? '' : 's'}: ` +
         'keep turning round where you stand, taking photos that show the floor and the foot of ' +
         `the walls (the server says: ${plan.reason}).`;

@@ -182,3 +182,14 @@ def test_sessions_are_bounded_and_expire(room):
     now[0] = 61.5
     frame("d")                      # "b" was idle for more than 60 s
     assert set(m.sessions) == {"c", "d"}
+
+
+def test_the_registry_makes_the_mapper():
+    import argparse
+    from services.runtime.registry import add_service_args, make_handler, service_names
+    p = argparse.ArgumentParser()
+    add_service_args(p)
+    assert "mapper" in service_names()
+    h = make_handler("mapper", p.parse_args([]))
+    assert isinstance(h, MapperHandler) and h.name == "mapper"
+    assert h.cache_keys == ("findme/*/plan",) and h.shard

@@ -65,17 +65,23 @@ def test_the_floor_plan_grows_as_photos_are_taken(browser, app, shots, turning):
     if "mapper" not in page.evaluate("FindMe.state.services"):
         pytest.fail(f"findme app runs no mapper: {page.evaluate('FindMe.state.services')}")
     type_camera(page, side, height="1.4")
-    seen = []
+    seen, shown = [], []
     for n, path in enumerate(paths):
         upload(page, path, n)
         page.wait_for_selector(f'#plan[data-up-to="{n}"]', state="attached")
         seen.append((page.inner_text("#plan-text"), _walls(page)))
+        shown.append((int(page.get_attribute("#plan", "data-shown")),
+                      page.get_attribute("#plan-map", "hidden") is None))
         if any(k == "missing" for k, _ in seen[-1][1]) and not any(
                 any(k == "missing" for k, _ in w) for _, w in seen[:-1]):
             shots(page, "plan-1-growing-unseen-walls-dashed", at="#plan")
     # early on: part of the room, the unseen side named (dashed), not invented
     early = [w for _, w in seen[1:4] if w]
     assert early and any(any(k == "missing" for k, _ in w) for w in early), seen[:4]
+    # once there is an outline the drawing stays: a photo that leaves the server without
+    # one (it says why) keeps the last outline on screen rather than blanking it
+    first = next(i for i, (_, visible) in enumerate(shown) if visible)
+    assert all(visible and k <= i for i, (k, visible) in enumerate(shown) if i >= first), shown
     page.wait_for_selector('#plan-map[data-walls="4"][data-closed="true"]')
     walls = _walls(page)
     assert [k for k, _ in walls] == ["wall"] * 4
