@@ -93,6 +93,21 @@ def log_frame(rec, path: str, frame, camera=None) -> None:
     rec.log(img, rr.EncodedImage(contents=frame.image.data, media_type=media))
 
 
+def log_sources(rec, path: str, n: int, camera) -> None:
+    """Where photo n's camera and gravity came from (a Camera message of a HypothesisSet or
+    Scene): the camera rotation at ``path`` (= world/photo/<n>) is re-logged with the gravity
+    actually used, and one line goes to the ``log`` text view (a warning when level was
+    only assumed)."""
+    rr = _rr()
+    from .convert import msg_camera, provenance_text
+    if not camera.gravity_source:
+        return
+    cam = msg_camera(camera)
+    rec.log(f"{path}/camera", rr.Transform3D(mat3x3=cam.R_level_from_cam))
+    rec.log("log", rr.TextLog(f"photo {n}: {provenance_text(camera)}",
+                              level="WARN" if camera.gravity_source == "level" else "INFO"))
+
+
 def _strip(points) -> np.ndarray:
     return schemas.msg_to_pixels(points) + PIXEL_TO_RERUN
 
@@ -381,6 +396,8 @@ class SessionView:
         elif name == "HypothesisSet":
             _set_time(rec, msg.index, t_ns)
             log_hypotheses(rec, f"{photo_path(msg.index)}/camera/image", msg)
+            if msg.HasField("camera"):
+                log_sources(rec, photo_path(msg.index), msg.index, msg.camera)
         elif name == "Scene":
             _set_time(rec, msg.index, t_ns)
             log_boundary(rec, photo_path(msg.index), msg)

@@ -114,6 +114,31 @@ def _height(p: Problems, msg: Message, field: str = "camera_height_m",
         _nonneg(p, sigma, getattr(msg, sigma))
 
 
+LENS_SOURCES = ("", "input", "exif", "default")
+GRAVITY_SOURCES = ("", "input", "image", "level")
+
+
+def _camera(p: Problems, name: str, c: common_pb2.Camera) -> None:
+    """A Camera message: intrinsics (required), gravity, sources and gravity sigma."""
+    if not c.HasField("intrinsics"):
+        p.append(f"{name}.intrinsics is missing")
+    else:
+        _intrinsics(p, f"{name}.intrinsics", c.intrinsics)
+    if c.HasField("gravity"):
+        _vec3(p, f"{name}.gravity", c.gravity, nonzero=True)
+    if c.lens_source not in LENS_SOURCES:
+        p.append(f"{name}.lens_source must be one of {LENS_SOURCES[1:]}, got {_short(c.lens_source)}")
+    if c.gravity_source not in GRAVITY_SOURCES:
+        p.append(f"{name}.gravity_source must be one of {GRAVITY_SOURCES[1:]}, "
+                 f"got {_short(c.gravity_source)}")
+    _nonneg(p, f"{name}.gravity_sigma_rad", c.gravity_sigma_rad)
+    if len(c.gravity_cov_rad2) not in (0, 4):
+        p.append(f"{name}.gravity_cov_rad2 must have 0 or 4 numbers, got {len(c.gravity_cov_rad2)}")
+    else:
+        for i, x in enumerate(c.gravity_cov_rad2):
+            _finite(p, f"{name}.gravity_cov_rad2[{i}]", x)
+
+
 def _frame(m: frame_pb2.Frame) -> Problems:
     p: Problems = []
     _session(p, m.session)
@@ -138,6 +163,8 @@ def _frame(m: frame_pb2.Frame) -> Problems:
         p.append(f"hfov_deg must be in (0, 180) degrees, got {m.hfov_deg!r}")
     if m.HasField("gravity"):
         _vec3(p, "gravity", m.gravity, nonzero=True)
+    if m.HasField("gravity_sigma_rad"):
+        _nonneg(p, "gravity_sigma_rad", m.gravity_sigma_rad)
     _height(p, m)
     return p
 
@@ -159,6 +186,8 @@ def _hypothesis_set(m: hypotheses_pb2.HypothesisSet) -> Problems:
         p.append("no hypotheses and no reason: an empty set must say why")
     for k, v in sorted(m.timing_ms.items()):
         _nonneg(p, f"timing_ms[{k!r}]", v)
+    if m.HasField("camera"):
+        _camera(p, "camera", m.camera)
     return p
 
 
@@ -177,12 +206,7 @@ def _scene(m: scene_pb2.Scene) -> Problems:
     _session(p, m.session)
     if m.rank < 1:
         p.append("rank must be >= 1, got 0")
-    if not m.camera.HasField("intrinsics"):
-        p.append("camera.intrinsics is missing")
-    else:
-        _intrinsics(p, "camera.intrinsics", m.camera.intrinsics)
-    if m.camera.HasField("gravity"):
-        _vec3(p, "camera.gravity", m.camera.gravity, nonzero=True)
+    _camera(p, "camera", m.camera)
     _positive(p, "camera_height_m", m.camera_height_m)
     _nonneg(p, "camera_height_sigma_m", m.camera_height_sigma_m)
     _polyline(p, "polyline", m.polyline)

@@ -37,6 +37,17 @@ def _pose(p) -> dict:
             "sigma_yaw_rad": _opt(p, "sigma_yaw_rad")}
 
 
+def _sources(camera) -> dict:
+    """Where a Camera message's lens and gravity came from (the page shows it)."""
+    import math
+    k = camera.intrinsics
+    return {"lens_source": camera.lens_source or None,
+            "hfov_deg": math.degrees(2 * math.atan(k.width / (2 * k.fx))) if k.fx > 0 else None,
+            "gravity": [camera.gravity.x, camera.gravity.y, camera.gravity.z],
+            "gravity_source": camera.gravity_source or None,
+            "gravity_sigma_deg": math.degrees(camera.gravity_sigma_rad)}
+
+
 def to_page(session: str, msg) -> dict | None:
     """A bus message of ``session`` as the JSON the page reads (None: not for the page)."""
     name = type(msg).__name__
@@ -47,15 +58,15 @@ def to_page(session: str, msg) -> dict | None:
                 "hypotheses": [{"rank": h.rank, "score": h.score, "support": h.support,
                                 "points": [[p.u, p.v] for p in h.polyline.points],
                                 "kinds": [_kind_name(k) for k in h.polyline.kinds]}
-                               for h in msg.hypotheses]}
+                               for h in msg.hypotheses],
+                "camera": _sources(msg.camera) if msg.HasField("camera") else None}
     if name == "Selection":
         return {"type": "selection", "index": msg.index, "rank": msg.rank,
                 "by": "user" if msg.by == schemas.SELECTED_BY_USER else "auto",
                 "camera_height_m": _opt(msg, "camera_height_m")}
     if name == "Scene":
         return {"type": "scene", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
-                "camera_height_m": msg.camera_height_m,
-                "gravity": [msg.camera.gravity.x, msg.camera.gravity.y, msg.camera.gravity.z]}
+                "camera_height_m": msg.camera_height_m, **_sources(msg.camera)}
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}

@@ -27,7 +27,7 @@ def sample_messages() -> list[tuple[str, object]]:
 
     frame = S.Frame(session=SESSION, index=3, capture_time_ns=T0, intrinsics=intr,
                     gravity=gravity, camera_height_m=1.42, camera_height_sigma_m=0.05,
-                    device="Pixel 7 / Android 14 / findme-app 0.3")
+                    device="Pixel 7 / Android 14 / findme-app 0.3", gravity_sigma_rad=0.012)
     frame.image.data = JPEG
     frame.image.format = "jpeg"
     frame.image.frame_id = f"{SESSION}/camera/3"
@@ -43,7 +43,10 @@ def sample_messages() -> list[tuple[str, object]]:
         session=SESSION, index=3, width=640, height=480, method="lsd+dp findme_core 0.1",
         hypotheses=[S.Hypothesis(rank=1, score=12.75, support=0.83, polyline=poly1),
                     S.Hypothesis(rank=2, score=9.5, support=0.61, polyline=poly2)],
-        timing_ms={"lines": 24.8, "merge": 1.9, "search": 112.4})
+        timing_ms={"lines": 24.8, "merge": 1.9, "search": 112.4},
+        camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="exif",
+                        gravity_source="image", gravity_sigma_rad=0.0141,
+                        gravity_cov_rad2=[0.0002, 0.00001, 0.00001, 0.00018]))
     hset_empty = S.HypothesisSet(session=SESSION, index=4, width=640, height=480,
                                  reason="no floor lines below the horizon",
                                  timing_ms={"lines": 20.0}, method="lsd+dp findme_core 0.1")
@@ -55,7 +58,8 @@ def sample_messages() -> list[tuple[str, object]]:
                            time_ns=T0 + 9_000_000_000)
 
     scene = S.Scene(session=SESSION, index=3, rank=2,
-                    camera=S.Camera(intrinsics=intr, gravity=gravity),
+                    camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="input",
+                                    gravity_source="input", gravity_sigma_rad=0.0087),
                     camera_height_m=1.38, camera_height_sigma_m=0.03, metric=True,
                     polyline=poly1, time_ns=T0 + 4_210_000_000)
 
