@@ -12,9 +12,11 @@ axis + k pi/2), the others have their own.
 
 Unknowns: the position of every spot but photo 0's, the yaw of every photo but photo 0, and
 per outline line its offset (and angle when off the axes, or the axis angle once).
-Residuals, each in its own 1-sigma: sample (n . (R p + c) - d) / sigma_sample; corner
+Residuals, each in its own 1-sigma: spot position about the placement's (``prior_m``); sample (n . (R p + c) - d) / sigma_sample; corner
 (R q + c - vertex) / sigma_sample; turn (yaw_j - yaw_i - link) / sigma_link; match (angle
-of the match from its epipolar plane, ``planar.epipolar_residuals``) / (``match_px`` / f).
+of the match from its epipolar plane, ``planar.epipolar_residuals``) / (``match_px`` / f),
+with the baseline held as placed: the scale-free planes fix the turn between spots, and
+along a corridor, where the walls fix no position, they would slide the spots.
 Loss: soft-L1 (``f_scale`` sigmas): furniture, doors and bad matches that got through
 weigh little. Solver: ``scipy.optimize.least_squares`` (trust-region reflective).
 
@@ -46,7 +48,14 @@ class RefineParams:
         match_px: 1-sigma of a feature's position, pixels.
         match_gate: matches farther than this many sigmas from their epipolar plane at the
             starting poses are left out; at most ``max_matches`` per pair.
+        match_eff: a pair's matches weigh together as this many independent ones (they
+            share the pair's model errors: gravity, a planar floor, the camera heights);
+            counted one by one, hundreds of them slide spots along a corridor, where the
+            scale-free epipolar planes are the only term that moves.
         f_scale: the loss turns linear past this many sigmas.
+        prior_m: 1-sigma of a spot's position about where the placement put it (the
+            placement weighed the free floor, which these residuals do not see: along a
+            corridor the walls fix nothing, and scale-free epipolar planes cannot either).
         height_rel: relative 1-sigma of the camera height (scales every length).
     """
 
@@ -59,7 +68,9 @@ class RefineParams:
     match_px: float = 1.5
     match_gate: float = 3.0
     max_matches: int = 200
+    match_eff: float = 5.0
     f_scale: float = 1.5
+    prior_m: float = 0.3
     height_rel: float = 0.02
     max_nfev: int = 60
 
@@ -148,6 +159,7 @@ class _Problem:
                 self.line_ix[k] = (len(x), len(x) + 1)
                 x += [phi, lines.offsets[k]]
         self.x0 = np.array(x, float)
+        self.prior0 = self.x0[:2 * len(spots)].copy()
         self.n_pose = n0
         self.lines0 = lines
         self._samples(layouts, poses)
@@ -234,8 +246,10 @@ class _Problem:
             sig = self.p.match_px / (cams[i] if cams is not None else 500.0)
             r = self._epi(poses[i], poses[j], a, b)
             keep = np.flatnonzero(np.abs(r) < self.p.match_gate * sig)[: self.p.max_matches]
-            if len(keep) >= 5:
-                self.mt.append((i, j, a[keep], b[keep], sig))
+            if len(keep) >= 5:   # one pair's matches share its model errors
+                self.mt.append((i, j, a[keep], b[keep],
+                                sig * np.sqrt(max(1.0, len(keep) / self.p.match_eff)),
+                                poses[j, :2] - poses[i, :2]))
 
     @staticmethod
     def _epi(pi, pj, a, b):
@@ -268,15 +282,16 @@ class _Problem:
             yi = self.pose(x, i)[1]
             yj = self.pose(x, j)[1]
             out.append(np.atleast_1d(np.angle(np.exp(1j * (yj - yi - yaw))) / sig))
-        for i, j, a, b, sig in self.mt:
-            ci, yi = self.pose(x, i)
-            cj, yj = self.pose(x, j)
-            out.append(self._epi((*ci, yi), (*cj, yj), a, b) / sig)
+        if len(self.prior0):
+            out.append((x[:len(self.prior0)] - self.prior0) / self.p.prior_m)
+        for i, j, a, b, sig, base in self.mt:   # the turn only: the baseline as placed
+            yi, yj = self.pose(x, i)[1], self.pose(x, j)[1]
+            out.append(self._epi((0.0, 0.0, yi), (base[0], base[1], yj), a, b) / sig)
         return np.concatenate(out) if out else np.zeros(0)
 
 
 def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), matches=None,
-           focal=None, params: RefineParams = RefineParams()) -> Refined:
+           focal=None, params: RefineParams = RefineParams(), prior=None) -> Refined:
     """Poses and outline lines refined together (see the module docstring).
 
     Args:
@@ -288,6 +303,8 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
         links: ``fuse.Link`` turns between photos of one spot.
         matches: {(i, j): (a (M, 3), b (M, 3))} unit level bearings of feature matches.
         focal: (N,) focal lengths in pixels (for ``match_px``), or None (500).
+        prior: (N, 3) poses the spot positions are held near (``prior_m``); default
+            ``poses``.
 
     Raises:
         GeometryError: nothing to refine (no placed photo sees an outline wall).
@@ -295,6 +312,9 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
     poses = np.asarray(poses, float).reshape(-1, 3)
     snapped = np.zeros(len(outline.lines.normals), bool) if snapped is None else snapped
     pr = _Problem(layouts, poses, spot, outline, axis, snapped, links, matches, focal, params)
+    if prior is not None:
+        pr.prior0 = np.concatenate([np.asarray(prior, float)[pr.spot == s][0, :2]
+                                    for s in pr.spot_ix]) if pr.spot_ix else pr.prior0
     if len(pr.sp) == 0:
         raise GeometryError("no photo's wall samples lie on the outline: nothing to refine")
     res = least_squares(pr.residuals, pr.x0, loss="soft_l1", f_scale=params.f_scale,
@@ -325,4 +345,4 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
         xy = (0.0, 0.0) if s == pr.spot[0] else sd[pr.spot_ix[s]:pr.spot_ix[s] + 2]
         sp[i] = (xy[0], xy[1], 0.0 if i == 0 else sd[pr.yaw_ix[i]])
     return Refined(pr.poses(res.x), n, d, V, length, np.sqrt(var), sp, chi2_dof, len(pr.sp),
-                   int(sum(len(a) for _, _, a, _, _ in pr.mt)))
+                   int(sum(len(m[2]) for m in pr.mt)))

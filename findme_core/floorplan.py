@@ -191,25 +191,22 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
         GeometryError: no placed photo saw any floor.
     """
     poses = np.asarray(poses, float).reshape(-1, 3)
-    ev = walls.evidence(layouts, poses)
-    wl = walls.classify(ev, walls.fit(ev, params.lines), params.lines)
-    lines = polygon.Lines.of(wl)
-    free = polygon.free_space(layouts, poses, lines, params.polygon)
-    cams = poses[np.isfinite(poses[:, 0]), :2]
-    anchor = cams.mean(0) if len(cams) else np.zeros(2)
-    out = polygon.outline(lines, free, params.polygon, anchor)
-    snapped = (wl.snapped[wl.walls] if wl.snapped is not None
-               else np.zeros(len(lines.normals), bool))
-    used = out.line[out.line >= 0]
-    manhattan = wl.manhattan is not None and bool(np.all(snapped[used]))
+    ev, wl, out, snapped = _outline(layouts, poses, params)
     V, sig_len, pose_sig = out.vertices, None, None
-    if refine:
+    if refine:   # refine, redraw the outline at the refined poses, refine once more
         try:
-            r = adjust.refine(layouts, poses, np.arange(len(poses)) if spot is None else spot,
-                              out, wl.manhattan, snapped, links, matches, focal, params.adjust)
+            spot = np.arange(len(poses)) if spot is None else spot
+            r = adjust.refine(layouts, poses, spot, out, wl.manhattan, snapped, links, matches,
+                              focal, params.adjust)
+            ev, wl, out, snapped = _outline(layouts, r.poses, params)
+            r = adjust.refine(layouts, r.poses, spot, out, wl.manhattan, snapped, links,
+                              matches, focal, params.adjust, prior=poses)
             poses, V, sig_len, pose_sig = r.poses, r.vertices, r.sigma_length, r.sigma_pose
         except GeometryError:
             pass
+    lines = polygon.Lines.of(wl)
+    used = out.line[out.line >= 0]
+    manhattan = wl.manhattan is not None and bool(np.all(snapped[used]))
     if sig_len is None:
         sig_len = _line_sigmas(out, lines, _offset_sigmas(ev, wl, params), params)
     fans = []
@@ -225,6 +222,20 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
     return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, manhattan,
                 tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n,
                 pose_sig if pose_sig is not None else np.full((n, 3), np.nan))
+
+
+def _outline(layouts, poses, params: PlanParams):
+    """(evidence, classified lines, outline, which outline lines are on the axes) at poses."""
+    ev = walls.evidence(layouts, poses)
+    wl = walls.classify(ev, walls.fit(ev, params.lines), params.lines)
+    lines = polygon.Lines.of(wl)
+    free = polygon.free_space(layouts, poses, lines, params.polygon)
+    cams = poses[np.isfinite(poses[:, 0]), :2]
+    anchor = cams.mean(0) if len(cams) else np.zeros(2)
+    out = polygon.outline(lines, free, params.polygon, anchor)
+    snapped = (wl.snapped[wl.walls] if wl.snapped is not None
+               else np.zeros(len(lines.normals), bool))
+    return ev, wl, out, snapped
 
 
 def _line_sigmas(out: polygon.Outline, lines: polygon.Lines, sig_d, params: PlanParams):

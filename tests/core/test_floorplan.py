@@ -137,3 +137,36 @@ def test_rotation_yaw_refuses_photos_without_overlap():
     cam = Camera.from_hfov(70.0, 640, 480)
     few = Matches(np.zeros((3, 2)), np.zeros((3, 2)), np.arange(3), np.arange(3), np.ones(3), 3, 3)
     assert spot.rotation_yaw(few, cam, cam) is None
+
+
+def test_refinement_of_noise_free_input_is_exact():
+    """Started 5 cm / 1 deg off, the joint refinement returns to the exact poses and walls."""
+    room = Room.l_shape(6.0, 5.0, 2.5, 2.0)
+    lays, links, lab, truth, poly = _session(room, [(-1.5, -1.0), (1.2, -1.4), (-1.6, 1.6)])
+    start = truth.copy()
+    spot_shift = {1: (0.05, -0.03, 0.015), 2: (-0.04, 0.05, -0.012)}
+    for i, s in enumerate(lab):
+        if s in spot_shift:
+            start[i] += spot_shift[s]
+    plan = floorplan.build(lays, start, spot=lab, links=links)
+    assert np.abs(plan.poses[:, :2] - truth[:, :2]).max() < 2e-3
+    assert np.abs(fuse.wrap(plan.poses[:, 2] - truth[:, 2])).max() < math.radians(0.05)
+    _match_polygon(plan.polygon, poly, 5e-3)
+    assert np.all(np.isfinite(plan.pose_sigma[1:]))
+
+
+def test_refined_wall_lengths_within_their_sigma():
+    """Wall-base samples with Gaussian noise of their 1-sigma: every refined wall length is
+    within 3 of its sigmas of the truth, and the sigmas stay near the height term (2 % of L)."""
+    import dataclasses
+    room = Room.rectangle(5.0, 4.0)
+    lays, links, lab, truth, poly = _session(room, [(-0.8, -0.5), (1.0, 0.6)])
+    rng = np.random.default_rng(3)
+    noisy = [dataclasses.replace(L, range=L.range + rng.normal(0, 1, len(L.range)) * L.sigma)
+             for L in lays]
+    plan = floorplan.build(noisy, truth, spot=lab, links=links)
+    true_len = np.linalg.norm(np.roll(poly, -1, 0) - poly, axis=1)
+    for w in plan.walls:
+        err = np.abs(true_len - w.length_m).min()
+        assert err < 3 * w.sigma_m, (w.length_m, w.sigma_m, true_len)
+        assert w.sigma_m < 0.02 * w.length_m + 0.03
