@@ -3,9 +3,10 @@ a router and every service as separate processes (issue 11).
 
     python bench/bench_fuzz_bus.py [--messages 100000] [--seed 1] [--json OUT.json]
 
-Services: capture, hypotheses, selection (--auto), measurement, odometry, recorder, viewer
-(.rrd files) and gateway (with one page open on a WebSocket), each ``findme serve`` in its
-own process, clients of a ``findme router``. The keys come from the handlers themselves
+Services: every one the registry has (hypotheses, selection --auto, measurement, odometry,
+mapper, recorder, viewer writing .rrd files, gateway with one page open on a WebSocket), each
+``findme serve`` in its own process, clients of a ``findme router``; capture publishes a
+warm-up session first (and ends, as it does). The keys come from the handlers themselves
 (``inputs``, ``queries``, ``cache_keys``) plus every service's status queryable and the
 page's session.
 
@@ -63,7 +64,6 @@ import zenoh
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import schemas  # noqa: E402
-from findme.report import Printer  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from services.runtime import authority  # noqa: E402
@@ -442,13 +442,10 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
     wait_line(procs["router"], "listening on")
     warm = "warm-1"
     photos = [str(EXAMPLES / "room_a.jpg"), str(EXAMPLES / "room_b.jpg")]
-    for name in ("hypotheses", "selection", "measurement", "odometry", "recorder", "viewer",
-                 "gateway", "capture"):
+    for name in [n for n in service_names() if n != "capture"]:   # every service there is
         flags = {"selection": ["--auto"], "recorder": ["--out", tmp / "rec"],
-                 "viewer": ["--out", tmp / "rrd"], "gateway": ["--http", "127.0.0.1:0"],
-                 "capture": ["--session", warm, *photos, *sum(
-                     (["--wait-for", s] for s in ("hypotheses", "selection", "measurement",
-                                                  "odometry")), [])]}.get(name, [])
+                 "viewer": ["--out", tmp / "rrd"],
+                 "gateway": ["--http", "127.0.0.1:0"]}.get(name, [])
         procs[name] = Proc(name, ["serve", name, "--connect", ep, "--instance", name, *flags],
                            tmp, stdout=name == "gateway")
     client = open_session(BusConfig(mode="client", connect=(ep,)))
@@ -456,6 +453,10 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
     for name in procs:
         if name != "router":
             wait_alive(client, name, 120)
+    # the warm-up session: capture publishes the example pair and ends once it has its results
+    cap = Proc("capture", ["serve", "capture", "--connect", ep, "--session", warm, *photos], tmp)
+    if cap.p.wait(300) != 0:
+        raise RuntimeError(f"the warm-up capture failed: {cap.log()[-2000:]}")
     url = procs["gateway"].p.stdout.readline().split("serving ", 1)[1].split()[0]
     expected = Counter()        # (key, service) -> errors expected
     tally = Tally(expected)
@@ -465,13 +466,8 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
         blips.update([str(smp.key_expr).split("/")[-2]]))
     subs = [lsub, client.declare_subscriber("findme/*/error", tally.on_error),
             client.declare_subscriber("findme/@errors", tally.on_error)]
-    # the warm-up session must be complete before measuring anything
-    pr = Printer(warm)
-    subs.append(client.declare_subscriber(f"findme/{warm}/**", pr))
     closers.append(lambda: [s.undeclare() for s in subs])   # else exit waits on their threads
-    if not pr.wait(lambda seen, errors: any(k.endswith("/trajectory") and len(m.poses) == 2
-                                            for k, m in seen.items()), 300):
-        raise RuntimeError("the warm-up session did not complete")
+    drain_all(client)      # the warm-up's last results (the mapper's plan) before measuring
     page = {"received": Counter(), "ready": threading.Event(), "closed": False, "pong": False}
     stop_page = threading.Event()
     pt = threading.Thread(target=page_thread, args=(url, page, stop_page), daemon=True)
@@ -597,6 +593,7 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
     drain_s = time.perf_counter() - t0 - send_s
     after_fuzz = {n: p.rss_mb() for n, p in procs.items()}
 
+    blips_fuzz = dict(blips)   # (findme send's own token leaves when it ends)
     # ---------------------------------------------------------------- a correct session
     got_lines = session_lines("send", "--connect", ep, "--session", "after-1")
     # every result line findme run prints, identical (send may print a pose line more: run
@@ -682,7 +679,7 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
           f"{page['closed']}, pong at the end {page['pong']}, failure {page.get('failure')}")
     print(f"pacing stalls: {len(stalls)} {stalls[:5]}")
     print(f"crashes {len(crashes)} {crashes}; hangs {len(hangs)} {hangs}; liveliness "
-          f"tokens lost during the run (a link closed): {dict(blips) or 0}")
+          f"tokens lost during the run (a link closed): {blips_fuzz or 0}")
     print(f"two-photo session afterwards: every line of findme run's, identical: {same}")
     for ln in got_lines:
         print("   bus:", ln)
@@ -693,7 +690,7 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
            "drain_s": drain_s, "per_service": {k: dict(v) for k, v in per_service.items()},
            "rss_mb": {"before": before, "after_fuzz": after_fuzz, "after": after, "peak": peak},
            "queries": gets, "codes": dict(tally.codes), "internal": tally.internal,
-           "crashes": crashes, "hangs": hangs, "stalls": stalls, "liveliness_lost": dict(blips), "exit": codes, "tracebacks": tracebacks,
+           "crashes": crashes, "hangs": hangs, "stalls": stalls, "liveliness_lost": blips_fuzz, "exit": codes, "tracebacks": tracebacks,
            "same_as_findme_run": same,
            "missing": {f"{svc} {w}": n for (svc, w), n in missing.items()}, "bus_lines": got_lines, "run_lines": expected_run,
            "page": {k: (dict(v) if isinstance(v, Counter) else v) for k, v in page.items()

@@ -5,7 +5,7 @@
  *   text    {"type": "select", index, rank, camera_height_m}         another hypothesis
  *   text    {"type": "measure", id, index, pixels: [[u, v], ...]}    3D of tapped pixels
  * and gets JSON: hello, frame, refused, hypotheses, selection, scene, measure, motion, pose,
- * trajectory, error. Pixels follow the bus convention: (0, 0) is the centre of the
+ * trajectory, plan (drawn by plan.js), error. Pixels follow the bus convention: (0, 0) is the centre of the
  * top-left pixel.
  *
  * Gravity conversion (documented here and in the report):
@@ -419,6 +419,7 @@
     },
     pose(m) { state.poses.set(m.index, m); renderMotion(); },
     trajectory(m) { state.trajectory = m.poses; renderMotion(); },
+    plan(m) { state.plan = m; if (window.FindMePlan) FindMePlan.render(m, state.units); },  // plan.js
     error(m) {
       const hint = ERROR_HINTS[m.code] ? ' ' + ERROR_HINTS[m.code] : '';
       const box = notify(`Server: ${m.message}.${hint}`, 'error', m.code);
@@ -848,6 +849,7 @@
       $('units-btn').textContent = state.units === 'm' ? 'Show feet' : 'Show metres';
       $('units-btn').setAttribute('aria-pressed', String(state.units === 'ft'));
       render(); renderMotion();
+      if (state.plan && window.FindMePlan) FindMePlan.render(state.plan, state.units);
     });
     $('height').addEventListener('change', () => {  // a new height re-builds the scene
       const p = photoAt(state.current);

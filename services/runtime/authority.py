@@ -28,6 +28,7 @@ KEY_RULES: dict[str, tuple[str, tuple[str, ...]]] = {
     "findme.v1.Motion": ("motion", ("index_a", "index_b")),
     "findme.v1.Pose": ("pose", ("index",)),
     "findme.v1.Trajectory": ("trajectory", ()),
+    "findme.v1.Plan": ("plan", ()),
     "findme.v1.Error": ("error", ()),
     # a MeasureReply published for the record by whoever asked (findme run does)
     "findme.v1.MeasureReply": ("measured", ("index",)),

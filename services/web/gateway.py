@@ -14,7 +14,7 @@ own session:
                                             (the reply also on findme/<s>/measured/<n>, for the record)
 
     bus -> page: everything on findme/<s>/** except frames, as JSON: hypotheses, selection,
-    scene, motion, pose, trajectory and error (``Error.message`` verbatim).
+    scene, motion, pose, trajectory, plan and error (``Error.message`` verbatim).
 
 When photo n's hypotheses arrive the gateway selects rank 1 for it (by AUTO: "the best one
 preselected"); the user's tap on another publishes a new selection (by USER). So do not run
@@ -72,6 +72,7 @@ IDLE_TIMEOUT_S = 900.0         # a page that sends nothing for this long is clos
 HEADER_TIMEOUT_S = 15.0
 WEB_FILES = {"/": ("index.html", "text/html"), "/app.js": ("app.js", "text/javascript"),
              "/style.css": ("style.css", "text/css")}
+WEB_FILES["/plan.js"] = ("plan.js", "text/javascript")   # the floor plan drawing
 
 
 class GatewayHandler(Handler):

@@ -1,7 +1,7 @@
 """Bus messages as the JSON a page reads: what the gateway forwards to a page.
 
     HypothesisSet -> {"type": "hypotheses", ...}     MeasureReply -> {"type": "measure", ...}
-    Selection, Scene, Motion, Pose, Trajectory, Error -> the type of the same name, lower-case
+    Selection, Scene, Motion, Pose, Trajectory, Error, Plan -> the type of the same name, lower-case
     anything else (a Frame)                           -> None: not for the page
 
 Nothing changes frame or unit on the way: pixels as on the bus ((0, 0) is the centre of the
@@ -92,4 +92,29 @@ def to_page(session: str, msg) -> dict | None:
                 "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
                                "sigma_m": _opt(d, "sigma_m"), "error": d.error}
                               for d in msg.distances]}
+    if name == "Plan":
+        return plan_to_page(msg)
     return None
+
+
+def plan_to_page(m) -> dict:
+    """A Plan as the page draws it: points as [x_m, z_m] (plan frame: the level frame of
+    photo ``origin_index``), wall and photo kinds as lower-case names."""
+    def xz(q):
+        return [q.x_m, q.z_m]
+
+    def kind(enum, v, prefix):
+        return enum.Name(v).removeprefix(prefix).lower()
+    return {"type": "plan", "up_to_index": m.up_to_index, "photos": m.photos,
+            "origin_index": m.origin_index, "metric": m.metric,
+            "camera_height_m": m.camera_height_m, "reason": m.reason, "area_m2": m.area_m2,
+            "closed": m.closed, "manhattan": m.manhattan,
+            "polygon": [xz(q) for q in m.polygon],
+            "walls": [{"a": xz(w.a), "b": xz(w.b), "length_m": w.length_m, "sigma_m": w.sigma_m,
+                       "kind": kind(schemas.WallKind, w.kind, "WALL_KIND_"),
+                       "openings": [[o.from_m, o.to_m] for o in w.openings]} for w in m.walls],
+            "poses": [{"index": q.index, "spot": q.spot, "reason": q.reason,
+                       "status": kind(schemas.PlanPhotoStatus, q.status, "PLAN_PHOTO_STATUS_"),
+                       **{k: _opt(q, k) for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m",
+                                                  "sigma_z_m", "sigma_yaw_rad", "ambiguity")}}
+                      for q in m.poses]}
