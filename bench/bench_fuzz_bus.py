@@ -338,27 +338,21 @@ def session_lines(*argv):
             if ln.startswith(RESULT_LINES) and "file:" not in ln]
 
 
-def statuses(client):
+def statuses(client) -> dict:
+    """ServiceStatus of every live service instance (one status query to all; every
+    instance replies on the query's own key, so no consolidation)."""
     out = {}
-    for r in client.liveliness().get(f"{SERVICES}/**", timeout=5):
-        if r.ok is None:
-            continue
-        tok = str(r.ok.key_expr)
-        for q in client.get(tok + "/status", timeout=10):
-            if q.ok is not None:
-                s = schemas.decode(schemas.ServiceStatus, q.ok.payload.to_bytes())
-                out[s.service + "/" + s.instance] = s
+    for q in client.get(f"{SERVICES}/*/*/status", timeout=10,
+                        consolidation=zenoh.ConsolidationMode.NONE):
+        if q.ok is not None:
+            s = schemas.decode(schemas.ServiceStatus, q.ok.payload.to_bytes())
+            out[f"{s.service}/{s.instance}"] = s
     return out
 
 
 def depths(client) -> dict:
-    """Queue depth of every live service instance (one status query to all)."""
-    out = {}
-    for q in client.get(f"{SERVICES}/*/*/status", timeout=10):
-        if q.ok is not None:
-            s = schemas.decode(schemas.ServiceStatus, q.ok.payload.to_bytes())
-            out[f"{s.service}/{s.instance}"] = s.queue_depth
-    return out
+    """Queue depth of every live service instance."""
+    return {k: s.queue_depth for k, s in statuses(client).items()}
 
 
 def drain_all(client, patience=60.0):
@@ -646,7 +640,7 @@ def fuzz(a, rng, tmp, ep, procs, closers, typed, queries, caches, expected_run):
     for n, p in procs.items():
         d = per_service.get(n, Counter())
         s0, s1 = st0.get(f"{n}/{n}"), st1.get(f"{n}/{n}")
-        fin = (s1.frames_in - s0.frames_in) if s0 and s1 else 0
+        fin = s1.frames_in - s0.frames_in if s0 is not None and s1 is not None else 0
         print(f"{n:12s} {d['expected']:15d} {d['received']:9d} {d['expected'] - d['received']:8d} "
               f"{d['for valid-shaped']:>15d}, {d['other (cascades)']:<14d} {fin:8d} "
               f"{before[n]:8.0f} MB {after_fuzz[n]:8.0f} MB {after[n]:4.0f} MB {peak[n]:4.0f} MB "
