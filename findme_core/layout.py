@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import cached_property
 
 import numpy as np
 
@@ -87,12 +88,17 @@ class Layout:
     height: float
     rank: int = 0
 
-    @property
+    @cached_property
     def points(self) -> np.ndarray:
         """(S, 2) floor points (x, z) of the samples (inf where the range is unbounded)."""
         return self.range[:, None] * np.column_stack([np.sin(self.azimuth), np.cos(self.azimuth)])
 
-    @property
+    @cached_property
+    def spacing(self) -> float:
+        """Median azimuth step between samples, radians (0 with fewer than 2)."""
+        return float(np.median(np.diff(self.azimuth))) if len(self.azimuth) > 1 else 0.0
+
+    @cached_property
     def normals(self) -> np.ndarray:
         """(K, 2) unit normal of each wall, pointing to the camera's side."""
         d = self.walls[:, 1] - self.walls[:, 0]

@@ -112,6 +112,7 @@ class _Registration:
         self.rng = np.random.default_rng(params.seed)
         self.floor_first = None   # decided on the first candidates scored
         self.normal = None        # (floor normal in A, yaw) when the features correct gravity
+        self.depth = None         # the scene's depth scale (``_scene_depth``), metres
         self.seeds = np.argsort(matches.ratio, kind="stable")[:params.max_direction_seeds]
         self.rp = register.RegisterParams(weight=params.layout_weight,
                                           violation=params.layout_violation)
@@ -123,7 +124,8 @@ class _Registration:
             yaws += [self.orient[0] + k * np.pi / 2 for k in range(4)]
         if self.feats:
             try:
-                y, t, e = _epipolar_ransac(self.a, self.b, self.planar, self.pix, self.p, self.rng)
+                y, t, e = _epipolar_ransac(self.a, self.b, self.planar, self.pix,
+                                           replace(self.p, max_iters=self.p.free_iters), self.rng)
                 y, t, e, sig_elev = local_optimisation(self.a, self.b, y, t, e, self.planar,
                                                        self.pix, self.p)
                 yaws.append(y)
@@ -152,16 +154,8 @@ class _Registration:
         seeds = self.seeds   # the directions of the most distinctive matches are tried
         T = np.column_stack([m[seeds, 2], np.zeros(len(seeds)), -m[seeds, 0]])
         T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
-        num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
-        r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / self.pix
-        ab = np.sum(a * Rb, 1)
-        det = np.maximum(1.0 - ab * ab, 1e-12)
-        la, lb = (at - ab * bt) / det, (ab * at - bt) / det
-        far = np.linalg.norm(m, axis=1) / self.pix < 1.0
-        ok = r < p.thr_px
-        fwd, bwd = ok & (far | ((la > 0) & (lb > 0))), ok & (far | ((la < 0) & (lb < 0)))
-        T, inl = np.vstack([T, -T]), np.vstack([fwd, bwd])
-        score = msac(np.where(inl, np.vstack([r, r]), p.thr_px), p.thr_px)
+        T = np.vstack([T, -T])
+        score, inl = self._epi(Rb, m, T)
         keep = []
         for i in np.argsort(-score):
             if score[i] < max(2.0, 0.3 * score[np.argsort(-score)[0]]) or len(keep) == 3:
@@ -169,6 +163,21 @@ class _Registration:
             if all(T[i] @ T[j] < np.cos(np.radians(3.0)) for j in keep):
                 keep.append(i)
         return T[keep], inl[keep], score[keep]
+
+    def _epi(self, Rb, m, T):
+        """MSAC score (C,) and inliers (C, M) of C unit baselines T (C, 3) at one yaw, from
+        matrix products: the epipolar residual a . (t x R b) / rms(|t x R b|, |t x a|) =
+        t . m / ..., m = R b x a (``planar.epipolar_residuals``), in front of both cameras
+        (``planar.depths``) or without parallax."""
+        a, thr = self.a, self.p.thr_px
+        num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
+        r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / self.pix
+        ab = np.sum(a * Rb, 1)
+        det = np.maximum(1.0 - ab * ab, 1e-12)
+        front = ((at - ab * bt) / det > 0) & ((ab * at - bt) / det > 0)
+        far = np.linalg.norm(m, axis=1) / self.pix < 1.0
+        inl = (r < thr) & (front | far)
+        return msac(np.where(inl, r, thr), thr), inl
 
     def _lift(self, first):
         sel = _lift_order(self.a, self.m.ratio, first, self.p.max_lift)
@@ -180,6 +189,25 @@ class _Registration:
                             _inflate(self.lifts[1], sel, self.n, self.h[1], self.p, nb, self.b),
                             self.dy, self.h[0], self.pix)
 
+    def _scene_depth(self):
+        """Depth scale of the scene, metres: the median horizontal distance of the two
+        photos' boundary samples (chosen layouts) and lifted points, weighted by 1 / sigma^2
+        (a boundary near the horizon is far and says little); None without either."""
+        d, w = [np.zeros(0)], [np.zeros(0)]
+        for lays, L in ((self.la, self.P.la), (self.lb, self.P.lb)):
+            d.append(np.hypot(L.points[L.valid, 0], L.points[L.valid, 2]))
+            w.append(L.sigma[L.valid] ** -2.0)
+            if lays:
+                k = (lays[0].kind == 0) & np.isfinite(lays[0].range)
+                d.append(lays[0].range[k])
+                w.append(lays[0].sigma[k] ** -2.0)
+        d, w = np.concatenate(d), np.concatenate(w)
+        if len(d) == 0:
+            return None
+        o = np.argsort(d)
+        c = np.cumsum(w[o])
+        return float(d[o][np.searchsorted(c, 0.5 * c[-1])])
+
     def _candidates(self, yaws, free):
         none = (np.zeros((0, 3)), np.zeros((0, self.n), bool), np.zeros(0))
         per_yaw = [self._directions(y) if self.feats else none for y in yaws]
@@ -189,6 +217,7 @@ class _Registration:
         if len(best[2]):
             first |= best[1][0]
         self.P = self._lift(first)
+        self.depth = self._scene_depth()
         uses = (self.P.usable(False), self.P.usable(True))   # floor points first
         cy, ct = [], []
 
@@ -229,9 +258,12 @@ class _Registration:
         if self.n == 0:
             return np.zeros(len(yaw))
         thr, P = self.p.thr_px, self.P
-        r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t3 / np.linalg.norm(t3, axis=1,
-                                                                             keepdims=True), P.pix)
-        score = msac(np.where((r < thr) & (front | far), r, thr), thr)
+        score = np.zeros(len(yaw))
+        T = t3 / np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-12)
+        for y in np.unique(yaw):   # candidates come in groups of one yaw
+            k = yaw == y
+            Rb = _rotate(np.array([y]), self.b)[0]
+            score[k] = self._epi(Rb, np.cross(Rb, self.a), T[k])[0]
         floor, wall, n_floor = np.zeros(len(yaw)), np.zeros(len(yaw)), np.zeros(len(yaw))
         for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
             i = np.flatnonzero(L.valid)
@@ -267,11 +299,22 @@ class _Registration:
         d = _wrap90(self.orient[0] - yaw) / (3.0 * np.radians(self.p.orientation_sigma_deg))
         return self.p.orientation_weight * self.orient[1] * np.maximum(0.0, 1.0 - d * d)
 
+    def _baseline_score(self, t2):
+        """(C,) prior on the baseline: two photos sharing a view are rarely taken more than
+        ``baseline_depths`` times the depth of what they see apart (``self.depth``: the
+        median horizontal distance of the boundary samples and lifted points of the photo
+        that sees farther); beyond, ``baseline_weight`` per unit of the excess ratio."""
+        if self.depth is None:
+            return np.zeros(len(t2))
+        ratio = np.hypot(t2[:, 0], t2[:, 1]) / (self.p.baseline_depths * self.depth)
+        return -self.p.baseline_weight * np.maximum(0.0, ratio - 1.0)
+
     def _total(self, yaw, t2):
         yaw = np.atleast_1d(np.asarray(yaw, float))
         t2 = np.atleast_2d(t2)
         lay, which = self._layout_score(yaw, t2)
-        return self._feature_score(yaw, self._t3(t2)) + lay + self._orient_score(yaw), which
+        return (self._feature_score(yaw, self._t3(t2)) + lay + self._orient_score(yaw)
+                + self._baseline_score(t2)), which
 
     # ------------------------------------------------------------------ refinement
     def _inliers(self, yaw, t3):
@@ -318,7 +361,8 @@ class _Registration:
             parts.append(((tq[:, 1] - self.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None])
             return np.concatenate(parts, 1)
 
-        q, cov = levenberg_marquardt(resid, np.array([yaw, *t3]), n_prior=1 + int(use_o))
+        q, cov = levenberg_marquardt(resid, np.array([yaw, *t3]), n_prior=1 + int(use_o),
+                                     iters=self.p.refine_iters)
         return q, cov
 
     # ------------------------------------------------------------------ answer
@@ -339,9 +383,10 @@ class _Registration:
         if len(cy) == 0:
             raise self._refusal(0)
         total, which = self._total(cy, ct)
-        results = []
+        results, top = [], float(total.max())
         for i in np.argsort(-total):
-            if len(results) == self.p.refine_top:
+            if len(results) == self.p.refine_top or (
+                    results and total[i] < self.p.alternative_ratio * top):
                 break
             if any(self._same(cy[i], ct[i], r[0][0], r[0][[1, 3]]) for r in results):
                 continue

@@ -74,13 +74,17 @@ class MotionParams:
     min_orientation_support: float = 0.2
     orientation_sigma_deg: float = 1.0
     orientation_weight: float = 10.0
-    refine_top: int = 6
+    refine_top: int = 3
+    refine_iters: int = 6
     max_baseline_m: float = 30.0
     min_layout_samples: int = 8
     alternative_ratio: float = 0.8
     layout_floor: float = 0.0
     max_wall_yaws: int = 4
-    max_direction_seeds: int = 300
+    max_direction_seeds: int = 100
+    free_iters: int = 256
+    baseline_depths: float = 2.0
+    baseline_weight: float = 10.0
 
 
 @dataclass(frozen=True)

@@ -88,8 +88,7 @@ def _lookup(L: Layout, az: np.ndarray):
     i = np.clip(np.searchsorted(L.azimuth, az), 1, n - 1)
     left = az - L.azimuth[i - 1] < L.azimuth[i] - az
     j = np.where(left, i - 1, i)
-    tol = 1.5 * float(np.median(np.diff(L.azimuth)))
-    return j, np.abs(az - L.azimuth[j]) < tol
+    return j, np.abs(az - L.azimuth[j]) < 1.5 * L.spacing
 
 
 def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
