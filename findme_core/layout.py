@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from functools import cached_property
 
+import cv2
 import numpy as np
 
 from .camera import Camera
@@ -49,8 +50,9 @@ class LayoutParams:
         boundary_px: 1-sigma of the boundary position, pixels (hypothesis and snapping).
         gravity_deg: 1-sigma of the gravity direction, degrees.
         height_rel: relative 1-sigma of the camera height.
-        merge_deg: consecutive WALL segments closer than this in direction (and 5 % of their
-            distance in offset) are one wall.
+        merge_deg: consecutive WALL segments closer than this in direction are one wall.
+        simplify_px: a run of WALL segments is first reduced to the vertices that keep it
+            within this many pixels (Douglas-Peucker).
     """
 
     step_px: float = 6.0
@@ -58,6 +60,7 @@ class LayoutParams:
     gravity_deg: float = 0.5
     height_rel: float = 0.02
     merge_deg: float = 6.0
+    simplify_px: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -148,9 +151,34 @@ def from_hypothesis(camera: Camera, height: float, polyline, kinds=None, rank: i
     if not (np.isfinite(height) and height > 0):
         raise HypothesisError(f"camera height must be a positive number of metres, got {height!r}")
     h = float(height)
-    _, q = _floor(camera, h, poly)
-    walls, ends = _walls(poly, kinds, q, params)
+    wpoly, wkinds = _simplify(poly, kinds, params.simplify_px)
+    _, q = _floor(camera, h, wpoly)
+    walls, ends = _walls(wpoly, wkinds, q, params)
     return Layout(walls, ends, *_scan(camera, h, poly, kinds, walls, params), h, int(rank))
+
+
+def _simplify(poly, kinds, eps: float):
+    """The polyline with each run of consecutive WALL segments reduced by Douglas-Peucker
+    (``eps`` pixels; a boundary traced column by column becomes its few straight lines)."""
+    out_p, out_k, s = [poly[0]], [], 0
+    while s < len(kinds):
+        if kinds[s] != SegKind.WALL:
+            out_p.append(poly[s + 1])
+            out_k.append(int(kinds[s]))
+            s += 1
+            continue
+        e = s
+        while e < len(kinds) and kinds[e] == SegKind.WALL:
+            e += 1
+        run = poly[s:e + 1]
+        if len(run) > 2:
+            keep = cv2.approxPolyDP(run.astype(np.float32).reshape(-1, 1, 2), eps, False)
+            idx = [int(np.argmin(np.abs(run - k).sum(1))) for k in keep.reshape(-1, 2)]
+            run = run[sorted(set(idx) | {0, len(run) - 1})]
+        out_p.extend(run[1:])
+        out_k.extend([SegKind.WALL] * (len(run) - 1))
+        s = e
+    return np.array(out_p), np.array(out_k, int)
 
 
 def _walls(poly, kinds, q, params: LayoutParams):

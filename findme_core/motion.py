@@ -239,9 +239,10 @@ class _Registration:
             for la in self.la[:1]:
                 for lb in self.lb[:1]:
                     add(y, register.translations(la, lb, y, d2, self.rp))
-        if self.la and self.lb:
+        if self.la and self.lb:   # the walls alone (one wall fixes one direction only)
             for y in yaws:
-                add(y, register.translations(self.la[0], self.lb[0], y, None, self.rp))
+                add(y, register.translations(self.la[0], self.lb[0], y, None, self.rp,
+                                             single=not self.feats))
         if not cy:
             return np.zeros(0), np.zeros((0, 2))
         return np.array(cy), np.vstack(ct)
@@ -284,7 +285,7 @@ class _Registration:
         chosen one loses ``rank_penalty`` per step; layouts that disagree add nothing rather
         than count against: a wrong hypothesis must not outvote the matches), and the pair
         (i, j) of each."""
-        best, which = np.full(len(yaw), self.p.layout_floor), np.zeros((len(yaw), 2), int)
+        best, which = np.full(len(yaw), self.p.layout_floor), np.full((len(yaw), 2), -1)
         for i, la in enumerate(self.la):
             for j, lb in enumerate(self.lb):
                 s = register.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
@@ -345,7 +346,7 @@ class _Registration:
                   (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
         spread = [_spread(yaw, t3, *x, P.pix) for x in lifted]
         lay = (register.residual_terms(self.la[pair[0]], self.lb[pair[1]], yaw, t3[[0, 2]], self.rp)
-               if self.la and self.lb else None)
+               if pair[0] >= 0 else None)   # layouts that add nothing do not pull either
         sig_o = np.radians(self.p.orientation_sigma_deg)
         use_o = self.orient is not None and abs(_wrap90(self.orient[0] - yaw)) < 3 * sig_o
 
@@ -415,7 +416,8 @@ class _Registration:
     def _result(self, q, cov, score, pair) -> PlanarMotion:
         t3 = q[1:4]
         e_in, ta, tb = self._inliers(q[0], t3)
-        lay = (register.agreement(self.la[pair[0]], self.lb[pair[1]], q[0], t3[[0, 2]], self.rp)
+        i, j = max(pair[0], 0), max(pair[1], 0)
+        lay = (register.agreement(self.la[i], self.lb[j], q[0], t3[[0, 2]], self.rp)
                if self.la and self.lb else None)
         r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
                           e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
@@ -436,9 +438,10 @@ class _Registration:
         lay = m.layout
         if lay.corners:
             return
-        la = self.la[pair[0]]
+        la = self.la[max(pair[0], 0)]
         n = la.normals[[i for i, _ in lay.walls]] if lay.walls else np.zeros((0, 2))
-        if len(n) and np.abs(np.cross(n[:, None], n[None])).max() > np.sin(np.radians(30)):
+        cross = n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0]
+        if len(n) and np.abs(cross).max() > np.sin(np.radians(30)):
             return
         what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
         raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
