@@ -221,20 +221,24 @@ class _Registration:
         uses = (self.P.usable(False), self.P.usable(True))   # floor points first
         cy, ct = [], []
 
-        def add(yaw, t2):
-            t2 = np.asarray(t2, float).reshape(-1, 2)
-            cy.extend([yaw] * len(t2))
-            ct.append(t2)
+        def add(yaw, t):   # (N, 2) x, z (dy: h_A - h_B) or (N, 3)
+            t = np.asarray(t, float)
+            t = self._t3(t.reshape(-1, 2)) if t.shape[-1] == 2 else t.reshape(-1, 3)
+            cy.extend([yaw] * len(t))
+            ct.append(t)
 
-        dirs = [(y, T, inl) for y, (T, inl, _) in zip(yaws, per_yaw)]
-        if free is not None:
-            dirs.append((free[0], free[1][None], free[2][None]))
-        for y, T, inl in dirs:
+        dirs = [(y, T, inl, False) for y, (T, inl, _) in zip(yaws, per_yaw)]
+        if free is not None:   # with equal heights (assumed, not measured), its direction
+            # may rise or fall: uneven ground, a hand-held phone
+            dirs.append((free[0], free[1][None], free[2][None], self.planar))
+        for y, T, inl, free_dir in dirs:
             for t, e in zip(T, inl):
                 for use in uses:
                     s = _scale(self.P, y, t, e, use)
-                    if s is not None:
+                    if s is not None:   # the direction's own elevation, and dy = h_A - h_B
                         add(y, s * t[[0, 2]])
+                        if free_dir:
+                            add(y, s * t)
             d2 = T[:, [0, 2]] / np.maximum(np.linalg.norm(T[:, [0, 2]], axis=1, keepdims=True), 1e-12)
             for la in self.la[:1]:
                 for lb in self.lb[:1]:
@@ -244,7 +248,7 @@ class _Registration:
                 add(y, register.translations(self.la[0], self.lb[0], y, None, self.rp,
                                              single=not self.feats))
         if not cy:
-            return np.zeros(0), np.zeros((0, 2))
+            return np.zeros(0), np.zeros((0, 3))
         return np.array(cy), np.vstack(ct)
 
     # ------------------------------------------------------------------ scoring
@@ -300,22 +304,23 @@ class _Registration:
         d = _wrap90(self.orient[0] - yaw) / (3.0 * np.radians(self.p.orientation_sigma_deg))
         return self.p.orientation_weight * self.orient[1] * np.maximum(0.0, 1.0 - d * d)
 
-    def _baseline_score(self, t2):
+    def _baseline_score(self, t3):
         """(C,) prior on the baseline: two photos sharing a view are rarely taken more than
         ``baseline_depths`` times the depth of what they see apart (``self.depth``: the
         median horizontal distance of the boundary samples and lifted points of the photo
         that sees farther); beyond, ``baseline_weight`` per unit of the excess ratio."""
         if self.depth is None:
-            return np.zeros(len(t2))
-        ratio = np.hypot(t2[:, 0], t2[:, 1]) / (self.p.baseline_depths * self.depth)
+            return np.zeros(len(t3))
+        ratio = np.hypot(t3[:, 0], t3[:, 2]) / (self.p.baseline_depths * self.depth)
         return -self.p.baseline_weight * np.maximum(0.0, ratio - 1.0)
 
-    def _total(self, yaw, t2):
+    def _total(self, yaw, t3):
+        """(C,) total score of C motions (yaw (C,), t (C, 3)) and their layout pairs."""
         yaw = np.atleast_1d(np.asarray(yaw, float))
-        t2 = np.atleast_2d(t2)
-        lay, which = self._layout_score(yaw, t2)
-        return (self._feature_score(yaw, self._t3(t2)) + lay + self._orient_score(yaw)
-                + self._baseline_score(t2)), which
+        t3 = np.atleast_2d(t3)
+        lay, which = self._layout_score(yaw, t3[:, [0, 2]])
+        return (self._feature_score(yaw, t3) + lay + self._orient_score(yaw)
+                + self._baseline_score(t3)), which
 
     # ------------------------------------------------------------------ refinement
     def _inliers(self, yaw, t3):
@@ -379,7 +384,7 @@ class _Registration:
                               "measured")
         if len(cy) == 0:
             raise self._refusal(0)
-        ok = np.isfinite(ct).all(1) & (np.linalg.norm(ct, axis=1) < self.p.max_baseline_m)
+        ok = np.isfinite(ct).all(1) & (np.hypot(ct[:, 0], ct[:, 2]) < self.p.max_baseline_m)
         cy, ct = cy[ok], ct[ok]
         if len(cy) == 0:
             raise self._refusal(0)
@@ -389,10 +394,10 @@ class _Registration:
             if len(results) == self.p.refine_top or (
                     results and total[i] < self.p.alternative_ratio * top):
                 break
-            if any(self._same(cy[i], ct[i], r[0][0], r[0][[1, 3]]) for r in results):
+            if any(self._same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
                 continue
-            q, cov = self._refine(cy[i], self._t3(ct[i:i + 1])[0], which[i])
-            s, w = self._total(q[0], q[[1, 3]])
+            q, cov = self._refine(cy[i], ct[i], which[i])
+            s, w = self._total(q[0], q[1:4])
             results.append((q, cov, float(s[0]), w[0]))
         results.sort(key=lambda r: -r[2])
         out = []
