@@ -16,6 +16,7 @@ import time
 from dataclasses import dataclass, field
 
 from . import features, layout
+from .orientation import Orientation, orientation as room_orientation
 from .camera import Camera
 from .errors import FindmeError, HypothesisError
 from .lines import detect_segments
@@ -52,12 +53,12 @@ class Photo:
     features: features.Features | None = None
     scene: Scene | None = None
     layouts: list = field(default_factory=list)
-    orientation: layout.Orientation | None = None
+    orientation: Orientation | None = None
     timing_ms: dict = field(default_factory=dict)
 
 
 def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
-            segments=None, max_layouts: int = 3,
+            segments=None, max_layouts: int = 1,
             feature_params: features.FeatureParams = features.FeatureParams(),
             clock=time.perf_counter) -> Photo:
     """A photo ready for its motions.
@@ -88,14 +89,14 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
     t2 = clock()
     if segments is None:
         segments = detect_segments(image)
-    o = layout.orientation(segments, camera)
+    o = room_orientation(segments, camera)
     t3 = clock()
     return Photo(camera, float(height), f, scene, lays, o,
                  {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t2 - t1 + t3 - t2)})
 
 
 def photo_of(image, camera: Camera, height: float, rank: int = 1,
-             hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 3,
+             hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 1,
              feature_params: features.FeatureParams = features.FeatureParams(),
              clock=time.perf_counter) -> Photo:
     """``prepare`` with the photo's own hypotheses (``methods.hypothesize``, timed as

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from findme_core import layout
+from findme_core.orientation import Orientation
 from findme_core.features import Matches
 from findme_core.search import SegKind
 from findme_core.synth import Pose, render
@@ -39,10 +40,10 @@ def exact_polyline(view):
     return pts, np.array(kinds)
 
 
-def exact_orientation(pose: Pose) -> layout.Orientation:
+def exact_orientation(pose: Pose) -> Orientation:
     """The orientation of a room with walls along world X and Z, seen from ``pose``: world X
     has azimuth 90 deg - yaw in the pose's level frame."""
-    return layout.Orientation(float((-math.radians(pose.yaw_deg)) % (math.pi / 2)), 1.0, 10)
+    return Orientation(float((-math.radians(pose.yaw_deg)) % (math.pi / 2)), 1.0, 10)
 
 
 def view_layout(room, pose: Pose, size=(320, 240), hfov=70.0, rank=1):

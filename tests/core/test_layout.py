@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from findme_core import layout
+from findme_core.orientation import orientation
 from findme_core.camera import Camera
 from findme_core.errors import HypothesisError
 from findme_core.layout import End
@@ -101,7 +102,7 @@ def test_normals_point_to_the_camera():
 def test_orientation_from_the_lines_of_a_rendered_room(yaw):
     pose = Pose(0.3, -1.2, 1.45, yaw_deg=yaw, pitch_deg=15.0, roll_deg=2.0)
     v = render(Room.rectangle(5.0, 6.0), pose, 640, 480, hfov_deg=70.0, seed=1)
-    o = layout.orientation(detect_segments(v.image), v.camera)
+    o = orientation(detect_segments(v.image), v.camera)
     truth = (-math.radians(yaw)) % (math.pi / 2)
     err = (o.angle - truth + math.pi / 4) % (math.pi / 2) - math.pi / 4
     assert abs(math.degrees(err)) < 0.5 and o.support > 0.5 and 0 <= o.angle < math.pi / 2
@@ -109,9 +110,9 @@ def test_orientation_from_the_lines_of_a_rendered_room(yaw):
 
 def test_orientation_without_usable_lines_is_none():
     cam = Camera.from_hfov(70, 640, 480)
-    assert layout.orientation(np.zeros((0, 4)), cam) is None
+    assert orientation(np.zeros((0, 4)), cam) is None
     # only vertical lines: their plane holds gravity, no horizontal direction is known
-    assert layout.orientation([[100, 50, 100, 400], [500, 80, 500, 300]], cam) is None
+    assert orientation([[100, 50, 100, 400], [500, 80, 500, 300]], cam) is None
 
 
 @pytest.mark.parametrize("poly, kinds, match", [
