@@ -30,12 +30,12 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import schemas  # noqa: E402
 from bench.common import EVAL_DIR, dev_views  # noqa: E402
 from findme.evaluate import view_inputs  # noqa: E402
-from findme.imageio import decode_image  # noqa: E402
+from findme_io.imageio import decode_image  # noqa: E402
 from findme_core.methods import hypothesize  # noqa: E402
-from services.bus import BusConfig, open_session, wait_alive  # noqa: E402
-from services.convert import make_frame  # noqa: E402
-from services.hypotheses import HypothesesHandler  # noqa: E402
-from services.runtime import Service  # noqa: E402
+from services.runtime.bus import BusConfig, open_session, wait_alive  # noqa: E402
+from findme_io.convert import make_frame  # noqa: E402
+from services.pipeline.hypotheses import HypothesesHandler  # noqa: E402
+from services.runtime.service import Service  # noqa: E402
 
 
 def photos(n):

@@ -50,7 +50,7 @@ SESSION = "bench-rec"
 def jpeg_frames(k: int = 30) -> list[bytes]:
     """k distinct VGA JPEGs (the bundled photos, shifted and with fresh noise)."""
     import cv2
-    from findme.imageio import encode_jpeg
+    from findme_io.imageio import encode_jpeg
     base = [cv2.imread(str(ROOT / "findme" / "examples" / f"room_{x}.jpg")) for x in "ab"]
     rng = np.random.default_rng(0)
     out = []
@@ -67,7 +67,7 @@ class Stream:
     def __init__(self, fps: int):
         import schemas
         from findme_core.methods import hypothesize
-        from services.convert import camera_msg, frame_inputs, hypothesis_set_msg, make_frame
+        from findme_io.convert import camera_msg, frame_inputs, hypothesis_set_msg, make_frame
         self.S, self.fps = schemas, fps
         self.jpegs = jpeg_frames()
         meta = json.loads((ROOT / "findme" / "examples" / "room_a.json").read_text())
@@ -164,7 +164,7 @@ def free_port() -> int:
 
 
 def publish(session, frames, fps) -> dict:
-    from services import bus
+    from services.runtime import bus
     t0 = time.monotonic()
     pace = threading.Event()
     late = []
@@ -180,7 +180,7 @@ def publish(session, frames, fps) -> dict:
 
 
 def run_recorder(frames, fps, tmp: Path) -> dict:
-    from services import bus
+    from services.runtime import bus
     port = free_port()
     session = bus.open_session(bus.BusConfig(listen=(f"tcp/127.0.0.1:{port}",)))
     out = tmp / "rec"
@@ -229,7 +229,7 @@ def count_frames(path: Path) -> tuple[int, int]:
 
 def run_child(role: str, frames, fps, tmp: Path) -> dict:
     """A baseline in its own process; it reports ready on stdout, then runs."""
-    from services import bus
+    from services.runtime import bus
     port = free_port()
     session = None
     if role == "subscriber":
@@ -310,7 +310,7 @@ def child_mcap_writer(args) -> None:
 def child_subscriber(args) -> None:
     import zenoh
 
-    from services import bus
+    from services.runtime import bus
     session = bus.open_session(bus.BusConfig(connect=(f"tcp/127.0.0.1:{args.port}",)))
     got = {"n": 0, "frames": 0}
     lock = threading.Condition()

@@ -21,7 +21,7 @@ from findme_core.methods import hypothesize
 from findme_core.overlay import draw_hypotheses
 from findme_core.scene import Scene, distances
 
-from .imageio import read_image
+from findme_io.imageio import read_image
 
 
 def register(sub) -> None:

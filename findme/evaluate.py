@@ -27,7 +27,7 @@ from findme_core.methods import METHODS, hypothesize
 from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.scene import Scene
 
-from .imageio import read_image
+from findme_io.imageio import read_image
 from findme_core.pair import motion_photos, photo_of
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")

@@ -19,7 +19,7 @@ from findme_core.methods import METHODS as HYPOTHESIS_METHODS
 from findme_core.motion import METHODS
 from findme_core.pair import PairResult, motion_photos, photo_of
 
-from .imageio import read_image
+from findme_io.imageio import read_image
 from .options import add_camera_args, camera_from, camera_height
 
 

@@ -9,12 +9,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from findme_core.camera import Camera
+from findme_core.camera import DEFAULT_HFOV_DEG, Camera
 from findme_core.errors import CameraError, InputError
-
-#: Field of view assumed when a photo comes without intrinsics: a typical phone main camera
-#: (26 mm equivalent lens, landscape).
-DEFAULT_HFOV_DEG = 65.0
 
 
 def floats(text: str, n: int, name: str) -> tuple[float, ...]:

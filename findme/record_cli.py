@@ -15,9 +15,9 @@ from pathlib import Path
 
 import schemas
 from findme_core.errors import InputError, RecordingError
-from services import bus
-from services.mcap_reader import Recorded, read_recording
-from services.mcap_recover import recover
+from services.runtime import bus
+from services.recording.mcap_reader import Recorded, read_recording
+from services.recording.mcap_recover import recover
 
 from .regress import TOLERANCES, regress
 from .replay import rename_session, replay
@@ -98,7 +98,7 @@ def cmd_recover(args) -> int:
 
 # ------------------------------------------------------------------------------ view
 def cmd_view(args) -> int:
-    from services.viewer import Sink, has_display
+    from services.recording.viewer import Sink, has_display
     if args.live:
         return _view_live(args)
     if not args.recording:
@@ -116,7 +116,7 @@ def cmd_view(args) -> int:
     where, shown = view_recording(recs, sink)
     print(f"{src}: {shown} messages shown -> {where}")
     if sink.mode == "web":   # the web viewer lives as long as this command: until Ctrl-C
-        from services.registry import wait_for_signal
+        from services.runtime.registry import wait_for_signal
         print("serving the web viewer; Ctrl-C to stop", flush=True)
         try:
             wait_for_signal()
@@ -127,8 +127,8 @@ def cmd_view(args) -> int:
 
 def view_recording(recs: list[Recorded], sink) -> tuple[str, int]:
     """Log a recording's bus messages through the Rerun adapters into ``sink``."""
-    from findme.viz import SessionView, blueprint
-    from services.viewer import new_recording
+    from findme_io.rerun_views import SessionView, blueprint
+    from services.recording.viewer import new_recording
     if not recs:
         raise RecordingError("the recording holds no Find Me messages")
     session = bus.parse_key(recs[0].key).session
@@ -156,9 +156,9 @@ def view_recording(recs: list[Recorded], sink) -> tuple[str, int]:
 
 
 def _view_live(args) -> int:
-    from services.registry import wait_for_signal
-    from services.runtime import Service
-    from services.viewer import Sink, ViewerHandler, has_display
+    from services.runtime.registry import wait_for_signal
+    from services.runtime.service import Service
+    from services.recording.viewer import Sink, ViewerHandler, has_display
 
     from .deploy import _logging, _open
     _logging()
@@ -181,7 +181,7 @@ def _view_live(args) -> int:
 
 # ------------------------------------------------------------------------------ replay
 def cmd_replay(args) -> int:
-    from services.bus import wait_alive
+    from services.runtime.bus import wait_alive
 
     from .deploy import _logging, _open
     _logging()

@@ -18,8 +18,8 @@ from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
 import schemas
-from services import bus
-from services.mcap_reader import read_recording, recording_session
+from services.runtime import bus
+from services.recording.mcap_reader import read_recording, recording_session
 
 from .replay import INPUT_KINDS, Source, Watch, ask_measure, measure_request
 
@@ -167,7 +167,7 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
     """Replay a recording's frames, selections and measurements through the current services
     (embedded, one in-process Zenoh session, as ``findme run``) and compare every result
     with the recorded one. ``handlers`` replaces the services (tests)."""
-    from services.runtime import Group
+    from services.runtime.service import Group
 
     recs = read_recording(path)
     session_id = recording_session(path)
@@ -291,8 +291,8 @@ def wait_result(group, watch: Watch, pred, timeout: float, step: float = 0.05) -
 
 
 def _handlers(recs, kinds, method, max_n, notes) -> list:
-    from services.hypotheses import HypothesesHandler
-    from services.measurement import MeasurementHandler
+    from services.pipeline.hypotheses import HypothesesHandler
+    from services.pipeline.measurement import MeasurementHandler
     if method is None:
         for r in recs:
             if bus.parse_key(r.key).kind == "hypotheses":
@@ -302,7 +302,7 @@ def _handlers(recs, kinds, method, max_n, notes) -> list:
     hs = [HypothesesHandler(method or "findme", max_n), MeasurementHandler()]
     if kinds & set(ODOMETRY_KINDS):
         try:
-            from services.odometry import OdometryHandler
+            from services.pipeline.odometry import OdometryHandler
             hs.append(OdometryHandler())
         except ImportError:
             notes.append("the recording has odometry results but this build has no odometry "

@@ -17,8 +17,8 @@ from collections import Counter
 import zenoh
 
 import schemas
-from services import bus
-from services.mcap_reader import Recorded
+from services.runtime import bus
+from services.recording.mcap_reader import Recorded
 
 #: The kinds of key a session's inputs go on (what ``Source`` answers ``get`` for).
 INPUT_KINDS = ("frame", "selection")

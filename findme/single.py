@@ -15,7 +15,7 @@ from findme_core.overlay import draw_hypotheses
 from findme_core.scene import Scene, distances
 from findme_core.search import SegKind
 
-from .imageio import read_image
+from findme_io.imageio import read_image
 from .options import add_camera_args, camera_from, camera_height, floats
 
 KIND_NAMES = {int(k): k.name.lower() for k in SegKind}

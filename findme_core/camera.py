@@ -21,6 +21,10 @@ import numpy as np
 
 from .errors import CameraError
 
+#: Field of view assumed when a photo comes with no intrinsics at all: a typical phone main
+#: camera (26 mm equivalent lens, landscape), degrees.
+DEFAULT_HFOV_DEG = 65.0
+
 #: Below this |cos| between gravity and the optical axis the camera is looking straight
 #: down or up and "forward" (the level frame's z) is undefined.
 _MIN_FORWARD_NORM = 1e-6

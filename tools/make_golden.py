@@ -31,11 +31,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import schemas  # noqa: E402
-from findme.imageio import encode_jpeg  # noqa: E402
-from services import bus  # noqa: E402
-from services.convert import make_frame  # noqa: E402
-from services.mcap_reader import read_recording  # noqa: E402
-from services.mcap_writer import McapRecording  # noqa: E402
+from findme_io.imageio import encode_jpeg  # noqa: E402
+from services.runtime import bus  # noqa: E402
+from findme_io.convert import make_frame  # noqa: E402
+from services.recording.mcap_reader import read_recording  # noqa: E402
+from services.recording.mcap_writer import McapRecording  # noqa: E402
 
 OUT = ROOT / "recordings" / "golden"
 T0 = 1_700_000_000_000_000_000       # 2023-11-14T22:13:20Z, the golden clock
@@ -138,13 +138,13 @@ def run_session(spec: Spec, out_dir: Path) -> Path:
     """Run the embedded pipeline on a spec with the recorder; the raw recording's path."""
     from findme.regress import wait_result
     from findme.replay import Watch, ask_measure
-    from services.capture import CaptureHandler
-    from services.hypotheses import HypothesesHandler
-    from services.measurement import MeasurementHandler
-    from services.recorder import RecorderHandler
-    from services.handler import Output
-    from services.runtime import Group
-    from services.selection import SelectionHandler
+    from services.pipeline.capture import CaptureHandler
+    from services.pipeline.hypotheses import HypothesesHandler
+    from services.pipeline.measurement import MeasurementHandler
+    from services.recording.recorder import RecorderHandler
+    from services.runtime.handler import Output
+    from services.runtime.service import Group
+    from services.pipeline.selection import SelectionHandler
 
     sid = f"golden-{spec.name}"
     session = bus.open_session(bus.BusConfig())
@@ -158,7 +158,7 @@ def run_session(spec: Spec, out_dir: Path) -> Path:
         group.add(_with_height(sel, spec.choices))
         group.add(MeasurementHandler())
         try:
-            from services.odometry import OdometryHandler
+            from services.pipeline.odometry import OdometryHandler
             group.add(OdometryHandler())
         except ImportError:
             pass

@@ -16,9 +16,9 @@ import pytest
 os.environ.setdefault("CI", "1")
 
 import schemas  # noqa: E402
-from services import bus  # noqa: E402
-from services.mcap_reader import read_recording  # noqa: E402
-from services.mcap_writer import McapRecording  # noqa: E402
+from services.runtime import bus  # noqa: E402
+from services.recording.mcap_reader import read_recording  # noqa: E402
+from services.recording.mcap_writer import McapRecording  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "recordings" / "golden"

@@ -11,7 +11,7 @@ import textwrap
 
 import pytest
 
-from services.mcap_reader import read_recording
+from services.recording.mcap_reader import read_recording
 
 from tests.conftest import WITHOUT_PROJECT_CODE
 

@@ -12,12 +12,12 @@ import time
 import numpy as np
 
 import schemas
-from findme.imageio import encode_jpeg
+from findme_io.imageio import encode_jpeg
 from findme_core.errors import RecordingError
-from services import bus
-from services.convert import make_frame
-from services.mcap_reader import read_recording
-from services.recorder import FLUSH_BOUND_S
+from services.runtime import bus
+from findme_io.convert import make_frame
+from services.recording.mcap_reader import read_recording
+from services.recording.recorder import FLUSH_BOUND_S
 
 from .conftest import ROOT, free_port, wait_service
 

@@ -7,8 +7,8 @@ import os
 import subprocess
 import sys
 
-from services.mcap_reader import read_recording
-from services.mcap_writer import McapRecording
+from services.recording.mcap_reader import read_recording
+from services.recording.mcap_writer import McapRecording
 
 from .conftest import GOLDEN, PAIR, ROOT
 

@@ -12,12 +12,12 @@ from mcap.reader import make_reader
 
 import schemas
 from findme_core.errors import InputError, RecordingError
-from services import bus
-from services.mcap_layout import key_of
-from services.mcap_reader import read_recording
-from services.mcap_writer import McapRecording, recording_path
-from services.recorder import FLUSH_BOUND_S, RecorderHandler
-from services.runtime import Group
+from services.runtime import bus
+from services.recording.mcap_layout import key_of
+from services.recording.mcap_reader import read_recording
+from services.recording.mcap_writer import McapRecording, recording_path
+from services.recording.recorder import FLUSH_BOUND_S, RecorderHandler
+from services.runtime.service import Group
 
 from .conftest import PAIR, Arrivals, odometry_messages
 
@@ -160,7 +160,7 @@ def test_flusher_bounds_what_is_only_in_memory(tmp_path):
         h.on_message(r.key, r.payload)
     flushed.clear()
     assert flushed.wait(5)           # a full flush tick after the last write
-    from services.mcap_recover import recover
+    from services.recording.mcap_recover import recover
     s = recover(tmp_path / "golden-examples-pair.mcap", tmp_path / "fixed.mcap")
     assert not s.complete
     assert len(read_recording(tmp_path / "fixed.mcap")) == len(recs)
@@ -172,7 +172,7 @@ def test_trajectory_view_equals_the_plain_encoding():
     PosesInFrame built field by field."""
     from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
 
-    from services.foxglove_view import FoxgloveView
+    from services.recording.foxglove_view import FoxgloveView
     view = FoxgloveView("s")
     tr = schemas.Trajectory(session="s", time_ns=5)
     for i in range(200):

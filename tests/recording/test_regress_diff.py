@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 from findme.regress import TOL_M, TOL_PX, diff_messages, regress
-from services.mcap_reader import read_recording
+from services.recording.mcap_reader import read_recording
 
 from .conftest import PAIR, rewrite
 
@@ -63,7 +63,7 @@ def test_a_missing_result_is_reported(tmp_path, cli):
 
 def test_a_changed_service_fails_on_its_results_and_what_follows(monkeypatch):
     """The other direction: the recording is right, the current code moved."""
-    from services import hypotheses as hyp_mod
+    from services.pipeline import hypotheses as hyp_mod
     real = hyp_mod.hypothesis_set_msg
 
     def shifted(*a, **kw):

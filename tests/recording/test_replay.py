@@ -3,12 +3,12 @@ records the same messages again), or its inputs so the running services compute 
 
 from __future__ import annotations
 
-from services import bus
-from services.hypotheses import HypothesesHandler
-from services.measurement import MeasurementHandler
-from services.mcap_reader import read_recording
-from services.recorder import RecorderHandler
-from services.runtime import Group
+from services.runtime import bus
+from services.pipeline.hypotheses import HypothesesHandler
+from services.pipeline.measurement import MeasurementHandler
+from services.recording.mcap_reader import read_recording
+from services.recording.recorder import RecorderHandler
+from services.runtime.service import Group
 
 from findme.regress import diff_messages
 

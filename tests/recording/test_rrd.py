@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from services.mcap_reader import read_recording
+from services.recording.mcap_reader import read_recording
 
 from .conftest import PAIR
 
@@ -79,7 +79,7 @@ def test_view_defaults_to_rrd_beside_the_mcap_when_headless(tmp_path, cli, monke
 
 
 def test_viewer_service_shows_the_bus_live_into_rrd(full_recording, tmp_path):
-    from services.viewer import Sink, ViewerHandler
+    from services.recording.viewer import Sink, ViewerHandler
     h = ViewerHandler(Sink("rrd", path=str(tmp_path)))
     recs = read_recording(full_recording)
     for r in recs:
@@ -95,7 +95,7 @@ def test_viewer_service_shows_the_bus_live_into_rrd(full_recording, tmp_path):
 
 
 def test_rerun_own_mcap_loader_sees_images_poses_and_transforms(full_recording, tmp_path):
-    from services.viewer import _rerun_cli
+    from services.recording.viewer import _rerun_cli
     out = tmp_path / "converted.rrd"
     r = subprocess.run([*_rerun_cli(), "mcap", "convert", str(full_recording), "-o", str(out)],
                        capture_output=True, text=True, timeout=120, env=dict(os.environ))
@@ -134,7 +134,7 @@ def _listening(pid: int) -> set[str]:
 
 
 def test_viewer_servers_bind_localhost_by_default():
-    from services.viewer import Sink, _free_port
+    from services.recording.viewer import Sink, _free_port
     sink = Sink("web")
     port, wport = _free_port("127.0.0.1"), _free_port("127.0.0.1")
     proc = subprocess.Popen(sink.command(port, wport), stderr=subprocess.PIPE, text=True,

@@ -7,8 +7,8 @@ import cv2
 import pytest
 
 import schemas
-from services.bus import BusConfig, open_session
-from services.convert import make_frame
+from services.runtime.bus import BusConfig, open_session
+from findme_io.convert import make_frame
 
 
 @pytest.fixture

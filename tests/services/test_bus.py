@@ -8,12 +8,12 @@ import zenoh
 
 import schemas
 from findme_core.errors import BusError
-from services.hypotheses import HypothesesHandler
-from services.measurement import MeasurementHandler
-from services.odometry import OdometryHandler
-from services.handler import Handler, Input, Output
-from services.runtime import Group, Service
-from services.selection import SelectionHandler
+from services.pipeline.hypotheses import HypothesesHandler
+from services.pipeline.measurement import MeasurementHandler
+from services.pipeline.odometry import OdometryHandler
+from services.runtime.handler import Handler, Input, Output
+from services.runtime.service import Group, Service
+from services.pipeline.selection import SelectionHandler
 from tests.services.conftest import Collector, frame_of
 
 GOOD_SELECTION = schemas.Selection(session="t1", index=0, rank=1, by=schemas.SELECTED_BY_USER)

@@ -14,7 +14,7 @@ import pytest
 import zenoh
 
 import schemas
-from services.bus import BusConfig, open_session, wait_alive
+from services.runtime.bus import BusConfig, open_session, wait_alive
 from tests.cli.conftest import run_findme
 from tests.services.conftest import free_port, spawn_findme, wait_logged
 

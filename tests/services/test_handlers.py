@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 import schemas
-from findme.imageio import decode_image
+from findme_io.imageio import decode_image
 from findme_core.errors import HypothesisError, ImageError, InputError
 from findme_core.methods import hypothesize
 from findme_core.scene import Scene
-from services.hypotheses import HypothesesHandler
-from services.measurement import MeasurementHandler
-from services.handler import UnknownSession
-from services.selection import AutoChooser, SelectionHandler, TerminalChooser
+from services.pipeline.hypotheses import HypothesesHandler
+from services.pipeline.measurement import MeasurementHandler
+from services.runtime.handler import UnknownSession
+from services.pipeline.selection import AutoChooser, SelectionHandler, TerminalChooser
 from tests.services.conftest import frame_of
 
 

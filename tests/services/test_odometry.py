@@ -7,8 +7,8 @@ import pytest
 
 import schemas
 from findme_core.synth import Pose, Room, planar_motion, render
-from services.hypotheses import HypothesesHandler
-from services.odometry import OdometryHandler
+from services.pipeline.hypotheses import HypothesesHandler
+from services.pipeline.odometry import OdometryHandler
 from tests.services.conftest import frame_of
 
 

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import schemas
-from services import bus
-from services.gateway import Gateway, parse_http
-from services.page_input import GatewayError, build_frame, parse_command, parse_upload
-from services.page_output import to_page
+from services.runtime import bus
+from services.web.gateway import Gateway, parse_http
+from services.web.page_input import GatewayError, build_frame, parse_command, parse_upload
+from services.web.page_output import to_page
 
 CODE = schemas.ErrorCode
 ROOM_A = (resources.files("findme") / "examples" / "room_a.jpg").read_bytes()

@@ -206,7 +206,7 @@ def test_two_photos_show_the_motion(browser, app, shots):
     if "odometry" not in page.evaluate("FindMe.state.services"):
         shots(page, "06-two-photos-no-odometry", at="#motion")
         assert "no odometry service" in page.inner_text("#motion-text")
-        pytest.skip("findme app runs no odometry service (services/odometry.py is not in this "
+        pytest.skip("findme app runs no odometry service (services/pipeline/odometry.py is not in this "
                     "checkout): the page says so; the motion display is tested with injected "
                     "messages in test_motion_messages_are_drawn")
     line = page.wait_for_selector('.motion-line[data-pair="0-1"]', timeout=60000)
@@ -223,8 +223,8 @@ def test_motion_messages_are_drawn(browser, app, shots):
     """Motion, pose and trajectory messages on the page's session keys (published here by a
     peer on the app's bus, as odometry would) reach the page: text and floor map."""
     import schemas
-    from services.bus import wait_alive
-    from services import bus
+    from services.runtime.bus import wait_alive
+    from services.runtime import bus
 
     page = open_page(browser, app)
     type_camera(page, SIDE_A)

@@ -61,10 +61,10 @@ def photo_path(n: int) -> str:
 
 def camera_of(frame_or_scene):
     """findme_core Camera of a Frame (from its image size) or of a Scene message."""
-    from services.convert import frame_camera, msg_camera
+    from .convert import frame_camera, msg_camera
     if frame_or_scene.DESCRIPTOR.full_name == "findme.v1.Scene":
         return msg_camera(frame_or_scene.camera)
-    from findme.imageio import image_size
+    from .imageio import image_size
     w, h = image_size(frame_or_scene.image.data, f"frame {frame_or_scene.index}")
     return frame_camera(frame_or_scene, w, h)
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import schemas
 
-from . import bus
+from ..runtime import bus
 
 CODE = schemas.ErrorCode
 

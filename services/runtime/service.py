@@ -20,12 +20,12 @@ wires it to a session:
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import threading
 import time
 import traceback
 import uuid
-import zlib
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 
@@ -38,6 +38,15 @@ from . import bus
 from .handler import Handler, Input, Output, error_message
 
 log = logging.getLogger("findme.services")
+
+
+def shard_owner(shard_key: str, instances) -> str:
+    """The instance (of the live ``instances`` of one service) that handles a message with
+    this shard key: rendezvous hashing (the instance with the highest hash of instance and
+    key), so an instance leaving moves only its own keys. (``crc32(key) % n`` sent frames
+    0-3 of every session to the same one of two instances: crc32 is linear in its input.)"""
+    return max(sorted(instances), key=lambda i: hashlib.blake2b(
+        f"{i}\0{shard_key}".encode(), digest_size=8).digest())
 
 
 @dataclass
@@ -221,11 +230,8 @@ class Service:
         if not self.handler.shard:
             return True
         with self._cv:
-            peers = sorted(self._peers | {self.instance})
-        if len(peers) == 1:
-            return True
-        h = zlib.crc32(self.handler.shard_key(key, msg).encode())
-        return peers[h % len(peers)] == self.instance
+            peers = self._peers | {self.instance}
+        return shard_owner(self.handler.shard_key(key, msg), peers) == self.instance
 
     def process(self, i: int, key: str, payload: bytes) -> None:
         """Decode, handle and publish one input (runs on the worker thread)."""
@@ -234,9 +240,12 @@ class Service:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
             if not self._mine(key, msg):
                 return
+            t0 = time.perf_counter()
             outputs = self.handler.on_message(key, msg)
             for out in outputs:
                 self.publish(out)
+            log.info("%s: %s -> %s (%.0f ms)", self.ident, key,   # one line per message
+                     ", ".join(o.key for o in outputs) or "nothing", 1e3 * (time.perf_counter() - t0))
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
             self.report(key, exc)
 
@@ -249,6 +258,7 @@ class Service:
             reply = self.handler.on_query(key, msg)
             query.reply(key, schemas.encode(reply))
             self.counters.results_out += 1
+            log.info("%s: query %s answered", self.ident, key)
         except Exception as exc:  # noqa: BLE001 - the asker gets the error, the log the reason
             ekey, err = self.report(key, exc)
             query.reply_err(schemas.encode(err))

@@ -26,7 +26,7 @@ from google.protobuf.message import DecodeError
 import schemas
 from findme_core.errors import FindmeError
 
-from . import bus
+from ..runtime import bus
 
 VERSION = "findme-recorder/1"
 

@@ -12,13 +12,13 @@ from __future__ import annotations
 import time
 
 import schemas
-from findme.imageio import image_size
+from findme_io.imageio import image_size
 from findme_core.errors import HypothesisError
 from findme_core.scene import Scene
 
-from . import bus
-from .convert import camera_msg, frame_camera, measure_reply_msg, msg_hypotheses
-from .handler import Handler, Input, Output, UnknownSession
+from ..runtime import bus
+from findme_io.convert import camera_msg, frame_camera, measure_reply_msg, msg_hypotheses
+from ..runtime.handler import Handler, Input, Output, UnknownSession
 
 DEFAULT_HEIGHT_SIGMA_M = 0.03
 

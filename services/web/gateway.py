@@ -46,14 +46,14 @@ import zenoh
 from aiohttp import WSCloseCode, WSMsgType, web
 
 import schemas
-from findme.imageio import MAX_PIXELS
+from findme_io.imageio import MAX_PIXELS
 from findme_core.errors import BusError, InputError
 
-from . import bus
+from ..runtime import bus
 from .page_input import MAX_HEADER_BYTES, MAX_MEASURE_PIXELS, MAX_UPLOAD_BYTES
 from .page_session import MAX_PHOTOS, PageSession
-from .handler import Handler
-from .runtime import Service
+from ..runtime.handler import Handler
+from ..runtime.service import Service
 
 log = logging.getLogger("findme.services.gateway")
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import schemas
 from findme_core.errors import FindmeError, RecordingError
 
-from . import bus
+from ..runtime import bus
 from .mcap_layout import CHANNEL, MCAP_MAGIC, key_of, parse
 
 

@@ -131,9 +131,9 @@ class FoxgloveView:
     def _camera(self, f):
         """The findme_core Camera of a frame (cached by size, lens and gravity), None if
         the image or the lens is invalid."""
-        from findme.imageio import image_size
+        from findme_io.imageio import image_size
 
-        from .convert import frame_camera
+        from findme_io.convert import frame_camera
         try:
             w, h = image_size(f.image.data, f"frame {f.index}")
         except FindmeError:

@@ -26,9 +26,9 @@ from pathlib import Path
 
 from findme_core.errors import FindmeError, InputError
 
-from . import bus
+from ..runtime import bus
 from .mcap_writer import COMPRESSIONS, McapRecording, recording_path
-from .handler import Handler, Input
+from ..runtime.handler import Handler, Input
 
 log = logging.getLogger("findme.services.recorder")
 

@@ -15,9 +15,9 @@ import schemas
 from findme_core.errors import InputError
 from findme_core.methods import hypothesize
 
-from . import bus
-from .convert import frame_inputs, hypothesis_set_msg
-from .handler import Handler, Input, Output
+from ..runtime import bus
+from findme_io.convert import frame_inputs, hypothesis_set_msg
+from ..runtime.handler import Handler, Input, Output
 
 
 def check_frame_key(key: str, frame) -> bus.Key:

@@ -20,15 +20,15 @@ import math
 import time
 
 import schemas
-from findme.imageio import decode_image
+from findme_io.imageio import decode_image
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_pair
 from findme_core.scene import Scene
 from findme_core.trajectory import PlanarPose, compose
 
-from . import bus
-from .convert import frame_camera, msg_hypotheses
-from .handler import Handler, Input, Output
+from ..runtime import bus
+from findme_io.convert import frame_camera, msg_hypotheses
+from ..runtime.handler import Handler, Input, Output
 
 
 class _Session:

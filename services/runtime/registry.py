@@ -32,22 +32,22 @@ def add_service_args(p) -> None:
 def make_handler(name: str, args) -> Handler:
     """The handler of service ``name`` configured from parsed ``args``."""
     if name == "hypotheses":
-        from .hypotheses import HypothesesHandler
+        from ..pipeline.hypotheses import HypothesesHandler
         if args.latest is not None and args.latest < 1:
             raise InputError(f"--latest must be at least 1, got {args.latest}")
         return HypothesesHandler(args.method, args.max,
                                  "latest" if args.latest else "all", args.latest or 64)
     if name == "selection":
-        from .selection import SelectionHandler, TerminalChooser
+        from ..pipeline.selection import SelectionHandler, TerminalChooser
         return SelectionHandler(TerminalChooser(args.out) if args.interactive else None)
     if name == "measurement":
-        from .measurement import MeasurementHandler
+        from ..pipeline.measurement import MeasurementHandler
         return MeasurementHandler()
     if name == "odometry":
-        from .odometry import OdometryHandler
+        from ..pipeline.odometry import OdometryHandler
         return OdometryHandler()
     if name == "capture":
-        from .capture import CaptureHandler
+        from ..pipeline.capture import CaptureHandler
         return CaptureHandler()
     extra = _extra_services()
     if name in extra:
@@ -59,17 +59,17 @@ def _extra_services() -> dict:
     """Services defined in other modules (recorder, viewer, gateway), if present."""
     out = {}
     try:
-        from .recorder import make_recorder
+        from ..recording.recorder import make_recorder
         out["recorder"] = make_recorder
     except ImportError:
         pass
     try:
-        from .viewer import make_viewer
+        from ..recording.viewer import make_viewer
         out["viewer"] = make_viewer
     except ImportError:
         pass
     try:
-        from .gateway import make_gateway
+        from ..web.gateway import make_gateway
         out["gateway"] = make_gateway
     except ImportError:  # aiohttp not installed
         pass

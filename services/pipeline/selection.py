@@ -19,9 +19,9 @@ import schemas
 from findme_core.errors import HypothesisError
 from findme_core.overlay import draw_hypotheses
 
-from . import bus
-from .convert import msg_hypotheses
-from .handler import Handler, Input, Output
+from ..runtime import bus
+from findme_io.convert import msg_hypotheses
+from ..runtime.handler import Handler, Input, Output
 
 
 class AutoChooser:
@@ -43,7 +43,7 @@ class TerminalChooser:
     def __call__(self, hset, frame=None) -> int:
         n = len(hset.hypotheses)
         if frame is not None:
-            from .convert import frame_inputs
+            from findme_io.convert import frame_inputs
             image, _ = frame_inputs(frame)
             path = self.out / f"{hset.session}_{hset.index}_selection.png"
             cv2.imwrite(str(path), draw_hypotheses(image, [h.polyline for h in msg_hypotheses(hset)]))

@@ -40,11 +40,11 @@ from aiohttp import web
 import schemas
 from findme_core.errors import FindmeError
 
-from . import bus
+from ..runtime import bus
 from .page_input import CODE, GatewayError, _bad, build_frame, parse_command, parse_upload
 from .page_output import to_page
-from .handler import Output
-from .runtime import Service
+from ..runtime.handler import Output
+from ..runtime.service import Service
 
 log = logging.getLogger("findme.services.gateway")
 

@@ -36,10 +36,10 @@ import struct
 import time
 
 import schemas
-from findme.imageio import MAX_PIXELS, _declared_size, decode_image, encode_jpeg
+from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, encode_jpeg
 from findme_core.errors import CameraError, FindmeError, ImageError, InputError
 
-from .convert import frame_camera, image_format, make_frame
+from findme_io.convert import frame_camera, image_format, make_frame
 
 #: Largest photo a page may upload (bytes). Below the bus's 16 MB message limit, with room
 #: for the rest of the Frame.

@@ -11,9 +11,8 @@ import time
 import numpy as np
 
 import schemas
-from findme.imageio import decode_image
-from findme.options import DEFAULT_HFOV_DEG
-from findme_core.camera import Camera
+from .imageio import decode_image
+from findme_core.camera import DEFAULT_HFOV_DEG, Camera
 from findme_core.errors import CameraError, ImageError, InputError
 from findme_core.hypotheses import Hypothesis, HypothesisSet
 from findme_core.scene import Located, distances

@@ -19,7 +19,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 
 import schemas
 
-from . import bus
+from ..runtime import bus
 from .foxglove_view import FoxgloveView
 from .mcap_layout import CHANNEL, KIND, VERSION, key_of, kind_topic, parse
 

@@ -6,7 +6,7 @@ Where the recordings go (``Sink``): a viewer this process starts (``spawn``: the
 viewer, or ``web``: the web viewer), one already running (``connect``), or ``.rrd`` files
 (``rrd``: ``<dir>/<session>.rrd``; the default when there is no display). Servers it
 starts bind 127.0.0.1 unless another address is given (the Rerun CLI and SDK default to
-0.0.0.0, i.e. every network the machine is on). What is drawn and where: ``findme.viz``.
+0.0.0.0, i.e. every network the machine is on). What is drawn and where: ``findme_io.rerun_views``.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from pathlib import Path
 
 from findme_core.errors import FindmeError, InputError
 
-from . import bus
+from ..runtime import bus
 from .mcap_layout import parse
-from .handler import Handler, Input
+from ..runtime.handler import Handler, Input
 
 log = logging.getLogger("findme.services.viewer")
 
@@ -137,7 +137,7 @@ class ViewerHandler(Handler):
     drain_on_stop = True
 
     def __init__(self, sink: Sink | None = None, clock=time.time_ns):
-        from findme.viz import SessionView  # noqa: F401 - fail early if rerun is missing
+        from findme_io.rerun_views import SessionView  # noqa: F401 - fail early if rerun is missing
         self.sink = sink or Sink.default()
         self.clock = clock
         self.views: dict[str, object] = {}
@@ -149,7 +149,7 @@ class ViewerHandler(Handler):
     def _view(self, session: str):
         v = self.views.get(session)
         if v is None:
-            from findme.viz import SessionView
+            from findme_io.rerun_views import SessionView
             rec = new_recording(session)
             self.where[session] = self.sink.attach(rec, session)
             v = self.views[session] = SessionView(rec)
