@@ -7,7 +7,8 @@
 Nothing changes frame or unit on the way: pixels as on the bus ((0, 0) is the centre of the
 top-left pixel), metres (``*_m``, up to scale when not metric), radians (``*_rad``), poses
 relative to photo 0 and motions of photo B relative to photo A as in ``schemas``, measured
-points in camera coordinates, gravity in camera axes. Enums become lower-case names (error
+points in camera coordinates, gravity in camera axes. A scene also carries its boundary's
+walls on the floor (``walls_m``, the photo's level frame) for the page's floor map. Enums become lower-case names (error
 codes upper-case, without their prefix), unset optional fields ``None``, and an error's key
 is given relative to the session (``frame/3``).
 
@@ -17,6 +18,9 @@ Pure: no bus, no server; the message is only read.
 from __future__ import annotations
 
 import schemas
+from findme_core import layout
+from findme_core.errors import FindmeError
+from findme_io.convert import msg_camera
 
 from ..runtime import bus
 
@@ -37,6 +41,18 @@ def _pose(p) -> dict:
             "sigma_yaw_rad": _opt(p, "sigma_yaw_rad")}
 
 
+def _walls(scene) -> list:
+    """The walls of a Scene's boundary on the floor, [[x0, z0], [x1, z1]] metres in the
+    photo's level frame (``findme_core.layout``), for the page's floor map; [] when the
+    boundary gives none."""
+    try:
+        poly, kinds = schemas.msg_to_polyline(scene.polyline)
+        lay = layout.from_hypothesis(msg_camera(scene.camera), scene.camera_height_m, poly, kinds)
+    except FindmeError:
+        return []
+    return [[[round(float(v), 4) for v in p] for p in w] for w in lay.walls]
+
+
 def to_page(session: str, msg) -> dict | None:
     """A bus message of ``session`` as the JSON the page reads (None: not for the page)."""
     name = type(msg).__name__
@@ -55,7 +71,8 @@ def to_page(session: str, msg) -> dict | None:
     if name == "Scene":
         return {"type": "scene", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
                 "camera_height_m": msg.camera_height_m,
-                "gravity": [msg.camera.gravity.x, msg.camera.gravity.y, msg.camera.gravity.z]}
+                "gravity": [msg.camera.gravity.x, msg.camera.gravity.y, msg.camera.gravity.z],
+                "walls_m": _walls(msg)}
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}
