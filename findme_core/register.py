@@ -21,14 +21,8 @@ from .errors import MotionError
 from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error, _scale,
                               check_matches, local_optimisation)
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result
-from .planar import (_epipolar_terms, _rotate, _spread, bearings, epipolar_residuals,
-                     known_yaw_terms, rot_y, transfer_residuals)
-from .robust import levenberg_marquardt, msac
-
-
-def _wrap90(x):
-    """Angle difference modulo a quarter turn, in [-pi/4, pi/4)."""
-    return (np.asarray(x) + np.pi / 4) % (np.pi / 2) - np.pi / 4
+from .planar import _rotate, bearings, rot_y
+from .register_fit import Fit, known_yaw_score
 
 
 class Registration:
@@ -52,7 +46,6 @@ class Registration:
                        or min(oa.support, ob.support) < params.min_orientation_support
                        else (oa.angle - ob.angle, min(oa.support, ob.support)))
         self.rng = np.random.default_rng(params.seed)
-        self.floor_first = None   # decided on the first candidates scored
         self.normal = None        # (floor normal in A, yaw) when the features correct gravity
         self.depth = None         # the scene's depth scale (``_scene_depth``), metres
         self.seeds = np.argsort(matches.ratio, kind="stable")[:params.max_direction_seeds]
@@ -97,7 +90,7 @@ class Registration:
         T = np.column_stack([m[seeds, 2], np.zeros(len(seeds)), -m[seeds, 0]])
         T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
         T = np.vstack([T, -T])
-        score, inl = self._epi(Rb, m, T)
+        score, inl = known_yaw_score(a, Rb, m, T, self.pix, p.thr_px)
         keep = []
         for i in np.argsort(-score):
             if score[i] < max(2.0, 0.3 * score[np.argsort(-score)[0]]) or len(keep) == 3:
@@ -105,12 +98,6 @@ class Registration:
             if all(T[i] @ T[j] < np.cos(np.radians(3.0)) for j in keep):
                 keep.append(i)
         return T[keep], inl[keep], score[keep]
-
-    def _epi(self, Rb, m, T):
-        """MSAC score (C,) and inliers (C, M) of C unit baselines T (C, 3) at one yaw."""
-        r, front, far = known_yaw_terms(self.a, Rb, m, T, self.pix)
-        inl = (r < self.p.thr_px) & (front | far)
-        return msac(np.where(inl, r, self.p.thr_px), self.p.thr_px), inl
 
     def _lift(self, first):
         sel = _lift_order(self.a, self.m.ratio, first, self.p.max_lift)
@@ -151,6 +138,7 @@ class Registration:
             first |= best[1][0]
         self.P = self._lift(first)
         self.depth = self._scene_depth()
+        self.fit = Fit(self.P, self.la, self.lb, self.orient, self.depth, self.p, self.rp)
         uses = (self.P.usable(False), self.P.usable(True))   # floor points first
         cy, ct = [], []
 
@@ -184,125 +172,8 @@ class Registration:
             return np.zeros(0), np.zeros((0, 3))
         return np.array(cy), np.vstack(ct)
 
-    # ------------------------------------------------------------------ scoring
     def _t3(self, t2):
         return np.column_stack([t2[:, 0], np.full(len(t2), self.dy), t2[:, 1]])
-
-    def _feature_score(self, yaw, t3):
-        """(C,) MSAC of the epipolar residuals of all matches and the transfer residuals of
-        the lifted points (pixels over their spread, the spread capped at 3): floor points
-        only once some motion has ``min_floor`` of them agreeing (``self.floor_first``: a
-        wall point is right only when its wall is), else wall points too."""
-        if self.n == 0:
-            return np.zeros(len(yaw))
-        thr, P = self.p.thr_px, self.P
-        score = np.zeros(len(yaw))
-        T = t3 / np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-12)
-        for y in np.unique(yaw):   # candidates come in groups of one yaw
-            k = yaw == y
-            Rb = _rotate(np.array([y]), self.b)[0]
-            score[k] = self._epi(Rb, np.cross(Rb, self.a), T[k])[0]
-        floor, wall, n_floor = np.zeros(len(yaw)), np.zeros(len(yaw)), np.zeros(len(yaw))
-        for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
-            i = np.flatnonzero(L.valid)
-            if len(i):
-                x = (L.points[i], L.sigma[i], rays[i], into_b)
-                sp = np.minimum(_spread(yaw, t3, *x, P.pix), 3.0)
-                rt = transfer_residuals(yaw, t3, *x, P.pix, sp)
-                f = L.floor[i]
-                floor += msac(rt[:, f], thr)
-                wall += msac(rt[:, ~f], thr)
-                n_floor += (rt[:, f] < thr).sum(1)
-        if self.floor_first is None:
-            self.floor_first = bool(n_floor.max(initial=0) >= self.p.min_floor)
-        return score + floor + (0.0 if self.floor_first else wall)
-
-    def _layout_score(self, yaw, t2):
-        """(C,) best layout score over the candidate layout pairs (a layout that is not the
-        chosen one loses ``rank_penalty`` per step; layouts that disagree add nothing rather
-        than count against: a wrong hypothesis must not outvote the matches), and the pair
-        (i, j) of each."""
-        best, which = np.full(len(yaw), self.p.layout_floor), np.full((len(yaw), 2), -1)
-        for i, la in enumerate(self.la):
-            for j, lb in enumerate(self.lb):
-                s = layout_match.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
-                better = s > best
-                best = np.where(better, s, best)
-                which[better] = (i, j)
-        return best, which
-
-    def _orient_score(self, yaw):
-        if self.orient is None:
-            return np.zeros(len(yaw))
-        d = _wrap90(self.orient[0] - yaw) / (3.0 * np.radians(self.p.orientation_sigma_deg))
-        return self.p.orientation_weight * self.orient[1] * np.maximum(0.0, 1.0 - d * d)
-
-    def _baseline_score(self, t3):
-        """(C,) prior on the baseline: two photos sharing a view are rarely taken more than
-        ``baseline_depths`` times the depth of what they see apart (``self.depth``: the
-        median horizontal distance of the boundary samples and lifted points of the photo
-        that sees farther); beyond, ``baseline_weight`` per unit of the excess ratio."""
-        if self.depth is None:
-            return np.zeros(len(t3))
-        ratio = np.hypot(t3[:, 0], t3[:, 2]) / (self.p.baseline_depths * self.depth)
-        return -self.p.baseline_weight * np.maximum(0.0, ratio - 1.0)
-
-    def _total(self, yaw, t3):
-        """(C,) total score of C motions (yaw (C,), t (C, 3)) and their layout pairs."""
-        yaw = np.atleast_1d(np.asarray(yaw, float))
-        t3 = np.atleast_2d(t3)
-        lay, which = self._layout_score(yaw, t3[:, [0, 2]])
-        return (self._feature_score(yaw, t3) + lay + self._orient_score(yaw)
-                + self._baseline_score(t3)), which
-
-    # ------------------------------------------------------------------ refinement
-    def _inliers(self, yaw, t3):
-        thr, P = self.p.thr_px, self.P
-        if self.n == 0:
-            return np.zeros(0, bool), np.zeros(0, bool), np.zeros(0, bool)
-        r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t3 / np.linalg.norm(t3), P.pix)
-        e_in = ((r < thr) & (front | far))[0]
-        tin = []
-        for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
-            m = np.zeros(self.n, bool)
-            i = np.flatnonzero(L.valid & (L.floor | (not self.floor_first)))
-            if len(i):
-                x = (L.points[i], L.sigma[i], rays[i], into_b)
-                m[i] = transfer_residuals(yaw, t3, *x, P.pix) < thr
-            tin.append(m)
-        return e_in, tin[0], tin[1]
-
-    def _refine(self, yaw: float, t3, pair):
-        """Robust LM of p = (yaw, tx, ty, tz) on the inliers' epipolar and transfer
-        residuals, the layouts' agreeing samples (each wall's samples weighted as ~2
-        independent ones) and the priors on the orientation and on ty = dy."""
-        P = self.P
-        e_in, ta, tb = self._inliers(yaw, t3)
-        ia, ib = np.flatnonzero(ta), np.flatnonzero(tb)
-        ae, be = P.a[e_in], P.b[e_in]
-        lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
-                  (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
-        spread = [_spread(yaw, t3, *x, P.pix) for x in lifted]
-        lay = (layout_match.residual_terms(self.la[pair[0]], self.lb[pair[1]], yaw, t3[[0, 2]], self.rp)
-               if pair[0] >= 0 else None)   # layouts that add nothing do not pull either
-        sig_o = np.radians(self.p.orientation_sigma_deg)
-        use_o = self.orient is not None and abs(_wrap90(self.orient[0] - yaw)) < 3 * sig_o
-
-        def resid(q):
-            y, tq = q[:, 0], q[:, 1:4]
-            parts = [epipolar_residuals(y, tq, ae, be) / P.pix if len(ae) else np.zeros((len(q), 0))]
-            parts += [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)
-                      if len(x[0])]
-            if lay is not None:
-                parts.append(lay(y, tq[:, [0, 2]]))
-            if use_o:
-                parts.append((_wrap90(self.orient[0] - y) / sig_o)[:, None])
-            parts.append(((tq[:, 1] - self.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None])
-            return np.concatenate(parts, 1)
-
-        q, cov = levenberg_marquardt(resid, np.array([yaw, *t3]), n_prior=1 + int(use_o),
-                                     iters=self.p.refine_iters)
-        return q, cov
 
     # ------------------------------------------------------------------ answer
     def run(self) -> PlanarMotion:
@@ -321,7 +192,7 @@ class Registration:
         cy, ct = cy[ok], ct[ok]
         if len(cy) == 0:
             raise self._refusal(0)
-        total, which = self._total(cy, ct)
+        total, which = self.fit.score(cy, ct)
         results, top = [], float(total.max())
         for i in np.argsort(-total):
             if len(results) == self.p.refine_top or (
@@ -329,8 +200,8 @@ class Registration:
                 break
             if any(self._same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
                 continue
-            q, cov = self._refine(cy[i], ct[i], which[i])
-            s, w = self._total(q[0], q[1:4])
+            q, cov = self.fit.refine(cy[i], ct[i], which[i])
+            s, w = self.fit.score(q[0], q[1:4])
             results.append((q, cov, float(s[0]), w[0]))
         results.sort(key=lambda r: -r[2])
         out = []
@@ -353,7 +224,7 @@ class Registration:
 
     def _result(self, q, cov, score, pair) -> PlanarMotion:
         t3 = q[1:4]
-        e_in, ta, tb = self._inliers(q[0], t3)
+        e_in, ta, tb = self.fit.inliers(q[0], t3)
         i, j = max(pair[0], 0), max(pair[1], 0)
         lay = (layout_match.agreement(self.la[i], self.lb[j], q[0], t3[[0, 2]], self.rp)
                if self.la and self.lb else None)

@@ -147,3 +147,31 @@ def test_rendered_pair_with_features_and_layouts():
     assert dt < 0.02 and dyaw < 0.2
     assert out["findme"].n_inliers >= 20 and out["findme"].layout.samples > 50
     assert dt <= _err(out["features"], pa, pb)[0] + 0.005
+
+
+def test_prepared_photos_serve_every_motion_even_without_a_single_keypoint(monkeypatch):
+    """Three photos of textureless walls (a uniform image for the features: no keypoint at
+    all) prepared once each; photo B takes part in two motions; the layouts give both."""
+    from types import SimpleNamespace
+
+    from findme_core import pair
+    from findme_core.lines import detect_segments
+    poses = (*L_POSES, Pose(-0.9, -1.0, 1.45, yaw_deg=0.0, pitch_deg=26.0))
+    detected = []
+    real = features.detect
+    monkeypatch.setattr(features, "detect", lambda *a, **k: detected.append(1) or real(*a, **k))
+    photos = []
+    for pose in poses:
+        v = render(L_ROOM, pose, 320, 240, hfov_deg=70.0, seed=1, supersample=1)
+        poly, kinds = exact_polyline(v)
+        blank = np.full_like(v.image, 128)
+        photos.append(pair.prepare(blank, v.camera, pose.height,
+                                   [SimpleNamespace(polyline=poly, kinds=kinds)],
+                                   segments=detect_segments(v.image)))
+    assert len(detected) == 3 and all(len(p.features) == 0 for p in photos)
+    for i, j in ((0, 1), (1, 2)):
+        out = pair.motion_photos(photos[i], photos[j], ("findme", "features"))
+        assert isinstance(out["features"], MotionError)          # the matches alone: no
+        dt, dyaw = _err(out["findme"].motion, poses[i], poses[j])
+        assert dt < 0.02 and dyaw < 0.5 and out["findme"].matches == 0
+    assert len(detected) == 3                                    # nothing computed again
