@@ -4,10 +4,10 @@
 
 Open the printed address in a browser (a phone's, or a desktop's with a file picker).
 Everything runs on one in-process Zenoh session, like ``findme run``: the gateway (page +
-WebSocket bridge, services/web/gateway.py), hypotheses, measurement, and odometry and the
-recorder (sessions to ``--out DIR``, default recordings/) when those modules are
-installed. The gateway preselects each photo's best hypothesis and publishes the user's
-choices, so no ``selection`` service runs here.
+WebSocket bridge, services/web/gateway.py), hypotheses, measurement, and odometry, the
+mapper (the room's floor plan as photos arrive) and the recorder (sessions to ``--out DIR``,
+default recordings/) when those modules are installed. The gateway preselects each photo's
+best hypothesis and publishes the user's choices, so no ``selection`` service runs here.
 ``--listen tcp/127.0.0.1:7447`` lets other processes (a recorder, ``findme status``) join.
 
 It listens on 127.0.0.1 unless told otherwise. A phone on the network needs HTTPS for its
@@ -37,7 +37,7 @@ from . import deploy
 log = logging.getLogger("findme.app")
 
 #: Processing services embedded by ``findme app`` (those whose module is installed).
-APP_SERVICES = ("hypotheses", "measurement", "odometry")
+APP_SERVICES = ("hypotheses", "measurement", "odometry", "mapper")
 
 
 def _web_args(p, default_http: str | None) -> None:

@@ -30,10 +30,10 @@ from services.pipeline.capture import CaptureHandler, Lens, publish_frames, sour
 from services.runtime.registry import add_service_args, make_handler, service_names, wait_for_signal
 from services.runtime.service import Group, Service
 
-from .options import add_camera_args, floats
+from .options import add_camera_args, finite_float, floats
 from .report import Printer, _example_paths, _measure, read_photos, report_session
 
-PIPELINE = ("hypotheses", "selection", "measurement", "odometry")
+PIPELINE = ("hypotheses", "selection", "measurement", "odometry", "mapper")
 
 
 def _bus_args(p, default_listen=()):
@@ -61,7 +61,7 @@ def register(sub) -> None:
                                              "(default: the bundled example)")
     r.add_argument("--session", help="session id (default: a new one)")
     add_camera_args(r)
-    r.add_argument("--camera-height", type=float, metavar="M")
+    r.add_argument("--camera-height", type=finite_float, metavar="M")
     r.add_argument("--measure", action="append", metavar="U,V",
                    help="pixels of photo 0 to measure at the end (repeatable)")
     add_service_args(r)
@@ -76,7 +76,7 @@ def register(sub) -> None:
     s.add_argument("--session", help="capture: session id")
     s.add_argument("--instance", help="instance id (default: random)")
     add_camera_args(s)
-    s.add_argument("--camera-height", type=float, metavar="M")
+    s.add_argument("--camera-height", type=finite_float, metavar="M")
     s.add_argument("--wait-for", action="append", default=[], metavar="SERVICE",
                    help="capture: publish only once these services are alive")
     s.add_argument("--linger", type=float, default=120.0, metavar="S",
@@ -179,7 +179,8 @@ def cmd_run(args) -> int:
                 names.append(group.add(make_handler(name, args)).handler.name)
             except ImportError:  # a service whose module is not installed
                 continue
-        report_session(printer, capture, session_id, srcs, _lens(args), "odometry" in names, 600)
+        report_session(printer, capture, session_id, srcs, _lens(args), "odometry" in names, 600,
+                       "mapper" in names)
         _measure(session, session_id, args, photos)
     finally:
         sub.undeclare()

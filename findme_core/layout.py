@@ -13,7 +13,7 @@ z forward, y down; metres; the floor is y = h, so everything here is (x, z)):
   bound (OPEN: the floor goes on past the top border) or an upper bound (NONE: no floor
   seen down to the bottom border), with its 1-sigma;
 The room's orientation from the photo's lines (no floor needed) is ``orientation``; how two
-photos' layouts agree under a motion is ``layout_match``. Pure numpy / OpenCV; no I/O.
+photos' layouts agree under a motion is ``register``. Pure numpy / OpenCV; no I/O.
 """
 
 from __future__ import annotations

@@ -41,7 +41,7 @@ from .errors import InputError
 from .features import Matches
 from .motion_features import Lifter, features_estimate
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result  # noqa: F401
-from .register import Registration
+from .motion_register import Registration
 
 METHODS = ("findme", "features", "lifted", "paper")
 

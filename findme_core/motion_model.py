@@ -42,7 +42,7 @@ class MotionParams:
             the ``findme`` estimates, fitted by ``tools/calibrate_motion.py`` on
             tum-cabinet-pairs (dev); held out, zind-pairs-tilted has 57-90 % of its errors
             within 1 sigma and 95 % within 3, zind-pairs-level 30-80 % and 80-90 % (its
-            sigma also spans the alternatives, ``register``).
+            sigma also spans the alternatives, ``motion_register``).
         seed: RANSAC seed.
 
     ``findme`` only:

@@ -1,274 +1,264 @@
-"""The default motion estimator (``findme``): 3-DOF planar registration of two photos by
-their room layouts and their feature matches together (see ``motion`` for the method and the
-conventions: the pose of camera B in A's level frame, X_A = R_y(yaw) X_B + t, t = (x, dy, z)
-metres, yaw radians > 0 when B is turned right of A).
+"""How two photos' layouts (``layout``) agree under a planar motion, and the motions that
+wall and corner correspondences imply: the layout part of the registration of two photos
+(``motion_register``; also used to fuse a session's photos into a floor plan, ``fuse``).
 
-``Registration(...).run()``: yaw candidates (room orientations, the free epipolar RANSAC,
-wall pairs), per yaw the baseline directions the matches agree on and the translations the
-walls fix, all scored by matches + layouts + orientations + a baseline prior; the best
-distinct ones refined by robust Levenberg-Marquardt, ranked; close seconds are alternatives.
-Pure numpy; seeded randomness.
+Convention (DESIGN.md): the motion of (A, B) is the pose of camera B in A's level frame; a
+floor point p_B = (x, z) of B is p_A = R(yaw) p_B + t in A, R(yaw) = [[c, s], [-s, c]] on
+(x, z) (the x-z block of R_y), t = (x, z) metres, yaw radians (> 0: B turned right of A).
+
+Agreement of a motion: each WALL sample of one photo's scan is moved into the other photo
+and looked up in its scan at the same azimuth. Within ``gate`` sigmas of a WALL sample there
+(the same wall base seen by both) it agrees (MSAC weight, times ``weight``); nearer than the
+other photo's boundary by more than the gate (on floor the other photo sees, where no wall
+can stand) it is a violation (``violation``); farther (hidden behind the other photo's
+walls) or outside its view it says nothing. Both ways (B into A and A into B).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from . import layout_match
-from .errors import MotionError
-from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error, _scale,
-                              check_matches, local_optimisation)
-from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result
-from .planar import _rotate, bearings, rot_y
-from .register_fit import Fit, known_yaw_score
+from .layout import Layout
+from .search import SegKind
 
 
-class Registration:
-    """One run of the ``findme`` estimator (see the module docstring); arguments as
-    ``motion.estimate``."""
+@dataclass(frozen=True)
+class RegisterParams:
+    """Gates and weights of the layout terms.
 
-    def __init__(self, matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts, orientations,
-                 params: MotionParams):
-        self.p, self.m, self.n = params, matches, len(matches)
-        self.feats = self.n >= params.min_matches
-        if self.feats:
-            check_matches(matches, params)       # identical photos: an error whatever else
-        self.a, self.b = bearings(cam_a, matches.ua), bearings(cam_b, matches.ub)
-        self.pix = 1.0 / np.sqrt(cam_a.fx * cam_b.fx)
-        self.planar, self.dy, self.h = abs(h_a - h_b) < 1e-6, float(h_a - h_b), (h_a, h_b)
-        self.lifts = (lift_a, lift_b)
-        self.la = list(layouts[0])[:params.max_layouts]
-        self.lb = list(layouts[1])[:params.max_layouts]
-        oa, ob = orientations
-        self.orient = (None if oa is None or ob is None
-                       or min(oa.support, ob.support) < params.min_orientation_support
-                       else (oa.angle - ob.angle, min(oa.support, ob.support)))
-        self.rng = np.random.default_rng(params.seed)
-        self.normal = None        # (floor normal in A, yaw) when the features correct gravity
-        self.depth = None         # the scene's depth scale (``_scene_depth``), metres
-        self.seeds = np.argsort(matches.ratio, kind="stable")[:params.max_direction_seeds]
-        self.rp = layout_match.MatchParams(weight=params.layout_weight,
-                                          violation=params.layout_violation)
+    Attributes:
+        gate: a sample agrees within this many sigmas (its and the other photo's combined).
+        weight: score of one fully agreeing sample (one feature inlier scores 1).
+        violation: score lost per sample lying on floor the other photo sees.
+        parallel_deg: walls this close in direction may be one wall.
+        min_angle_deg: two walls fix a translation when at least this far from parallel.
+        min_wall_m: shorter walls give no yaw candidate.
+        sigma_ref: samples with a larger sigma (metres) count less (their weight falls as
+            (sigma_ref / sigma)^2).
+        outside: score lost when a camera lies beyond the other photo's walls.
+        max_walls: at most this many walls (the longest) and corners of each photo propose
+            translations.
+    """
 
-    # ------------------------------------------------------------------ candidates
-    def _yaws(self):
-        yaws, free = [], None
-        if self.orient is not None:
-            yaws += [self.orient[0] + k * np.pi / 2 for k in range(4)]
-        if self.feats:
-            try:
-                y, t, e = _epipolar_ransac(self.a, self.b, self.planar, self.pix,
-                                           replace(self.p, max_iters=self.p.free_iters), self.rng)
-                y, t, e, sig_elev = local_optimisation(self.a, self.b, y, t, e, self.planar,
-                                                       self.pix, self.p)
-                yaws.append(y)
-                free = (y, t, e)
-                if self.planar and abs(t[1]) > 3.0 * np.sin(sig_elev):
-                    # moved parallel to the floor: the floor normal is orthogonal to t, and
-                    # floor points are lifted on that corrected floor (``features``)
-                    normal = np.array([0.0, 1.0, 0.0]) - t[1] * t
-                    self.normal = (normal / np.linalg.norm(normal), y)
-            except MotionError:
-                pass
-        if self.la and self.lb:   # the longest wall pairs first
-            yaws += list(layout_match.wall_yaws(self.la[0], self.lb[0], self.rp)[:self.p.max_wall_yaws])
-        out = []
-        for y in np.angle(np.exp(1j * np.array(yaws, float))):
-            if all(abs(np.angle(np.exp(1j * (y - z)))) > np.radians(2.0) for z in out):
-                out.append(float(y))
-        return out, free
-
-    def _directions(self, yaw: float):
-        """Unit horizontal baseline directions (K, 3) the matches agree on at this yaw, with
-        their epipolar inliers (K, M): one match fixes the direction (t . (R b x a) = 0);
-        all of them are scored at once (matrix products) and the best distinct ones kept."""
-        a, Rb, p = self.a, _rotate(np.array([yaw]), self.b)[0], self.p
-        m = np.cross(Rb, a)
-        seeds = self.seeds   # the directions of the most distinctive matches are tried
-        T = np.column_stack([m[seeds, 2], np.zeros(len(seeds)), -m[seeds, 0]])
-        T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
-        T = np.vstack([T, -T])
-        score, inl = known_yaw_score(a, Rb, m, T, self.pix, p.thr_px)
-        keep = []
-        for i in np.argsort(-score):
-            if score[i] < max(2.0, 0.3 * score[np.argsort(-score)[0]]) or len(keep) == 3:
-                break
-            if all(T[i] @ T[j] < np.cos(np.radians(3.0)) for j in keep):
-                keep.append(i)
-        return T[keep], inl[keep], score[keep]
-
-    def _lift(self, first):
-        sel = _lift_order(self.a, self.m.ratio, first, self.p.max_lift)
-        na = nb = None
-        if self.normal is not None:
-            na, nb = self.normal[0], rot_y(self.normal[1]).T @ self.normal[0]
-        return MotionInputs(self.a, self.b,
-                            _inflate(self.lifts[0], sel, self.n, self.h[0], self.p, na, self.a),
-                            _inflate(self.lifts[1], sel, self.n, self.h[1], self.p, nb, self.b),
-                            self.dy, self.h[0], self.pix)
-
-    def _scene_depth(self):
-        """Depth scale of the scene, metres: the median horizontal distance of the two
-        photos' boundary samples (chosen layouts) and lifted points, weighted by 1 / sigma^2
-        (a boundary near the horizon is far and says little); None without either."""
-        d, w = [np.zeros(0)], [np.zeros(0)]
-        for lays, L in ((self.la, self.P.la), (self.lb, self.P.lb)):
-            d.append(np.hypot(L.points[L.valid, 0], L.points[L.valid, 2]))
-            w.append(L.sigma[L.valid] ** -2.0)
-            if lays:
-                k = (lays[0].kind == 0) & np.isfinite(lays[0].range)
-                d.append(lays[0].range[k])
-                w.append(lays[0].sigma[k] ** -2.0)
-        d, w = np.concatenate(d), np.concatenate(w)
-        if len(d) == 0:
-            return None
-        o = np.argsort(d)
-        c = np.cumsum(w[o])
-        return float(d[o][np.searchsorted(c, 0.5 * c[-1])])
-
-    def _candidates(self, yaws, free):
-        none = (np.zeros((0, 3)), np.zeros((0, self.n), bool), np.zeros(0))
-        per_yaw = [self._directions(y) if self.feats else none for y in yaws]
-        # lift the inliers of the free RANSAC and of the best direction at any yaw first
-        first = np.zeros(self.n, bool) if free is None else free[2].copy()
-        best = max(per_yaw, key=lambda d: d[2][0] if len(d[2]) else -1.0)
-        if len(best[2]):
-            first |= best[1][0]
-        self.P = self._lift(first)
-        self.depth = self._scene_depth()
-        self.fit = Fit(self.P, self.la, self.lb, self.orient, self.depth, self.p, self.rp)
-        uses = (self.P.usable(False), self.P.usable(True))   # floor points first
-        cy, ct = [], []
-
-        def add(yaw, t):   # (N, 2) x, z (dy: h_A - h_B) or (N, 3)
-            t = np.asarray(t, float)
-            t = self._t3(t.reshape(-1, 2)) if t.shape[-1] == 2 else t.reshape(-1, 3)
-            cy.extend([yaw] * len(t))
-            ct.append(t)
-
-        dirs = [(y, T, inl, False) for y, (T, inl, _) in zip(yaws, per_yaw)]
-        if free is not None:   # with equal heights (assumed, not measured), its direction
-            # may rise or fall: uneven ground, a hand-held phone
-            dirs.append((free[0], free[1][None], free[2][None], self.planar))
-        for y, T, inl, free_dir in dirs:
-            for t, e in zip(T, inl):
-                for use in uses:
-                    s = _scale(self.P, y, t, e, use)
-                    if s is not None:   # the direction's own elevation, and dy = h_A - h_B
-                        add(y, s * t[[0, 2]])
-                        if free_dir:
-                            add(y, s * t)
-            d2 = T[:, [0, 2]] / np.maximum(np.linalg.norm(T[:, [0, 2]], axis=1, keepdims=True), 1e-12)
-            for la in self.la[:1]:
-                for lb in self.lb[:1]:
-                    add(y, layout_match.translations(la, lb, y, d2, self.rp))
-        if self.la and self.lb:   # the walls alone (one wall fixes one direction only)
-            for y in yaws:
-                add(y, layout_match.translations(self.la[0], self.lb[0], y, None, self.rp,
-                                             single=not self.feats))
-        if not cy:
-            return np.zeros(0), np.zeros((0, 3))
-        return np.array(cy), np.vstack(ct)
-
-    def _t3(self, t2):
-        return np.column_stack([t2[:, 0], np.full(len(t2), self.dy), t2[:, 1]])
-
-    # ------------------------------------------------------------------ answer
-    def run(self) -> PlanarMotion:
-        yaws, free = self._yaws()
-        if not yaws:
-            raise self._refusal(0)
-        cy, ct = self._candidates(yaws, free)
-        if len(cy) == 0 and free is not None:
-            raise MotionError("no matched point lies on the floor or on a chosen wall "
-                              "consistently with the motion in either photo, and no wall is "
-                              "known in both, so the distance between the photos cannot be "
-                              "measured")
-        if len(cy) == 0:
-            raise self._refusal(0)
-        ok = np.isfinite(ct).all(1) & (np.hypot(ct[:, 0], ct[:, 2]) < self.p.max_baseline_m)
-        cy, ct = cy[ok], ct[ok]
-        if len(cy) == 0:
-            raise self._refusal(0)
-        total, which = self.fit.score(cy, ct)
-        results, top = [], float(total.max())
-        for i in np.argsort(-total):
-            if len(results) == self.p.refine_top or (
-                    results and total[i] < self.p.alternative_ratio * top):
-                break
-            if any(self._same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
-                continue
-            q, cov = self.fit.refine(cy[i], ct[i], which[i])
-            s, w = self.fit.score(q[0], q[1:4])
-            results.append((q, cov, float(s[0]), w[0]))
-        results.sort(key=lambda r: -r[2])
-        out = []
-        for r in results:
-            o = self._result(*r)
-            if not any(self._same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
-                out.append((o, r[3]))
-        best, pair = out[0]
-        if best.n_inliers < self.p.min_inliers:
-            if best.layout is None or best.layout.samples < self.p.min_layout_samples:
-                raise self._refusal(best.n_inliers)
-            self._check_layout_only(best, pair)
-        alts = tuple(o for o, _ in out[1:] if o.score >= self.p.alternative_ratio * best.score)
-        return _spread_over(replace(best, alternatives=alts))
-
-    def _same(self, y1, t1, y2, t2) -> bool:
-        dt = np.hypot(t1[0] - t2[0], t1[1] - t2[1])
-        return (abs(np.angle(np.exp(1j * (y1 - y2)))) < np.radians(3.0)
-                and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
-
-    def _result(self, q, cov, score, pair) -> PlanarMotion:
-        t3 = q[1:4]
-        e_in, ta, tb = self.fit.inliers(q[0], t3)
-        i, j = max(pair[0], 0), max(pair[1], 0)
-        lay = (layout_match.agreement(self.la[i], self.lb[j], q[0], t3[[0, 2]], self.rp)
-               if self.la and self.lb else None)
-        r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
-                          e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
-        return _model_error(replace(r, layout=lay, score=score), self.p)
-
-    def _refusal(self, k: int) -> MotionError:
-        walls = ("the photos' boundaries share no wall" if self.la and self.lb else
-                 "a photo has no boundary hypothesis, so its walls are unknown")
-        if not self.feats:
-            return MotionError(f"only {self.n} feature matches between the photos ({self.m.n_a} "
-                               f"and {self.m.n_b} keypoints; need {self.p.min_matches}) and "
-                               f"{walls}: they show too little in common")
-        return MotionError(f"the photos have no common view: only {k} of {self.n} feature "
-                           f"matches agree on one camera motion and {walls}")
-
-    def _check_layout_only(self, m: PlanarMotion, pair) -> None:
-        """Without matches, the walls must fix both directions of the translation."""
-        lay = m.layout
-        if lay.corners:
-            return
-        la = self.la[max(pair[0], 0)]
-        n = la.normals[[i for i, _ in lay.walls]] if lay.walls else np.zeros((0, 2))
-        cross = n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0]
-        if len(n) and np.abs(cross).max() > np.sin(np.radians(30)):
-            return
-        what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
-        raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
-                          "along the wall cannot be measured")
+    gate: float = 3.0
+    weight: float = 0.25
+    violation: float = 0.25
+    parallel_deg: float = 6.0
+    min_angle_deg: float = 30.0
+    min_wall_m: float = 0.4
+    sigma_ref: float = 0.1
+    outside: float = 10.0
+    max_walls: int = 8
 
 
-def _spread_over(m: PlanarMotion) -> PlanarMotion:
-    """``m`` with its sigmas widened to cover its alternatives: the variance of the mixture of
-    it and them, weighted by score (the 1-sigma of an answer the evidence cannot tell from
-    another one includes the other one)."""
-    if not m.alternatives:
-        return m
-    cands = (m, *m.alternatives)
-    w = np.array([max(c.score, 1e-9) for c in cands])
-    w /= w.sum()
-    dx = np.array([c.x - m.x for c in cands])
-    dz = np.array([c.z - m.z for c in cands])
-    dyaw = np.angle(np.exp(1j * np.array([c.yaw - m.yaw for c in cands])))
-    return replace(m, sigma_x=float(np.sqrt(m.sigma_x ** 2 + w @ dx ** 2)),
-                   sigma_z=float(np.sqrt(m.sigma_z ** 2 + w @ dz ** 2)),
-                   sigma_yaw=float(np.sqrt(m.sigma_yaw ** 2 + w @ dyaw ** 2)))
+@dataclass(frozen=True)
+class Agreement:
+    """What the layouts say about one motion.
+
+    Attributes:
+        rank_a, rank_b: hypothesis ranks of the two layouts (1 = best).
+        samples: boundary samples (both photos) on a wall of the other photo within the gate.
+        violations: boundary samples on floor the other photo sees.
+        rms_m: rms distance of the agreeing samples to the other photo's wall, metres.
+        walls: (wall of A, wall of B) pairs that at least 3 samples put on each other.
+        corners: (corner of A, corner of B) pairs within the gate of each other.
+        score: the layout part of the motion's score.
+    """
+
+    rank_a: int
+    rank_b: int
+    samples: int
+    violations: int
+    rms_m: float
+    walls: tuple
+    corners: tuple
+    score: float
+
+
+def rot2(yaw, p) -> np.ndarray:
+    """R(yaw) p for C yaws (C,) and points (S, 2) or (C, S, 2): (C, S, 2)."""
+    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    return np.stack([c * p[..., 0] + s * p[..., 1], -s * p[..., 0] + c * p[..., 1]], -1)
+
+
+def _lookup(L: Layout, az: np.ndarray):
+    """Index of the nearest scan sample of L at each azimuth, and whether one is near (within
+    1.5 sample spacings)."""
+    n = len(L.azimuth)
+    if n < 2:
+        return np.zeros(az.shape, int), np.zeros(az.shape, bool)
+    i = np.clip(np.searchsorted(L.azimuth, az), 1, n - 1)
+    left = az - L.azimuth[i - 1] < L.azimuth[i] - az
+    j = np.where(left, i - 1, i)
+    return j, np.abs(az - L.azimuth[j]) < 1.5 * L.spacing
+
+
+def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
+    """src's WALL samples moved into dst for C motions. Returns (normalised residual e
+    (C, S), agrees (C, S), violates (C, S), dst sample index (C, S), src sample index (S,))."""
+    k = np.flatnonzero(src.kind == SegKind.WALL)
+    p = src.points[k]
+    q = rot2(yaw, p) + t[:, None] if into_a else rot2(-yaw, p[None] - t[:, None])
+    az, rho = np.arctan2(q[..., 0], q[..., 1]), np.hypot(q[..., 0], q[..., 1])
+    j, near = _lookup(dst, az)
+    kind = dst.kind[j]
+    e = (rho - dst.range[j]) / np.hypot(dst.sigma[j], src.sigma[k])
+    agree = near & (kind == SegKind.WALL) & (np.abs(e) < gate)
+    bound = (kind == SegKind.WALL) | (kind == SegKind.OPEN)
+    return e, agree, near & bound & (e < -gate), j, k
+
+
+def _camera_outside(dst: Layout, yaw, t, into_a: bool, gate: float) -> np.ndarray:
+    """(C,) whether the other camera (B's centre t in A, or A's centre in B) lies beyond
+    dst's boundary in dst's view: outside the room dst sees."""
+    c = t if into_a else rot2(-yaw, -t[:, None])[:, 0]
+    az, rho = np.arctan2(c[:, 0], c[:, 1]), np.hypot(c[:, 0], c[:, 1])
+    j, near = _lookup(dst, az)
+    wall = dst.kind[j] == SegKind.WALL
+    return near & wall & (rho > dst.range[j] + gate * dst.sigma[j])
+
+
+def scores(la: Layout, lb: Layout, yaw, t, p: RegisterParams = RegisterParams()) -> np.ndarray:
+    """(C,) layout score of C motions (yaw (C,), t (C, 2)): agreeing samples (MSAC, each
+    weighted by min(1, (sigma_ref / sigma)^2): a far, uncertain wall says little) minus
+    violations, both ways, minus ``outside`` when a camera lies outside the other's room."""
+    yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
+    total = np.zeros(len(yaw))
+    for dst, src, into_a in ((la, lb, True), (lb, la, False)):
+        e, agree, viol, j, k = _one_way(dst, src, yaw, t, into_a, p.gate)
+        w = np.minimum(1.0, (p.sigma_ref / np.hypot(dst.sigma[j], src.sigma[k])) ** 2)
+        total += p.weight * np.sum(np.where(agree, (1.0 - (e / p.gate) ** 2) * w, 0.0), 1) \
+            - p.violation * viol.sum(1) \
+            - p.outside * _camera_outside(dst, yaw, t, into_a, p.gate)
+    return total
+
+
+def agreement(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = RegisterParams()
+              ) -> Agreement:
+    """The evidence of the layouts for one motion (see ``Agreement``)."""
+    t = np.asarray(t, float).reshape(1, 2)
+    n_agree, n_viol, dist, pairs = 0, 0, [], {}
+    for dst, src, into_a in ((la, lb, True), (lb, la, False)):
+        ks, w, q, _ = _associate(dst, src, yaw, t, into_a, p.gate)
+        n_viol += int(_one_way(dst, src, np.array([yaw]), t, into_a, p.gate)[2].sum())
+        n_agree += len(ks)
+        n, c, _ = _lines(dst)
+        dist.append(np.einsum("sj,sj->s", q, n[w]) - c[w] if len(ks) else np.zeros(0))
+        for wd, ws in zip(w, src.wall[ks]):
+            key = (int(wd), int(ws)) if into_a else (int(ws), int(wd))
+            pairs[key] = pairs.get(key, 0) + 1
+    dist = np.concatenate(dist)
+    ca, cb = la.corners, lb.corners
+    corners = ()
+    if len(ca) and len(cb):
+        d = np.linalg.norm(ca[:, None] - (rot2(np.array([yaw]), cb)[0] + t)[None], axis=2)
+        corners = tuple((int(i), int(j)) for i, j in zip(*np.nonzero(d < 0.15 + 0.05 * np.hypot(
+            *ca.T)[:, None])))
+    return Agreement(la.rank, lb.rank, n_agree, n_viol,
+                     float(np.sqrt(np.mean(dist ** 2))) if len(dist) else float("nan"),
+                     tuple(sorted(k for k, v in pairs.items() if v >= 3 and k[1] >= 0)), corners,
+                     float(scores(la, lb, np.array([yaw]), t, p)[0]))
+
+
+# ---------------------------------------------------------------------------- candidates
+def _lines(L: Layout):
+    """Unit normals (K, 2) toward the camera, offsets n . p (K,) (< 0) and lengths (K,)."""
+    n = L.normals
+    return n, np.einsum("ij,ij->i", n, L.walls[:, 0]), np.linalg.norm(
+        L.walls[:, 1] - L.walls[:, 0], axis=1)
+
+
+def _longest(n, c, length, k: int):
+    """The k longest walls' (normals, offsets): candidate generation stays bounded."""
+    o = np.argsort(-length, kind="stable")[:k]
+    return n[o], c[o]
+
+
+def wall_yaws(la: Layout, lb: Layout, p: RegisterParams = RegisterParams()) -> np.ndarray:
+    """Yaws that put a wall of B on a wall of A with the cameras on the same side (the
+    normals toward each camera agree): azimuth of A's normal minus azimuth of B's; the
+    longest pairs (product of the lengths) first."""
+    (na, _, sa), (nb, _, sb) = _lines(la), _lines(lb)
+    ka, kb = sa >= p.min_wall_m, sb >= p.min_wall_m
+    na, nb, sa, sb = na[ka], nb[kb], sa[ka], sb[kb]
+    az_a, az_b = np.arctan2(na[:, 0], na[:, 1]), np.arctan2(nb[:, 0], nb[:, 1])
+    yaw = np.angle(np.exp(1j * (az_a[:, None] - az_b[None]))).ravel()
+    return yaw[np.argsort(-np.outer(sa, sb).ravel(), kind="stable")]
+
+
+def translations(la: Layout, lb: Layout, yaw: float, directions=None,
+                 p: RegisterParams = RegisterParams(), single: bool = False) -> np.ndarray:
+    """(N, 2) translations t that, at this yaw, put two non-parallel walls of B on two of A,
+    a corner of B on a corner of A, or (given unit ``directions`` (D, 2) of the baseline,
+    e.g. from the features) one wall of B on one of A along a direction; with ``single``,
+    also one wall on one wall by the shortest move (the position along the wall is then
+    unknown: a degenerate pair, which the caller reports)."""
+    (na, ca), (nb, cb) = (_longest(*_lines(L), p.max_walls) for L in (la, lb))
+    out = [np.zeros((0, 2))]
+    if len(na) and len(nb):
+        nbr = rot2(np.array([yaw]), nb)[0]
+        ia, ib = np.nonzero(na @ nbr.T > np.cos(np.radians(p.parallel_deg)))
+        n, rhs = na[ia], ca[ia] - cb[ib]            # n . t = c_A - c_B (same wall)
+        i, j = np.triu_indices(len(n), 1)
+        det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]
+        ok = np.abs(det) > np.sin(np.radians(p.min_angle_deg))
+        i, j, det = i[ok], j[ok], det[ok]
+        out.append(np.column_stack([(rhs[i] * n[j, 1] - rhs[j] * n[i, 1]) / det,
+                                    (n[i, 0] * rhs[j] - n[j, 0] * rhs[i]) / det]))
+        if single:
+            out.append(rhs[:, None] * n)
+        if directions is not None and len(directions):
+            d = np.asarray(directions, float).reshape(-1, 2)
+            nd = n @ d.T                                   # (P, D)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = rhs[:, None] / nd
+            ok = (np.abs(nd) > 0.3) & (s > 0)
+            out.append(s[ok][:, None] * d[np.nonzero(ok)[1]])
+    qa, qb = la.corners[:p.max_walls], lb.corners[:p.max_walls]
+    if len(qa) and len(qb):
+        out.append((qa[:, None] - rot2(np.array([yaw]), qb)[0][None]).reshape(-1, 2))
+    return np.vstack(out)
+
+
+def _associate(dst: Layout, src: Layout, yaw: float, t, into_a: bool, gate: float):
+    """src's samples that agree with dst under one motion, each with the dst wall nearest to
+    it (point to segment): (src sample indices (S,), dst wall indices (S,), moved points
+    (S, 2), combined sigma (S,))."""
+    _, agree, _, j, k = _one_way(dst, src, np.array([yaw]), t, into_a, gate)
+    a = agree[0]
+    if not a.any() or len(dst.walls) == 0:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2)), np.zeros(0)
+    p = src.points[k[a]]
+    q = (rot2(np.array([yaw]), p)[0] + t[0]) if into_a else rot2(np.array([-yaw]), p - t[0])[0]
+    w0, d = dst.walls[:, 0], dst.walls[:, 1] - dst.walls[:, 0]
+    u = np.clip(np.einsum("skj,kj->sk", q[:, None] - w0[None], d)
+                / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0.0, 1.0)
+    dist = np.linalg.norm(q[:, None] - (w0[None] + u[..., None] * d[None]), axis=2)
+    return k[a], np.argmin(dist, axis=1), q, np.hypot(dst.sigma[j[0][a]], src.sigma[k[a]])
+
+
+def residual_terms(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = RegisterParams()):
+    """The agreeing samples of one motion, frozen for refinement: a function mapping C motions
+    (yaw (C,), t (C, 2)) to (C, R) signed distances of each sample to the line of the wall
+    nearest to it in the other photo, over its sigma; the samples along one wall share its
+    error (the boundary line's), so each wall's count as 2 independent ones."""
+    t = np.asarray(t, float).reshape(1, 2)
+    terms = []
+    for dst, src, into_a in ((la, lb, True), (lb, la, False)):
+        ks, w, _, sig = _associate(dst, src, yaw, t, into_a, p.gate)
+        if len(ks) == 0:
+            continue
+        n, c, _ = _lines(dst)
+        count = np.bincount(w, minlength=len(dst.walls))[w]
+        terms.append((into_a, src.points[ks], n[w], c[w],
+                      sig * 1.0))
+
+    def resid(yaw_c, t_c):
+        out = [np.zeros((len(yaw_c), 0))]
+        for into_a, pts, n, c, sig in terms:
+            q = rot2(yaw_c, pts) + t_c[:, None] if into_a else rot2(-yaw_c, pts[None] - t_c[:, None])
+            out.append((np.einsum("csj,sj->cs", q, n) - c) / sig)
+        return np.concatenate(out, 1)
+    return resid

@@ -31,14 +31,14 @@ from pathlib import Path
 import cv2
 
 from findme_io.capture_time import exif_time_ns, video_start_ns
-from findme_io.imageio import MAX_BYTES, encode_jpeg, read_image
+from findme_io.imageio import MAX_BYTES, encode_jpeg, for_bus, read_image
 from findme_core.errors import FindmeError, ImageError, InputError
 
 from ..runtime import bus
 from findme_io.convert import make_frame
 from ..runtime.handler import Handler
 
-IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
+IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff", ".heic", ".heif", ".avif"}
 VIDEO_EXT = {".mp4", ".avi", ".mov", ".mkv", ".webm"}
 
 
@@ -79,9 +79,10 @@ def _encoded(path: Path) -> bytes:
 
 
 def _photo(path: Path, name: str) -> tuple[str, bytes, dict]:
-    data = _encoded(path)
-    side = _sidecar(path)
-    side["capture_time_ns"] = exif_time_ns(data) or path.stat().st_mtime_ns
+    original = _encoded(path)
+    data, lens = for_bus(original, str(path))   # HEIC/AVIF/BMP/TIFF: upright JPEG + EXIF lens
+    side = {**lens, **_sidecar(path)}
+    side["capture_time_ns"] = exif_time_ns(original) or path.stat().st_mtime_ns
     return name, data, side
 
 

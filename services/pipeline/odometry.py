@@ -26,7 +26,7 @@ from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
 
 from ..runtime import bus
-from findme_io.convert import frame_camera, msg_hypotheses
+from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from ..runtime.handler import Handler, Input, Output
 
 
@@ -151,7 +151,9 @@ class OdometryHandler(Handler):
         if n not in st.hsets:
             st.hsets[n] = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
         image = decode_image(f.image.data, f"frame {n}")
-        cam = frame_camera(f, image.shape[1], image.shape[0])
+        hset = st.hsets[n]   # the camera the hypotheses were built with (estimated gravity)
+        cam = (msg_camera(hset.camera) if hset.HasField("camera")
+               else frame_camera(f, image.shape[1], image.shape[0]))
         sel = st.selected[n]
         h = (sel.camera_height_m if sel.HasField("camera_height_m") else
              f.camera_height_m if f.HasField("camera_height_m") else 1.0)

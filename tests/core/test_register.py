@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from findme_core import features, layout_match
+from findme_core import features, register
 from findme_core.errors import MotionError
 from findme_core.layout import _simplify, from_hypothesis
 from findme_core.motion import MotionParams, estimate
@@ -119,9 +119,9 @@ def test_layout_score_prefers_the_truth_and_punishes_seen_floor():
     x, z, yaw = planar_motion(*L_POSES)
     yaw = math.radians(yaw)
     moves = np.array([[x, z], [x + 0.3, z], [x, z - 0.5]])
-    s = layout_match.scores(la, lb, np.full(3, yaw), moves)
+    s = register.scores(la, lb, np.full(3, yaw), moves)
     assert s[0] > s[1] and s[0] > s[2] and s[0] > 5
-    a = layout_match.agreement(la, lb, yaw, [x, z - 0.5])       # B's walls on A's floor
+    a = register.agreement(la, lb, yaw, [x, z - 0.5])       # B's walls on A's floor
     assert a.violations > 0
 
 

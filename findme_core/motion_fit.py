@@ -1,10 +1,10 @@
 """How well planar motions of photo B in photo A's level frame explain a pair's evidence,
-and their refinement: the scoring half of the ``findme`` estimator (``register``).
+and their refinement: the scoring half of the ``findme`` estimator (``motion_register``).
 
 A motion is yaw (radians, > 0: B turned right of A) and t = (x, dy, z) (metres), X_A =
 R_y(yaw) X_B + t (DESIGN.md). Its score adds: the matches (MSAC of the epipolar residuals,
 pixels, and of the lifted points' transfer residuals, floor points first), the layouts
-(``layout_match.scores``, the best candidate pair, never below ``layout_floor``), the two
+(``register.scores``, the best candidate pair, never below ``layout_floor``), the two
 photos' room orientations (a yaw that agrees with them modulo 90 deg) and a prior on the
 baseline. ``Fit.refine`` is robust Levenberg-Marquardt of (yaw, x, dy, z) on all of them.
 Pure numpy.
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import layout_match
+from . import register
 from .motion_model import MotionInputs, MotionParams
 from .planar import (_epipolar_terms, _rotate, _spread, epipolar_residuals, known_yaw_terms,
                      transfer_residuals)
@@ -46,7 +46,7 @@ class Fit:
     """
 
     def __init__(self, P: MotionInputs, la, lb, orient, depth, params: MotionParams,
-                 rp: layout_match.MatchParams):
+                 rp: register.RegisterParams):
         self.P, self.la, self.lb, self.orient, self.depth = P, la, lb, orient, depth
         self.p, self.rp, self.dy, self.n = params, rp, P.dy, len(P.a)
         self.floor_first = None   # decided on the first motions scored
@@ -88,7 +88,7 @@ class Fit:
         best, which = np.full(len(yaw), self.p.layout_floor), np.full((len(yaw), 2), -1)
         for i, la in enumerate(self.la):
             for j, lb in enumerate(self.lb):
-                s = layout_match.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
+                s = register.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
                 better = s > best
                 best = np.where(better, s, best)
                 which[better] = (i, j)
@@ -145,7 +145,7 @@ class Fit:
         lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
                   (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
         spread = [_spread(yaw, t3, *x, P.pix) for x in lifted]
-        lay = (layout_match.residual_terms(self.la[pair[0]], self.lb[pair[1]], yaw, t3[[0, 2]], self.rp)
+        lay = (register.residual_terms(self.la[pair[0]], self.lb[pair[1]], yaw, t3[[0, 2]], self.rp)
                if pair[0] >= 0 else None)   # layouts that add nothing do not pull either
         sig_o = np.radians(self.p.orientation_sigma_deg)
         use_o = self.orient is not None and abs(wrap90(self.orient[0] - yaw)) < 3 * sig_o
