@@ -4,10 +4,10 @@
 
 Open the printed address in a browser (a phone's, or a desktop's with a file picker).
 Everything runs on one in-process Zenoh session, like ``findme run``: the gateway (page +
-WebSocket bridge, services/web/gateway.py), hypotheses, measurement, and odometry and the
-recorder (sessions to ``--out DIR``, default recordings/) when those modules are
-installed. The gateway preselects each photo's best hypothesis and publishes the user's
-choices, so no ``selection`` service runs here.
+WebSocket bridge, services/web/gateway.py), hypotheses, measurement, and odometry, the
+mapper (the room's floor plan as photos arrive) and the recorder (sessions to ``--out DIR``,
+default recordings/) when those modules are installed. The gateway preselects each photo's
+best hypothesis and publishes the user's choices, so no ``selection`` service runs here.
 ``--listen tcp/127.0.0.1:7447`` lets other processes (a recorder, ``findme status``) join.
 
 It listens on 127.0.0.1 unless told otherwise. A phone on the network needs HTTPS for its
@@ -37,7 +37,7 @@ from . import deploy
 log = logging.getLogger("findme.app")
 
 #: Processing services embedded by ``findme app`` (those whose module is installed).
-APP_SERVICES = ("hypotheses", "measurement", "odometry")
+APP_SERVICES = ("hypotheses", "measurement", "odometry", "mapper")
 
 
 def _web_args(p, default_http: str | None) -> None:
@@ -52,6 +52,14 @@ def _web_args(p, default_http: str | None) -> None:
                    help="gateway: serve HTTPS with this certificate")
     p.add_argument("--tls-key", "--key", dest="tls_key", metavar="KEY.pem",
                    help="gateway: the certificate's private key")
+    p.add_argument("--allow-origin", action="append", default=[], metavar="URL",
+                   help="gateway: a web origin allowed to open the page's WebSocket, e.g. "
+                        "https://findme.example.org behind a proxy (repeatable; pages loaded "
+                        "from this server by IP address, localhost or this machine's name are "
+                        "always allowed)")
+    p.add_argument("--trusted-proxy", action="append", default=[], metavar="IP",
+                   help="gateway: a reverse proxy whose X-Forwarded-For names the client "
+                        "(per-client page limits count clients, not the proxy; repeatable)")
 
 
 #: Where ``--https`` finds the gateway's certificate (tools/make_certs.py writes them).
@@ -108,9 +116,12 @@ def register(sub) -> None:
 
 def _start_gateway(session, args, instance=None):
     from services.web.gateway import Gateway, parse_http, ssl_context
+    from services.web.page_guard import served_names
     cert, key = https_files(args)
     host, port = parse_http(args.http or ("0.0.0.0:8443" if cert else "127.0.0.1:8080"))
-    gw = Gateway(session, host, port, ssl_context(cert, key), instance=instance)
+    gw = Gateway(session, host, port, ssl_context(cert, key), instance=instance,
+                 allowed_origins=args.allow_origin, own_names=served_names(cert),
+                 trusted_proxies=args.trusted_proxy)
     url = gw.start()
     if host not in ("127.0.0.1", "localhost", "::1"):
         if not cert:

@@ -33,7 +33,7 @@ from services.runtime.service import Group, Service
 from .options import add_camera_args, finite_float, floats
 from .report import Printer, _example_paths, _measure, read_photos, report_session
 
-PIPELINE = ("hypotheses", "selection", "measurement", "odometry")
+PIPELINE = ("hypotheses", "selection", "measurement", "odometry", "mapper")
 
 
 def _bus_args(p, default_listen=()):
@@ -179,7 +179,8 @@ def cmd_run(args) -> int:
                 names.append(group.add(make_handler(name, args)).handler.name)
             except ImportError:  # a service whose module is not installed
                 continue
-        report_session(printer, capture, session_id, srcs, _lens(args), "odometry" in names, 600)
+        report_session(printer, capture, session_id, srcs, _lens(args), "odometry" in names, 600,
+                       "mapper" in names)
         _measure(session, session_id, args, photos)
     finally:
         sub.undeclare()

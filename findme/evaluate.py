@@ -4,7 +4,7 @@ the format ``shared/eval/score.py`` reads.
 Only inputs are used: the image, ``intrinsics``, ``gravity_cam``, ``camera_height_m`` and the
 query pixels (``px`` of ``floor_points`` / ``wall_points`` / ``nonfloor_points``); of a pair
 only its two view ids (``a``, ``b``): the motion comes from the two views' images and inputs
-(rank-1 hypothesis of each). The result is the same on a copy of the dataset with its ground
+(rank-1 hypothesis of each chosen, the next ranks as candidate layouts). The result is the same on a copy of the dataset with its ground
 truth removed.
 
 ``--no-gravity`` withholds every view's ``gravity_cam``: gravity then comes from the image
@@ -37,7 +37,7 @@ from findme_core.scene import Scene, boundary_sigma_px
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.imageio import read_image
-from findme_core.pair import motion_pair, scene_of
+from findme_core.pair import motion_photos, photo_of
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 #: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``
@@ -53,11 +53,16 @@ def register(sub) -> None:
     p.add_argument("--max", type=int, default=10, metavar="N", help="hypotheses per view (10)")
     p.add_argument("--motion-method", default="findme", metavar="NAME[,NAME...]",
                    help="pair motion estimator(s): " + ", ".join(MOTION_METHODS) + " (default "
-                        "findme); with several, the first goes to --out and each other one to "
+                        "findme; features = the matches alone, the default before layouts); "
+                        "with several, the first goes to --out and each other one to "
                         "OUT.<name>.json, from the same features and hypotheses")
     p.add_argument("--no-gravity", action="store_true",
                    help="withhold the views' gravity_cam: gravity from the image, else level")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
+                   help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
+                        "the view ids, as a capture app marks a new spot) or 'auto' (from "
+                        "rotation-only feature matches)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -143,22 +148,26 @@ def predict_pair(args) -> tuple[str, dict, dict]:
     preds, errs = {}, {}
     try:
         _, photos = pair_inputs(pair_dir, view_dir, pid, use_gravity)
-        (ia, ca, ha, sa), (ib, cb, hb, sb) = [
-            (image, cam, h, scene_of(image, cam, h, 1, hyp_method, which)[0])
-            for (image, cam, h), which in zip(photos, "AB")]
-        for method, r in motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods).items():
+        pa, pb = [photo_of(image, cam, h, 1, hyp_method, which)
+                  for (image, cam, h), which in zip(photos, "AB")]
+        for method, r in motion_photos(pa, pb, methods).items():
             if isinstance(r, FindmeError):
                 errs[method] = str(r)
                 continue
             m = r.motion
-            preds[method] = {"x_m": round(m.x, 6), "z_m": round(m.z, 6),
-                             "yaw_deg": round(math.degrees(m.yaw), 6),
-                             "sigma_x_m": round(m.sigma_x, 6), "sigma_z_m": round(m.sigma_z, 6),
-                             "sigma_yaw_deg": round(math.degrees(m.sigma_yaw), 6),
-                             "inliers": m.n_inliers, "matches": r.matches}
+            preds[method] = {**_motion_numbers(m), "inliers": m.n_inliers, "matches": r.matches,
+                             "alternatives": [_motion_numbers(a) for a in m.alternatives]}
+            if m.layout is not None:
+                preds[method]["layout_samples"] = m.layout.samples
     except (FindmeError, OSError, KeyError, ValueError) as e:   # a broken pair, not a crash
         errs = {method: str(e) for method in methods}
     return pid, preds, errs
+
+
+def _motion_numbers(m) -> dict:
+    return {"x_m": round(m.x, 6), "z_m": round(m.z, 6), "yaw_deg": round(math.degrees(m.yaw), 6),
+            "sigma_x_m": round(m.sigma_x, 6), "sigma_z_m": round(m.sigma_z, 6),
+            "sigma_yaw_deg": round(math.degrees(m.sigma_yaw), 6)}
 
 
 def _motion_methods(text: str) -> list[str]:
@@ -220,6 +229,7 @@ def cmd_eval(args) -> int:
         for job in jobs:
             collect(*predict_pair(job))
     bar.close()
+    preds["rooms"] = predict_rooms(args.dataset, index, view_dir, args.room_spots, args.jobs)
     stem, ext = os.path.splitext(args.out)
     for i, m in enumerate(motion_methods):
         out = args.out if i == 0 else f"{stem}.{m}{ext or '.json'}"
@@ -241,3 +251,20 @@ def _collect(preds, failures, vid, pred, err):
         failures.append((vid, err))
     else:
         preds["views"][vid] = pred
+
+
+def predict_rooms(dataset, index, view_dir, spots: str, jobs: int) -> dict:
+    """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame."""
+    from findme.plan_cli import room_job   # rooms live in plan_cli (one hunk here)
+    room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
+    rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
+    out = {}
+    jobs_ = [(room_dir, view_dir, r, spots) for r in rooms]
+    with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("spawn")) as ex:
+        for rid, pred, err in tqdm(ex.map(room_job, jobs_), total=len(jobs_), desc="rooms",
+                                   unit="room", file=sys.stderr):
+            if err:
+                print(f"  {rid}: {err}", file=sys.stderr)
+            else:
+                out[rid] = pred
+    return out

@@ -110,9 +110,26 @@ class Printer:
         if name == "Pose":
             return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
                     f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
+        if name == "Plan":
+            if m.reason:
+                return f"floor plan: none yet ({m.reason})"
+            placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
+            unit = "m" if m.metric else "camera heights"
+            return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
+                f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING else "")
+                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f}, "
+                f"{placed} of {len(m.poses)} photos placed")
         if name == "Error":
             return f"error on {m.key}: {m.message}"
         return None
+
+    def plan_done(self, n: int):
+        """The mapper's plan has taken in (or named) every one of the n photos."""
+        def done(seen, errors):
+            m = seen.get(f"findme/{self.session}/plan")
+            return m is not None and len(m.poses) >= n and not any(
+                q.reason.startswith("waiting") for q in m.poses)
+        return done
 
 
 def _example_paths() -> list[str]:
@@ -140,9 +157,10 @@ def read_photos(photos, out=None) -> list:
 
 
 def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: Lens,
-                   odometry: bool, timeout: float) -> int:
+                   odometry: bool, timeout: float, mapper: bool = False) -> int:
     """Publish the photos through ``publisher`` (a running capture-like Service), then print
-    each photo's results in order as they arrive; returns the number of photos.
+    each photo's results in order as they arrive, and the floor plan once it has taken in
+    every photo (when a mapper runs); returns the number of photos.
 
     Raises:
         BusError: a photo's results did not all arrive within ``timeout`` seconds.
@@ -155,6 +173,9 @@ def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: L
             raise BusError(f"photo {i}: not all results arrived within {timeout:.0f} s "
                            "(is every service still running? see findme status)")
         printer.report(i)
+    pk = f"findme/{session_id}/plan"
+    if (mapper or pk in printer.seen) and printer.wait(printer.plan_done(n), timeout):
+        print(printer.describe(pk, printer.seen[pk]), file=printer.out, flush=True)
     print(f"session {session_id}: {n} photos processed in {time.perf_counter() - t0:.2f} s",
           file=printer.out, flush=True)
     return n

@@ -22,8 +22,7 @@ import time
 import schemas
 from findme_io.imageio import decode_image
 from findme_core.errors import FindmeError, HypothesisError
-from findme_core.pair import motion_pair
-from findme_core.scene import Scene
+from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
 
 from ..runtime import bus
@@ -37,6 +36,7 @@ class _Session:
         self.hsets: dict[int, object] = {}        # n -> HypothesisSet message
         self.selected: dict[int, object] = {}     # n -> Selection message
         self.poses: dict[int, PlanarPose] = {}
+        self.photos: dict[int, tuple] = {}        # n -> (rank, height, prepared photo)
         self.times: dict[int, int] = {}
         self.failed: set[int] = set()
         self.origin: int | None = None
@@ -59,9 +59,9 @@ class OdometryHandler(Handler):
         return bus.parse_key(key).session  # a session's photos stay on one instance
 
     def on_message(self, key, msg):
-        k = bus.parse_key(key)
+        k = bus.parse_key(key)   # the key names session and n, never the payload
         st = self.sessions.setdefault(k.session, _Session())
-        n = msg.index
+        n = k.index()
         if isinstance(msg, schemas.Frame):
             st.frames[n] = msg
             return []
@@ -108,8 +108,8 @@ class OdometryHandler(Handler):
         m = schemas.Motion(session=session, index_a=a, index_b=b, method=f"{self.method}/findme.v1",
                            time_ns=time.time_ns())
         try:
-            (ia, ca, sa, ha), (ib, cb, sb, hb) = self._inputs(session, st, a), self._inputs(session, st, b)
-            res = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, (self.method,))[self.method]
+            pa, pb = self._photo(session, st, a), self._photo(session, st, b)
+            res = motion_photos(pa, pb, (self.method,))[self.method]
             if isinstance(res, FindmeError):
                 raise res
         except FindmeError as e:
@@ -131,8 +131,22 @@ class OdometryHandler(Handler):
             st.frames[n] = self.need(bus.key(session, "frame", n), schemas.Frame)
         return st.frames[n]
 
+    def _photo(self, session, st, n):
+        """Photo n prepared once for all its motions (features, the layouts of its selected
+        hypothesis and the next ranks, its room orientation); at most the last 4 are kept."""
+        sel = st.selected[n]
+        cached = st.photos.get(n)
+        if cached is not None and cached[0] == sel.rank:
+            return cached[2]
+        image, cam, hyps, rank, h = self._inputs(session, st, n)
+        photo = prepare(image, cam, h, hyps, rank)
+        st.photos[n] = (rank, h, photo)
+        for old in sorted(st.photos)[:-4]:
+            del st.photos[old]
+        return photo
+
     def _inputs(self, session, st, n):
-        """(image, camera, scene, camera height) of photo n under its selected hypothesis."""
+        """(image, camera, hypotheses, selected rank, camera height) of photo n."""
         f = self._frame(session, st, n)
         if n not in st.hsets:
             st.hsets[n] = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
@@ -147,8 +161,7 @@ class OdometryHandler(Handler):
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
-        hyp = hyps[sel.rank - 1]
-        return image, cam, Scene(cam, h, hyp.polyline, hyp.kinds), h
+        return image, cam, hyps, sel.rank, h
 
     def _pose_msg(self, session, st, n):
         p = st.poses[n]

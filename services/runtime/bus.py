@@ -1,8 +1,8 @@
 """The Zenoh bus: configuration, keys, and reliable, size-checked publishing.
 
 Keys (DESIGN.md): ``findme/<session>/frame/<n>``, ``hypotheses/<n>``, ``selection/<n>``,
-``scene/<n>``, ``motion/<a>/<b>``, ``pose/<n>``, ``trajectory``, ``measure`` (queryable),
-``error``; services announce themselves with liveliness tokens
+``scene/<n>``, ``motion/<a>/<b>``, ``pose/<n>``, ``trajectory``, ``plan``, ``measure``
+(queryable), ``error``; services announce themselves with liveliness tokens
 ``findme/@services/<name>/<id>`` and answer ``.../status`` queries.
 
 Traps this module handles (STACK-NOTES.md): multicast scouting is off and every session has

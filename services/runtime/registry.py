@@ -46,6 +46,9 @@ def make_handler(name: str, args) -> Handler:
     if name == "odometry":
         from ..pipeline.odometry import OdometryHandler
         return OdometryHandler()
+    if name == "mapper":
+        from ..pipeline.mapper import make_mapper
+        return make_mapper(args)
     if name == "capture":
         from ..pipeline.capture import CaptureHandler
         return CaptureHandler()
@@ -77,7 +80,8 @@ def _extra_services() -> dict:
 
 
 def service_names() -> list[str]:
-    return ["capture", "hypotheses", "selection", "measurement", "odometry", *_extra_services()]
+    return ["capture", "hypotheses", "selection", "measurement", "odometry", "mapper",
+            *_extra_services()]
 
 
 def wait_for_signal(stop: threading.Event | None = None) -> None:

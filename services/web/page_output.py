@@ -1,7 +1,7 @@
 """Bus messages as the JSON a page reads: what the gateway forwards to a page.
 
     HypothesisSet -> {"type": "hypotheses", ...}     MeasureReply -> {"type": "measure", ...}
-    Selection, Scene, Motion, Pose, Trajectory, Error -> the type of the same name, lower-case
+    Selection, Scene, Motion, Pose, Trajectory, Error, Plan -> the type of the same name, lower-case
     anything else (a Frame)                           -> None: not for the page
 
 Nothing changes frame or unit on the way: pixels as on the bus ((0, 0) is the centre of the
@@ -9,7 +9,8 @@ top-left pixel), metres (``*_m``, up to scale when not metric), radians (``*_rad
 relative to photo 0 and motions of photo B relative to photo A as in ``schemas``, measured
 points in camera coordinates, gravity in camera axes. Enums become lower-case names (error
 codes upper-case, without their prefix), unset optional fields ``None``, and an error's key
-is given relative to the session (``frame/3``).
+is given relative to the session (``frame/3``). A scene also carries its boundary's walls on
+the floor (``walls_m``, the photo's level frame) for the page's floor map.
 
 Pure: no bus, no server; the message is only read.
 """
@@ -17,6 +18,9 @@ Pure: no bus, no server; the message is only read.
 from __future__ import annotations
 
 import schemas
+from findme_core import layout
+from findme_core.errors import FindmeError
+from findme_io.convert import msg_camera
 
 from ..runtime import bus
 
@@ -35,6 +39,18 @@ def _pose(p) -> dict:
     return {"index": p.index, "x_m": p.x_m, "z_m": p.z_m, "yaw_rad": p.yaw_rad,
             "sigma_x_m": _opt(p, "sigma_x_m"), "sigma_z_m": _opt(p, "sigma_z_m"),
             "sigma_yaw_rad": _opt(p, "sigma_yaw_rad")}
+
+
+def _walls(scene) -> list:
+    """The walls of a Scene's boundary on the floor, [[x0, z0], [x1, z1]] metres in the
+    photo's level frame (``findme_core.layout``), for the page's floor map; [] when the
+    boundary gives none."""
+    try:
+        poly, kinds = schemas.msg_to_polyline(scene.polyline)
+        lay = layout.from_hypothesis(msg_camera(scene.camera), scene.camera_height_m, poly, kinds)
+    except FindmeError:
+        return []
+    return [[[round(float(v), 4) for v in p] for p in w] for w in lay.walls]
 
 
 def _sources(camera) -> dict:
@@ -66,7 +82,8 @@ def to_page(session: str, msg) -> dict | None:
                 "camera_height_m": _opt(msg, "camera_height_m")}
     if name == "Scene":
         return {"type": "scene", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
-                "camera_height_m": msg.camera_height_m, **_sources(msg.camera)}
+                "camera_height_m": msg.camera_height_m, **_sources(msg.camera),
+                "walls_m": _walls(msg)}
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}
@@ -92,4 +109,29 @@ def to_page(session: str, msg) -> dict | None:
                 "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
                                "sigma_m": _opt(d, "sigma_m"), "error": d.error}
                               for d in msg.distances]}
+    if name == "Plan":
+        return plan_to_page(msg)
     return None
+
+
+def plan_to_page(m) -> dict:
+    """A Plan as the page draws it: points as [x_m, z_m] (plan frame: the level frame of
+    photo ``origin_index``), wall and photo kinds as lower-case names."""
+    def xz(q):
+        return [q.x_m, q.z_m]
+
+    def kind(enum, v, prefix):
+        return enum.Name(v).removeprefix(prefix).lower()
+    return {"type": "plan", "up_to_index": m.up_to_index, "photos": m.photos,
+            "origin_index": m.origin_index, "metric": m.metric,
+            "camera_height_m": m.camera_height_m, "reason": m.reason, "area_m2": m.area_m2,
+            "closed": m.closed, "manhattan": m.manhattan,
+            "polygon": [xz(q) for q in m.polygon],
+            "walls": [{"a": xz(w.a), "b": xz(w.b), "length_m": w.length_m, "sigma_m": w.sigma_m,
+                       "kind": kind(schemas.WallKind, w.kind, "WALL_KIND_"),
+                       "openings": [[o.from_m, o.to_m] for o in w.openings]} for w in m.walls],
+            "poses": [{"index": q.index, "spot": q.spot, "reason": q.reason,
+                       "status": kind(schemas.PlanPhotoStatus, q.status, "PLAN_PHOTO_STATUS_"),
+                       **{k: _opt(q, k) for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m",
+                                                  "sigma_z_m", "sigma_yaw_rad", "ambiguity")}}
+                      for q in m.poses]}
