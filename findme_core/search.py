@@ -234,10 +234,8 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
     """
     n_tracks, W1 = A.shape
     W = W1 - 1
-    left = valid[:, 0].tolist()
-    right = valid[:, -1].tolist()
     order = np.argsort(ev.col, kind="stable")
-    src, dst = ev.src.tolist(), ev.dst.tolist()
+    src = ev.src.tolist()
     # per event, in column order: reward tables at its column before / after it, its cost
     Ai, Aj = A[ev.src, ev.col], A[ev.dst, ev.col]
     cost = np.where(ev.step, step_cost, corner_cost)
