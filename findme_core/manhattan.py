@@ -224,15 +224,17 @@ def _jacobian(mid: np.ndarray, normal: np.ndarray, K: np.ndarray,
     return e, -np.cross(dv @ K, D)
 
 
-def refine(L: LineSet, K: np.ndarray, R: np.ndarray, inlier_deg: float, iterations: int = 4):
+def refine(L: LineSet, K: np.ndarray, R: np.ndarray, inlier_deg: float, iterations: int = 4,
+           min_sigma_deg: float = 0.0):
     """Gauss-Newton on the frame R (columns h1, g, h2): each line is an inlier of the
     nearest of the three vanishing points within 2 ``inlier_deg``; residuals are weighted
     by support.
 
     Returns:
         (R, covariance (3, 3) of the rotation vector in camera coordinates (sigma^2
-        (J^T W J)^-1, sigma^2 the weighted residual variance), or None when degenerate,
-        inlier masks (3, N)).
+        (J^T W J)^-1, sigma^2 the weighted residual variance, at least ``min_sigma_deg``
+        squared: a few lines that happen to agree closely do not make the frame exact), or
+        None when degenerate, inlier masks (3, N)).
     """
     tau = math.sin(math.radians(inlier_deg))
     masks = np.zeros((3, len(L)), bool)
@@ -256,7 +258,8 @@ def refine(L: LineSet, K: np.ndarray, R: np.ndarray, inlier_deg: float, iteratio
         Rs, _ = cv2.Rodrigues(step.reshape(3, 1))
         R = Rs @ R
         e2, _ = _jacobian(mid, normal, K, R[:, best[idx]].T)
-        cov = float((w * e2 ** 2).sum() / (len(e) - 3)) * np.linalg.inv(A)
+        s2 = max(float((w * e2 ** 2).sum() / (len(e) - 3)), math.sin(math.radians(min_sigma_deg)) ** 2)
+        cov = s2 * np.linalg.inv(A)
         if np.linalg.norm(step) < 1e-7:
             break
     return R, cov, masks
