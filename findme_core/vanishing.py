@@ -75,7 +75,7 @@ class GravityParams:
                                          # stand there, the boundary is not the floor's edge
     min_floor_px: float = 150.0     # less floor-line support: nothing to re-estimate
     min_gain: float = 0.02          # the joint frame must explain the rest this much better
-    sigma_scale: float = 1.81       # model error: sigma = hypot(scale * sigma_fit, floor),
+    sigma_scale: float = 1.74       # model error: sigma = hypot(scale * sigma_fit, floor),
                                     # fitted by tools/calibrate_sigma.py (dev: 68 % of 230
                                     # estimated gravities within their 1-sigma)
     sigma_floor_deg: float = 0.3
