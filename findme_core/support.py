@@ -101,6 +101,7 @@ class EdgeField:
         if top:
             self.gx[top:top_row] = 0.0
             self.gy[top:top_row] = 0.0
+        self.top_row = max(int(top_row), 0) if top_row > 0 else 0   # derivatives from here down
 
     def sample(self, arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
@@ -110,15 +111,16 @@ class EdgeField:
         """(N, W) mean gradient magnitude (grey levels per pixel) in the band of rows
         [row + offset, row + offset + band) of each column, below line rows (N, W); 0 where
         the band lies outside the image (or above the rows with derivatives)."""
-        if not hasattr(self, "_mag_cum"):
-            mag = np.sqrt(self.gx * self.gx + self.gy * self.gy)
-            cum = np.zeros((self.height + 1, self.width), np.float64)
-            np.cumsum(mag, axis=0, out=cum[1:])
-            self._mag_cum = cum
+        t = min(self.top_row, self.height)
+        if not hasattr(self, "_mag_sum"):   # summed-area table of the rows with derivatives
+            self._mag_sum = cv2.integral(cv2.magnitude(self.gx[t:], self.gy[t:]),
+                                         sdepth=cv2.CV_64F)
+        S = self._mag_sum                       # (H - t + 1, W + 1)
         r0 = np.clip(np.floor(rows + offset_px), 0, self.height).astype(int)
         r1 = np.clip(r0 + band_px, 0, self.height)
-        cols = np.broadcast_to(np.arange(self.width), rows.shape)
-        total = self._mag_cum[r1, cols] - self._mag_cum[r0, cols]
+        a, b = np.maximum(r0 - t, 0), np.maximum(r1 - t, 0)   # rows above t add nothing
+        u = np.broadcast_to(np.arange(self.width), rows.shape)
+        total = (S[b, u + 1] - S[b, u]) - (S[a, u + 1] - S[a, u])
         return np.where(r1 > r0, total / np.maximum(r1 - r0, 1), 0.0)
 
     def evidence(self, pts: np.ndarray, normals: np.ndarray) -> np.ndarray:
