@@ -213,11 +213,8 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     rows_t = track_rows(table, H)
     verts = lines.ends[vert]
     stats = RegionStats(lab)
-    front = kinds[cand] == LineKind.FRONT
-    texture = np.zeros(table.v.shape)
-    if front.any():   # only front lines count as far: the band below them
-        texture[front] = field.band_texture(table.v[front])
-    F, valid = track_tables(table, camera, sp, front=front, texture=texture)
+    F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT,
+                            texture=field.band_texture)
     ev = events(coef, rows_t, valid, verts, camera, sp)
     if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
         paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],

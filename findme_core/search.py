@@ -93,8 +93,9 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
             distance along its base, so a front line just below the horizon means a wall
             implausibly far away (the edge of a counter top or a window sill seen level);
             a receding line's far end approaches the horizon in any room or street.
-        texture: (N, W) gradient magnitude of the band just below each line
-            (``support.EdgeField.band_texture``): a far line with textured ground below it
+        texture: function (rows (K,), columns (K,)) -> (K,) gradient magnitude of the band
+            just below those line rows (``support.EdgeField.band_texture``), asked only
+            where a line is far: a far line with textured ground below it
             (grass, asphalt, paving: a street, where a far boundary is the rule) does not
             count as far: farness is scaled from 1 at ``smooth_texture`` (counter tops,
             sills and the walls below them are smooth) down to 0 at ``ground_texture``.
@@ -120,8 +121,11 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
     if front is not None:
         far[~np.asarray(front, bool)] = 0.0
     if texture is not None:
-        far *= np.clip((p.ground_texture - texture) / (p.ground_texture - p.smooth_texture),
-                       0.0, 1.0)
+        i, u = np.nonzero(far > 0)
+        if len(i):
+            t = texture(table.v[i, u], u)
+            far[i, u] *= np.clip((p.ground_texture - t) / (p.ground_texture - p.smooth_texture),
+                                 0.0, 1.0)
     F[6, :n, 1:] = np.cumsum(far, axis=1)
     if region is not None:
         F[5, :, 1:] = np.cumsum(region, axis=1)

@@ -107,19 +107,25 @@ class EdgeField:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
         return sample_bilinear(arr, pts)
 
-    def band_texture(self, rows: np.ndarray, offset_px: int = 3, band_px: int = 24) -> np.ndarray:
-        """(N, W) mean gradient magnitude (grey levels per pixel) in the band of rows
-        [row + offset, row + offset + band) of each column, below line rows (N, W); 0 where
-        the band lies outside the image (or above the rows with derivatives)."""
-        t = min(self.top_row, self.height)
-        if not hasattr(self, "_mag_sum"):   # summed-area table of the rows with derivatives
-            self._mag_sum = cv2.integral(cv2.magnitude(self.gx[t:], self.gy[t:]),
-                                         sdepth=cv2.CV_64F)
-        S = self._mag_sum                       # (H - t + 1, W + 1)
+    def band_texture(self, rows: np.ndarray, cols: np.ndarray | None = None, offset_px: int = 3,
+                     band_px: int = 24) -> np.ndarray:
+        """Mean gradient magnitude (grey levels per pixel) in the band of rows
+        [row + offset, row + offset + band) below each row: ``rows`` (N, W) at every column,
+        or (K,) at the columns ``cols`` (K,); 0 where the band lies outside the image (rows
+        above the derivatives add nothing)."""
         r0 = np.clip(np.floor(rows + offset_px), 0, self.height).astype(int)
         r1 = np.clip(r0 + band_px, 0, self.height)
-        a, b = np.maximum(r0 - t, 0), np.maximum(r1 - t, 0)   # rows above t add nothing
-        u = np.broadcast_to(np.arange(self.width), rows.shape)
+        if r0.size == 0:
+            return np.zeros(rows.shape)
+        # a summed-area table of the strip of rows the bands cover (rows above the
+        # derivatives add nothing)
+        lo = max(int(r0.min()), min(self.top_row, self.height))
+        hi = int(r1.max())
+        if hi <= lo:                  # every band below the image or above the derivatives
+            return np.zeros(rows.shape)
+        S = cv2.integral(cv2.magnitude(self.gx[lo:hi], self.gy[lo:hi]), sdepth=cv2.CV_64F)
+        a, b = np.clip(r0 - lo, 0, hi - lo), np.clip(r1 - lo, 0, hi - lo)
+        u = np.broadcast_to(np.arange(self.width), rows.shape) if cols is None else cols
         total = (S[b, u + 1] - S[b, u]) - (S[a, u + 1] - S[a, u])
         return np.where(r1 > r0, total / np.maximum(r1 - r0, 1), 0.0)
 

@@ -104,9 +104,14 @@ def test_far_is_waived_over_textured_ground():
     W = cam.width
     v = np.full((3, W), cam.cy + cam.fy * math.tan(math.radians(2.0)))
     z = np.zeros((3, W + 1))
-    tex = np.stack([np.full(W, 0.5), np.full(W, 5.0),
-                    np.full(W, (p.smooth_texture + p.ground_texture) / 2)])
-    F, _ = track_tables(SupportTable(z, z, z, v), cam, p, texture=tex)
+    tex = np.array([0.5, 5.0, (p.smooth_texture + p.ground_texture) / 2])
+    asked = []
+
+    def texture(rows, cols):   # asked at every far (line, column), line by line
+        asked.append((len(rows), cols[:3].tolist()))
+        return np.repeat(tex, W)
+    F, _ = track_tables(SupportTable(z, z, z, v), cam, p, texture=texture)
+    assert asked == [(3 * W, [0, 1, 2])]
     far = F[ADDITIVE.index("far"), :3, -1]
     F0, _ = track_tables(SupportTable(z, z, z, v), cam, p)
     full = F0[ADDITIVE.index("far"), 0, -1]
@@ -122,6 +127,7 @@ def test_band_texture_is_the_mean_gradient_below_a_row():
     f = EdgeField(img, SupportParams())
     rows = np.array([np.full(160, 20.0), np.full(160, 70.0), np.full(160, 118.0)])
     t = f.band_texture(rows, offset_px=3, band_px=24)
+    assert np.allclose(f.band_texture(rows[1, :5], np.arange(5)), t[1, :5])
     mag = np.sqrt(f.gx ** 2 + f.gy ** 2)
     assert np.allclose(t[1], mag[73:97].mean(0), rtol=1e-5)
     assert t[0].mean() < 0.2 * t[1].mean()            # rows 23-46: plain grey (blur reach)
