@@ -26,30 +26,9 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from bench.common import EVAL_DIR, dev_views, fmt, pin_one_core, stats  # noqa: E402
-from findme.evaluate import view_inputs  # noqa: E402
+from bench.common import canny_hough, dev_photos, dev_views, fmt, pin_one_core, stats  # noqa: E402
 from findme_core.methods import hypothesize  # noqa: E402
 from findme_core.photo import hypothesize_without_gravity  # noqa: E402
-
-
-def canny_hough(gray):
-    return cv2.HoughLinesP(cv2.Canny(gray, 50, 150), 1, np.pi / 180, 40, minLineLength=28,
-                           maxLineGap=4)
-
-
-def images():
-    views = dev_views()
-    if views:
-        for vid, meta in views:
-            cam, _, _ = view_inputs(meta)
-            yield vid, cv2.imread(str(EVAL_DIR / "views" / meta["image"])), cam
-        return
-    from findme_core.synth import Pose, Room, render
-    room = Room.rectangle(5.0, 6.0)
-    for i in range(12):
-        v = render(room, Pose(0.2, -1.5, 1.45, yaw_deg=-60 + 10 * i, pitch_deg=5 * (i % 4)),
-                   640, 480, hfov_deg=75.0, seed=i)
-        yield f"synthetic_{i}", v.image, v.camera
 
 
 def timed2(fn, *args, repeat: int = 3):
@@ -78,7 +57,7 @@ def main(argv=None):
     parts_ng: dict = {}
     totals: list = []
     n = 0
-    for vid, img, cam in images():
+    for vid, img, cam in dev_photos():
         gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if n == 0:  # warm up caches and lazy initialisation
             hypothesize(img, cam)
