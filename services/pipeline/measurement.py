@@ -5,11 +5,16 @@
 
 The camera height comes from the selection (if the user gave one there), else the frame,
 else h = 1 (results up to scale, ``metric`` false).
+
+State is bounded and expires: per session at most ``max_photos`` photos (least recently
+used out), a session idle for ``idle_s`` is evicted; anything evicted is rebuilt from the
+bus (selection, hypotheses and frame from the store or the caches) when asked again.
 """
 
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 
 import schemas
 from findme_io.imageio import image_size
@@ -19,56 +24,72 @@ from findme_core.scene import Scene
 from ..runtime import bus
 from findme_io.convert import camera_msg, frame_camera, measure_reply_msg, msg_hypotheses
 from ..runtime.handler import Handler, Input, Output, UnknownSession
+from ..runtime.sessions import SessionTable
 
 DEFAULT_HEIGHT_SIGMA_M = 0.03
+
+
+class _Photos:
+    """One session's photos: n -> (camera, h, sigma), HypothesisSet, (Scene, rank, metric);
+    at most ``limit`` of each, least recently used out."""
+
+    def __init__(self, limit: int):
+        self.limit = limit
+        self.frames: OrderedDict[int, tuple] = OrderedDict()
+        self.hsets: OrderedDict[int, object] = OrderedDict()
+        self.scenes: OrderedDict[int, tuple] = OrderedDict()
+
+    def put(self, table: OrderedDict, n: int, value) -> None:
+        table[n] = value
+        table.move_to_end(n)
+        while len(table) > self.limit:
+            table.popitem(last=False)
 
 
 class MeasurementHandler(Handler):
     name = "measurement"
     cache_keys = ("findme/*/scene/*",)
-    inputs = (Input("findme/*/frame/*", schemas.Frame),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet),
-              Input("findme/*/selection/*", schemas.Selection))
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+              Input("findme/*/selection/*", schemas.Selection,
+                    answers=("findme/{session}/scene/{n}",)))
     queries = (Input("findme/*/measure", schemas.MeasureRequest),)
 
-    def __init__(self):
-        self.frames: dict[tuple[str, int], tuple] = {}   # (session, n) -> (camera, h, sigma)
-        self.hsets: dict[tuple[str, int], object] = {}
-        self.scenes: dict[tuple[str, int], tuple] = {}   # -> (Scene, rank, metric)
-        self.sessions: set[str] = set()
-        self.answered = 0
+    def __init__(self, idle_s: float = 600.0, max_sessions: int = 1000, max_photos: int = 256,
+                 clock=time.monotonic):
+        self.sessions = SessionTable(lambda s: _Photos(max_photos), idle_s, max_sessions, clock)
+        self.answered = self.built = 0
 
     def on_message(self, key, msg):
         k = bus.parse_key(key)
-        self.sessions.add(k.session)
+        st = self.sessions.get(k.session)
         if isinstance(msg, schemas.Frame):
-            self._frame(msg)
+            self._frame(st, msg)
             return []
         if isinstance(msg, schemas.HypothesisSet):
-            self.hsets[(k.session, msg.index)] = msg
+            st.put(st.hsets, msg.index, msg)
             return []
-        return self._select(k.session, msg)
+        return self._select(k.session, st, msg)
 
-    def _frame(self, f):
+    def _frame(self, st, f):
         w, h = image_size(f.image.data, f"frame {f.index}")
         cam = frame_camera(f, w, h)
         height = f.camera_height_m if f.HasField("camera_height_m") else None
         sigma = (f.camera_height_sigma_m if f.HasField("camera_height_sigma_m")
                  else DEFAULT_HEIGHT_SIGMA_M)
-        self.frames[(f.session, f.index)] = (cam, height, sigma)
+        st.put(st.frames, f.index, (cam, height, sigma))
 
-    def _select(self, session, sel):
+    def _select(self, session, st, sel):
         n = sel.index
-        if (session, n) not in self.frames:
-            self._frame(self.need(bus.key(session, "frame", n), schemas.Frame))
-        if (session, n) not in self.hsets:
-            self.hsets[(session, n)] = self.need(bus.key(session, "hypotheses", n),
-                                                 schemas.HypothesisSet)
-        hyps = msg_hypotheses(self.hsets[(session, n)])
+        if n not in st.frames:
+            self._frame(st, self.need(bus.key(session, "frame", n), schemas.Frame))
+        if n not in st.hsets:
+            st.put(st.hsets, n, self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet))
+        hyps = msg_hypotheses(st.hsets[n])
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
-        cam, height, sigma = self.frames[(session, n)]
+        cam, height, sigma = st.frames[n]
         if sel.HasField("camera_height_m"):
             height = sel.camera_height_m
             sigma = sel.camera_height_sigma_m if sel.HasField("camera_height_sigma_m") else sigma
@@ -76,7 +97,8 @@ class MeasurementHandler(Handler):
         h = hyps[sel.rank - 1]
         scene = Scene(cam, height if metric else 1.0, h.polyline, h.kinds,
                       height_sigma=sigma if metric else 0.0)
-        self.scenes[(session, n)] = (scene, sel.rank, metric)
+        st.put(st.scenes, n, (scene, sel.rank, metric))
+        self.built += 1
         msg = schemas.Scene(session=session, index=n, rank=sel.rank, camera=camera_msg(cam),
                             camera_height_m=scene.height, camera_height_sigma_m=scene.height_sigma,
                             metric=metric, polyline=schemas.polyline_to_msg(h.polyline, h.kinds),
@@ -87,22 +109,28 @@ class MeasurementHandler(Handler):
         k = bus.parse_key(key)
         if req.session != k.session:
             raise UnknownSession(f"{key} carries a request for session {req.session!r}")
-        if (k.session, req.index) not in self.scenes:
-            # not seen here (e.g. this service restarted): rebuild it from the bus
+        st = self.sessions.peek(k.session)
+        known = st is not None
+        if st is None or req.index not in st.scenes:
+            # not seen here (this service restarted, or evicted it): rebuild it from the bus
             try:
                 sel = self.need(bus.key(k.session, "selection", req.index), schemas.Selection)
             except HypothesisError:
-                if k.session not in self.sessions:
+                if not known:
                     raise UnknownSession(f"session {k.session!r} is not known") from None
                 raise HypothesisError(f"photo {req.index} of session {k.session!r} has no "
                                       "selected hypothesis yet") from None
-            self.sessions.add(k.session)
-            self._select(k.session, sel)
-        scene, rank, metric = self.scenes[(k.session, req.index)]
+            st = self.sessions.get(k.session)
+            self._select(k.session, st, sel)
+        else:
+            self.sessions.get(k.session)   # used now
+        scene, rank, metric = st.scenes[req.index]
+        st.scenes.move_to_end(req.index)
         located = scene.locate(schemas.msg_to_pixels(req.pixels))
         self.answered += 1
         return measure_reply_msg(k.session, req.index, rank, metric, located, scene.height,
                                  scene.height_sigma)
 
     def counters(self):
-        return {"scenes": len(self.scenes), "measure_queries": self.answered}
+        return {"scenes": self.built, "sessions": len(self.sessions),
+                "evicted": self.sessions.evicted, "measure_queries": self.answered}

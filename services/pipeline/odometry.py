@@ -1,15 +1,23 @@
-"""The odometry service: motion between successive selected photos of a session, and the
-session's trajectory.
+"""The odometry service: motion between selected photos of a session, and the session's
+trajectory.
 
     frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/motion/<m>/<n>,
                                                     findme/<session>/pose/<n>,
                                                     findme/<session>/trajectory
 
-Photo m is the nearest lower photo of the session that has a pose; the first selected
-photo of a session is its origin (the session frame is the level frame of photo 0, or of
-the first photo that was selected). Selections may arrive in any order: a photo waits while
-a lower photo of the session is known (its frame or hypotheses arrived) but not yet done. A motion that cannot be estimated is published with its error
-(no numbers) and the photo gets no pose; later photos chain from the last one that did.
+Photo m is the nearest lower photo of the session that has a pose (the nearest higher one
+for a photo below the origin); the first selected photo of a session is its origin (the
+session frame is the level frame of photo 0, or of the first photo that was selected).
+Selections may arrive in any order: a photo waits while a lower photo of the session is
+open (its frame or hypotheses arrived, no selection yet), at most ``gap_wait_s`` seconds;
+then it chains past it from the last photo that has a pose, and the gap is reported as an
+Error on ``findme/<session>/error`` naming the photo that never got a selection. A photo
+that will never be selected (an Error about its frame or hypotheses, or no hypotheses) is
+not waited for. A motion that cannot be estimated is published with its error (no
+numbers) and the photo gets no pose; later photos chain from the last one that did.
+
+State is bounded (``odometry_session``) and expires: a session idle for ``idle_s`` is
+evicted; when it comes back, its poses are fetched from the bus (the store, the caches).
 Instances share the load by session (``shard``). Same pipeline as ``findme motion``
 (``findme_core.pair``), so the numbers are equal for the same photos.
 """
@@ -19,101 +27,167 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
+
 import schemas
-from findme_io.imageio import decode_image
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_pair
 from findme_core.scene import Scene
 from findme_core.trajectory import PlanarPose, compose
+from findme_io.convert import frame_camera, msg_hypotheses
+from findme_io.imageio import decode_image
 
 from ..runtime import bus
-from findme_io.convert import frame_camera, msg_hypotheses
 from ..runtime.handler import Handler, Input, Output
+from ..runtime.sessions import SessionTable
+from .odometry_session import OdometrySession
 
-
-class _Session:
-    def __init__(self):
-        self.frames: dict[int, object] = {}       # n -> Frame message
-        self.hsets: dict[int, object] = {}        # n -> HypothesisSet message
-        self.selected: dict[int, object] = {}     # n -> Selection message
-        self.poses: dict[int, PlanarPose] = {}
-        self.times: dict[int, int] = {}
-        self.failed: set[int] = set()
-        self.origin: int | None = None
+NEVER_SELECTED = {"frame", "hypotheses"}   # an Error about these: the photo gets no selection
 
 
 class OdometryHandler(Handler):
     name = "odometry"
     cache_keys = ("findme/*/motion/*/*", "findme/*/pose/*", "findme/*/trajectory")
-    inputs = (Input("findme/*/frame/*", schemas.Frame),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet),
-              Input("findme/*/selection/*", schemas.Selection))
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+              Input("findme/*/selection/*", schemas.Selection,
+                    answers=("findme/{session}/pose/{n}", "findme/{session}/motion/*/{n}")),
+              Input("findme/*/error", schemas.Error, state=True))
     shard = True
+    tick_s = 0.5
 
-    def __init__(self, method: str = "findme"):
-        self.method = method
-        self.sessions: dict[str, _Session] = {}
-        self.motions = 0
+    def __init__(self, method: str = "findme", gap_wait_s: float = 5.0, idle_s: float = 600.0,
+                 max_sessions: int = 1000, clock=time.monotonic):
+        self.method, self.gap_wait_s, self.clock = method, gap_wait_s, clock
+        self.sessions = SessionTable(self._open_session, idle_s, max_sessions, clock)
+        self._waiting: set[str] = set()    # sessions with a photo waiting on a lower one
+        self.motions = self.gaps = 0
 
     def shard_key(self, key, msg):
         return bus.parse_key(key).session  # a session's photos stay on one instance
 
+    def _open_session(self, session: str) -> OdometrySession:
+        """A session seen for the first time here: take the poses it already has on the bus
+        (published before this instance restarted, or before the session was evicted)."""
+        st = OdometrySession()
+        if self.fetch_all is None:
+            return st
+        poses, times = {}, {}
+        for k, payload in self.fetch_all(bus.key(session, "pose", "*")):
+            try:
+                p = schemas.decode(schemas.Pose, payload)
+            except FindmeError:
+                continue
+            cov = np.diag([p.sigma_x_m ** 2, p.sigma_z_m ** 2, p.sigma_yaw_rad ** 2])
+            poses[p.index] = PlanarPose(p.x_m, 0.0, p.z_m, p.yaw_rad, cov)
+            times[p.index] = p.time_ns
+        st.adopt(poses, times)
+        return st
+
     def on_message(self, key, msg):
         k = bus.parse_key(key)
-        st = self.sessions.setdefault(k.session, _Session())
+        st = self.sessions.get(k.session)
+        now = self.clock()
+        if isinstance(msg, schemas.Error):
+            return self._error(k.session, st, msg, now)
         n = msg.index
+        if n in st.poses or n in st.closed and not isinstance(msg, schemas.Selection):
+            return []
+        p = st.photo(n, now)
         if isinstance(msg, schemas.Frame):
-            st.frames[n] = msg
-            return []
-        if isinstance(msg, schemas.HypothesisSet):
-            st.hsets[n] = msg
-            return []
-        if n not in st.hsets:
-            st.hsets[n] = self.need(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
-        count = len(st.hsets[n].hypotheses)
-        if not 1 <= msg.rank <= count:
-            raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which has "
-                                  f"{count} hypotheses")
-        st.selected[n] = msg
-        return self._advance(k.session, st)
+            p.frame = msg
+        elif isinstance(msg, schemas.HypothesisSet):
+            p.hset = msg
+            if not msg.hypotheses:
+                st.close(n, "dead")      # nothing to select: nobody waits for it
+        else:
+            if n in st.closed:
+                st.closed.pop(n)        # selected after all: it gets a pose now
+                p = st.photo(n, now)
+            if p.hset is None:
+                p.hset = self.need(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
+            count = len(p.hset.hypotheses)
+            if not 1 <= msg.rank <= count:
+                raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which has "
+                                      f"{count} hypotheses")
+            p.selection, p.selected_at = msg, now
+        return self._advance(k.session, st, now)
 
-    # ------------------------------------------------------------------ chaining
-    def _advance(self, session: str, st: _Session) -> list[Output]:
-        out: list[Output] = []
-        known = set(st.frames) | set(st.hsets) | set(st.selected)
-        if st.origin is None:
-            first = min(m for m in known if not (m in st.hsets and not st.hsets[m].hypotheses))
-            if first not in st.selected:
-                return out   # the session's first photo is not selected yet
-            st.origin = first
-            st.poses[first] = PlanarPose(0.0, 0.0, 0.0, 0.0)
-            st.times[first] = self._frame(session, st, first).capture_time_ns
-            out.append(self._pose_out(session, st, first))
-        for n in sorted(st.selected):
-            if n in st.poses or n in st.failed or n < st.origin:
-                continue
-            # a lower photo that is known but not done yet (e.g. not selected yet) comes
-            # first, unless it can never be selected (no hypotheses)
-            pending = [m for m in known if m < n and m not in st.poses and m not in st.failed
-                       and not (m in st.hsets and not st.hsets[m].hypotheses)]
-            if pending:
-                break
-            done = [m for m in st.poses if m < n]
-            out.extend(self._step(session, st, max(done), n))
-        if out:
-            out.append(Output(bus.key(session, "trajectory"), self._trajectory(session, st)))
+    def _error(self, session, st, err, now):
+        if err.service.split("/")[0] == self.name:
+            return []
+        try:
+            k = bus.parse_key(err.key)
+            n = k.index()
+        except FindmeError:
+            return []
+        if k.session == session and k.kind in NEVER_SELECTED and n not in st.poses:
+            st.close(n, "dead")
+            return self._advance(session, st, now)
+        return []
+
+    def tick(self, now):
+        out = []
+        for session in sorted(self._waiting):
+            st = self.sessions.peek(session)
+            self._waiting.discard(session)
+            if st is not None:
+                out += self._advance(session, st, now)
+        self.sessions.expire(now)
         return out
 
-    def _step(self, session, st, a: int, b: int) -> list[Output]:
+    # ------------------------------------------------------------------ chaining
+    def _advance(self, session: str, st: OdometrySession, now: float) -> list[Output]:
+        out: list[Output] = []
+        for n in st.pending():
+            blockers = st.blockers(n)
+            if blockers and now - st.photos[n].selected_at < self.gap_wait_s:
+                self._waiting.add(session)
+                break                     # n waits for a lower photo's selection
+            for m in blockers:            # waited long enough: chain past them, say so
+                st.close(m, "dead")
+                self.gaps += 1
+                out.append(self._gap(session, m, n))
+            if st.origin is None:
+                st.times[n] = self._time(session, st, n)
+                st.origin = n
+                st.poses[n] = PlanarPose(0.0, 0.0, 0.0, 0.0)
+                out.append(self._pose_out(session, st, n))
+                continue
+            out.extend(self._step(session, st, n))
+        if out:
+            out.append(Output(bus.key(session, "trajectory"), self._trajectory(session, st)))
+        st.prune()
+        return out
+
+    def _gap(self, session, m, n):
+        err = schemas.Error(session=session, key=bus.key(session, "selection", m),
+                            code=schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS,
+                            message=f"photo {m} has no selected hypothesis after "
+                                    f"{self.gap_wait_s:g} s: photo {n} chains past it",
+                            time_ns=time.time_ns(), service=self.name)
+        return Output(bus.key(session, "error"), err, cache=False)
+
+    def _step(self, session, st, b: int) -> list[Output]:
+        anchors = st.anchor(b)
+        a = anchors[0]
         m = schemas.Motion(session=session, index_a=a, index_b=b, method=f"{self.method}/findme.v1",
                            time_ns=time.time_ns())
         try:
-            (ia, ca, sa, ha), (ib, cb, sb, hb) = self._inputs(session, st, a), self._inputs(session, st, b)
+            ib, cb, sb, hb = self._inputs(session, st, b)
+            for a in anchors[:3]:         # an anchor no longer on the bus: the next one
+                try:
+                    ia, ca, sa, ha = self._inputs(session, st, a)
+                    break
+                except HypothesisError:
+                    if a == anchors[:3][-1]:
+                        raise
+            m.index_a = a
             res = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, (self.method,))[self.method]
             if isinstance(res, FindmeError):
                 raise res
         except FindmeError as e:
-            st.failed.add(b)
+            st.close(b, "failed")
             m.error = str(e).splitlines()[0][:500] or type(e).__name__
             return [Output(bus.key(session, "motion", a, b), m)]
         mo = res.motion
@@ -122,26 +196,37 @@ class OdometryHandler(Handler):
         m.inliers, m.matches = mo.n_inliers, res.matches
         cov = [[mo.sigma_x ** 2, 0, 0], [0, mo.sigma_z ** 2, 0], [0, 0, mo.sigma_yaw ** 2]]
         st.poses[b] = compose(st.poses[a], mo.x, mo.z, mo.yaw, mo.dy, cov)
-        st.times[b] = self._frame(session, st, b).capture_time_ns
+        st.times[b] = self._time(session, st, b)
         self.motions += 1
         return [Output(bus.key(session, "motion", a, b), m), self._pose_out(session, st, b)]
 
     def _frame(self, session, st, n):
-        if n not in st.frames:
-            st.frames[n] = self.need(bus.key(session, "frame", n), schemas.Frame)
-        return st.frames[n]
+        p = st.photo(n, self.clock())
+        if p.frame is None:
+            p.frame = self.need(bus.key(session, "frame", n), schemas.Frame)
+        return p.frame
+
+    def _time(self, session, st, n) -> int:
+        """Capture time of photo n (0 when its frame is no longer on the bus)."""
+        try:
+            return self._frame(session, st, n).capture_time_ns
+        except HypothesisError:
+            return 0
 
     def _inputs(self, session, st, n):
         """(image, camera, scene, camera height) of photo n under its selected hypothesis."""
         f = self._frame(session, st, n)
-        if n not in st.hsets:
-            st.hsets[n] = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
+        p = st.photos[n]
+        if p.hset is None:
+            p.hset = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
+        if p.selection is None:
+            p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
         image = decode_image(f.image.data, f"frame {n}")
         cam = frame_camera(f, image.shape[1], image.shape[0])
-        sel = st.selected[n]
+        sel = p.selection
         h = (sel.camera_height_m if sel.HasField("camera_height_m") else
              f.camera_height_m if f.HasField("camera_height_m") else 1.0)
-        hyps = msg_hypotheses(st.hsets[n])
+        hyps = msg_hypotheses(p.hset)
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
@@ -168,4 +253,5 @@ class OdometryHandler(Handler):
         return t
 
     def counters(self):
-        return {"sessions": len(self.sessions), "motions": self.motions}
+        return {"sessions": len(self.sessions), "motions": self.motions, "gaps": self.gaps,
+                "evicted": self.sessions.evicted}

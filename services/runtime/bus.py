@@ -140,6 +140,19 @@ def put(session: zenoh.Session, k: str, payload: bytes,
                 encoding=zenoh.Encoding.APPLICATION_PROTOBUF)
 
 
+def get_all(session: zenoh.Session, selector: str, timeout: float = 5.0,
+            payload: bytes | None = None) -> list[tuple[str, bytes]]:
+    """Every reply (key, payload) to ``selector`` from every matching queryable: target ALL
+    and no consolidation (Zenoh would otherwise keep one reply per key, e.g. one Error of
+    many on ``findme/<s>/error``). Error replies are left out."""
+    out = []
+    for r in session.get(selector, target=zenoh.QueryTarget.ALL, timeout=timeout,
+                         consolidation=zenoh.ConsolidationMode.NONE, payload=payload):
+        if r.ok is not None:
+            out.append((str(r.ok.key_expr), r.ok.payload.to_bytes()))
+    return out
+
+
 def wait_alive(session: zenoh.Session, name: str, timeout: float = 60.0) -> None:
     """Until a liveliness token of service ``name`` is on the bus (no polling: a liveliness
     subscriber with history signals it).

@@ -1,21 +1,27 @@
 """Runs a pure handler on the bus: decode, handle, encode, publish; errors, counters,
-liveliness, status, a latched cache of outputs, sharding among instances, shutdown.
+liveliness, status, a latched cache of outputs, sharding among instances, recovery of what
+was missed, shutdown.
 
 A *handler* (``handler.Handler``) knows nothing about Zenoh: it declares its inputs and
 queries and turns one decoded message into outputs, so tests drive it directly. ``Service``
-wires it to a session:
+wires it to a session. Delivery (issue 10; README "Delivery"):
 
-* inputs with policy ``"all"`` go through a bounded FIFO; a full FIFO blocks the sender
-  (backpressure), nothing is dropped. Inputs with policy ``"latest"`` keep the newest
-  ``depth`` messages; each one pushed out is counted as dropped.
-* one worker thread handles queries first, then messages in arrival order.
-* any FindmeError becomes an ``Error`` on ``findme/<session>/error`` and a log line; any
-  other exception too (code INTERNAL, with the traceback in the log). The service goes on.
-* outputs marked ``cache`` are kept (bounded) and served to ``get`` queries on the
-  handler's ``cache_keys``, so a service that starts late or restarts can fetch what it
-  missed: nothing lives only in one service's memory.
-* with ``shard`` set, instances of the same service split the work: each handles the
-  messages whose shard key hashes to its rank among the live instances.
+* Zenoh's callback never waits: it checks the size, the owner (sharding) and duplicates
+  (same key, same payload), and queues the message in its session's bounded FIFO
+  (``intake.Intake``, served round-robin between sessions). A message that does not fit is
+  answered at once by an Error (OVERLOADED, TOO_LARGE) on ``findme/<session>/error``,
+  published by a reporter thread (``inbox.Inbox``); an input the handler can fetch again
+  later (``Input.state``) is skipped and counted as deferred. A callback that blocked would stall the
+  router's queue to this process until the router closes the link ("Unable to push non
+  droppable network message ... Closing transport!") and every message on it is lost.
+* one worker thread handles queries first, then messages; ``tick`` when the handler asks.
+* any exception while handling becomes an Error and a log line; the service goes on.
+* outputs marked ``cache`` are kept (bounded) and served to ``get`` on ``cache_keys``.
+* with ``shard`` set, instances of a service split the work by rendezvous hashing over the
+  live instances (``peers.Peers``: a liveliness subscriber with history).
+* recovery: at start, when an instance joins or leaves, and every ``sweep_s`` seconds, the
+  inputs the bus still holds (the store's window, the producers' caches) that have no
+  answer yet and are this instance's are fetched and handled (``recovery``).
 """
 
 from __future__ import annotations
@@ -25,8 +31,6 @@ import threading
 import time
 import traceback
 import uuid
-import zlib
-from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 
 import zenoh
@@ -34,14 +38,19 @@ import zenoh
 import schemas
 from findme_core.errors import FindmeError, SchemaError
 
-from . import bus
+from . import bus, recovery
+from .cache import OutputCache, is_exact
 from .handler import Handler, Input, Output, error_message
+from .inbox import Inbox
+from .peers import Peers, owner
 
 log = logging.getLogger("findme.services")
 
 
 @dataclass
 class Counters:
+    """The totals of a status report (kept for callers of ``Service.counters``)."""
+
     frames_in: int = 0
     results_out: int = 0
     errors: int = 0
@@ -49,35 +58,52 @@ class Counters:
 
 
 class Service:
-    """A handler running on a Zenoh session (see the module docstring)."""
+    """A handler running on a Zenoh session (see the module docstring).
+
+    fifo_depth / session_bytes: messages / bytes a session may have waiting (default depth:
+    the handler's ``queue_depth``);
+    queue_bytes: bytes all sessions may have waiting; sweep_s: seconds between recovery
+    sweeps (None: none, not even at start); grace_s: a periodic sweep leaves inputs younger
+    than this to their live delivery.
+    """
 
     def __init__(self, handler: Handler, session: zenoh.Session, instance: str | None = None,
-                 fifo_depth: int = 256, cache_bytes: int = 64 * 1024 * 1024,
-                 max_message_bytes: int = bus.MAX_MESSAGE_BYTES):
+                 fifo_depth: int | None = None, cache_bytes: int = 64 * 1024 * 1024,
+                 max_message_bytes: int = bus.MAX_MESSAGE_BYTES, session_bytes: int = 64 << 20,
+                 queue_bytes: int = 512 << 20, sweep_s: float | None = 10.0, grace_s: float = 2.0,
+                 seen_s: float = 180.0):
         self.handler, self.session = handler, session
         self.instance = instance or uuid.uuid4().hex[:8]
         self.ident = f"{handler.name}/{self.instance}"
-        self.counters = Counters()
+        self.inbox = Inbox(handler, self.ident, fifo_depth or handler.queue_depth, session_bytes,
+                           queue_bytes, seen_s)
+        self._cv = self.inbox.cv
+        self.results_out = self.errors = 0
         self.started_ns = time.time_ns()
         self.max_message_bytes = max_message_bytes
-        self._cv = threading.Condition()
-        self._fifo: deque = deque()
-        self._fifo_depth = fifo_depth
-        self._latest = [deque() for _ in handler.inputs]
-        self._queries: deque = deque()
+        self.sweep_s, self.grace_s = sweep_s, grace_s
         self._stop = threading.Event()
-        self._cache: OrderedDict[str, bytes] = OrderedDict()
-        self._cache_bytes, self._cache_limit = 0, cache_bytes
-        self._peers: set[str] = set()
+        self._sweep_now = threading.Event()
+        self._cache = OutputCache(cache_bytes)
+        self._peers: Peers | None = None
         self._decls: list = []
-        self._thread: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
+        self._next_tick = 0.0
         self.idle = threading.Event()   # set when nothing is queued or being handled
         self.idle.set()
         handler.fetch = self.fetch
+        handler.fetch_all = self.fetch_all
+
+    @property
+    def counters(self) -> Counters:
+        with self._cv:
+            return Counters(self.inbox.frames_in, self.results_out, self.errors, self.inbox.dropped)
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> "Service":
         s, h = self.session, self.handler
+        if h.shard:
+            self._peers = Peers(s, h.name, on_change=self._sweep_now.set)
         for i, inp in enumerate(h.inputs):
             self._decls.append(s.declare_subscriber(inp.key, self._on_sample(i)))
         for q in h.queries:
@@ -86,13 +112,17 @@ class Service:
             self._decls.append(s.declare_queryable(ck, self._on_cache_query))
         base = f"{bus.SERVICES}/{h.name}/{self.instance}"
         self._decls.append(s.declare_queryable(base + "/status", self._on_status))
-        if h.shard:
-            self._peers = {self.instance}
-            self._decls.append(s.liveliness().declare_subscriber(
-                f"{bus.SERVICES}/{h.name}/*", self._on_peer, history=True))
         self._decls.append(s.liveliness().declare_token(base))
-        self._thread = threading.Thread(target=self._work, name=self.ident, daemon=True)
-        self._thread.start()
+        for name, target in (("", self._work), ("report", self._report_loop),
+                             ("cache", self._gets_loop)):
+            self._threads.append(threading.Thread(target=target, daemon=True,
+                                                  name=f"{self.ident}{'/' + name if name else ''}"))
+        if self.sweep_s is not None and any(inp.answers for inp in h.inputs):
+            self._sweep_now.set()   # the first sweep at once: what was missed while down
+            self._threads.append(threading.Thread(target=self._sweep_loop, daemon=True,
+                                                  name=f"{self.ident}/sweep"))
+        for t in self._threads:
+            t.start()
         log.info("%s started", self.ident)
         return self
 
@@ -100,16 +130,19 @@ class Service:
         if self.handler.drain_on_stop:
             self.wait_idle(timeout)
         self._stop.set()
+        self._sweep_now.set()
         with self._cv:
             self._cv.notify_all()
-        if self._thread:
-            self._thread.join(timeout)
+        for t in self._threads:
+            t.join(timeout)
         for d in reversed(self._decls):
             try:
                 d.undeclare()
             except zenoh.ZError:
                 pass  # the session may already be closed
         self._decls.clear()
+        if self._peers is not None:
+            self._peers.close()
         self.handler.close()
         log.info("%s stopped", self.ident)
 
@@ -119,89 +152,132 @@ class Service:
         wait for the results themselves for that."""
         return self.idle.wait(timeout)
 
-    # ------------------------------------------------------------------ zenoh callbacks
+    # ------------------------------------------------------------------ intake (Zenoh's threads)
     def _on_sample(self, i: int):
-        inp = self.handler.inputs[i]
+        h = self.handler
 
         def cb(sample: zenoh.Sample) -> None:
             if sample.kind != zenoh.SampleKind.PUT:
                 return
-            item = (i, str(sample.key_expr), sample.payload.to_bytes())
-            with self._cv:
-                self.counters.frames_in += 1
-                self.idle.clear()
-                if inp.policy == "latest":
-                    q = self._latest[i]
-                    if len(q) >= inp.depth:
-                        q.popleft()
-                        self.counters.dropped += 1
-                    q.append(item)
-                else:
-                    while len(self._fifo) >= self._fifo_depth and not self._stop.is_set():
-                        self._cv.wait(0.1)  # backpressure: the sender waits
-                    self._fifo.append(item)
-                self._cv.notify_all()
+            key = str(sample.key_expr)
+            if h.inline:
+                self._inline(key, sample.payload.to_bytes())
+            elif h.shard and not self._owns(key):
+                self.inbox.bump("not_mine")
+            else:
+                self.offer(i, key, sample.payload.to_bytes())
         return cb
+
+    def _inline(self, key: str, payload: bytes) -> None:
+        with self._cv:
+            self.inbox.frames_in += 1
+        try:
+            self.handler.on_message(key, payload)
+        except Exception as exc:  # noqa: BLE001 - logged with the traceback; the callback goes on
+            log.error("%s: %s: %s\n%s", self.ident, key, exc, traceback.format_exc())
+            with self._cv:
+                self.errors += 1
+
+    def offer(self, i: int, key: str, payload: bytes, recovered: bool = False) -> bool:
+        """Queue one input, never waiting (``Inbox.offer``); returns whether it was queued."""
+        with self._cv:   # (reentrant) so the worker cannot go idle in between
+            queued = self.inbox.offer(i, key, payload, recovered)
+            if queued:
+                self.idle.clear()
+        return queued
+
+    def _owns(self, key: str, msg=None) -> bool:
+        if self._peers is None:
+            return True
+        peers = self._peers.instances() | {self.instance}
+        if len(peers) == 1:
+            return True
+        return owner(self.handler.shard_key(key, msg), peers) == self.instance
 
     def _on_query(self, q: Input):
         def cb(query: zenoh.Query) -> None:
             with self._cv:
-                self.counters.frames_in += 1
+                self.inbox.frames_in += 1
                 self.idle.clear()
-                self._queries.append((q, query))
+                self.inbox.queries.append((q, query))
                 self._cv.notify_all()
         return cb
 
     def _on_cache_query(self, query: zenoh.Query) -> None:
-        want = zenoh.KeyExpr(str(query.key_expr))
-        with self._cv:
-            hits = [(k, v) for k, v in self._cache.items() if want.intersects(zenoh.KeyExpr(k))]
-        for k, v in hits:
-            query.reply(k, v)
+        key = str(query.key_expr)
+        if is_exact(key):   # a dict lookup: answered here
+            self._reply_cached(query)
+            return
+        with self._cv:      # a scan: on the cache thread, not Zenoh's
+            self.inbox.gets.append(query)
+            self._cv.notify_all()
+
+    def _reply_cached(self, query: zenoh.Query) -> None:
+        key, params = str(query.key_expr), query.parameters
+        try:
+            for k, v in self._cache.lookup(key, params) + self.handler.cached(key, params):
+                query.reply(k, v)
+        except (zenoh.ZError, ValueError) as e:
+            log.warning("%s: cannot answer %s: %s", self.ident, key, e)
+        finally:
+            query.drop()
 
     def _on_status(self, query: zenoh.Query) -> None:
-        query.reply(str(query.key_expr), schemas.encode(self.status()))
+        query.reply(f"{bus.SERVICES}/{self.ident}/status", schemas.encode(self.status()))
 
-    def _on_peer(self, sample: zenoh.Sample) -> None:
-        inst = str(sample.key_expr).rsplit("/", 1)[-1]
-        with self._cv:
-            if sample.kind == zenoh.SampleKind.PUT:
-                self._peers.add(inst)
-            elif inst != self.instance:
-                self._peers.discard(inst)
-
+    # ------------------------------------------------------------------ asking the bus
     def fetch(self, key: str, timeout: float = 2.0) -> bytes | None:
-        """The latest payload of ``key`` from whoever caches it on the bus, or None."""
+        """The latest payload of ``key`` from whoever holds it on the bus, or None."""
+        local = self._cache.get(key)
+        if local is not None:
+            return local
         for reply in self.session.get(key, timeout=timeout):
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
         return None
 
+    def fetch_all(self, key_expr: str, timeout: float = 5.0) -> list[tuple[str, bytes]]:
+        """Every message the bus holds on ``key_expr`` (store and caches), each once."""
+        seen, out = set(), []
+        for k, p in bus.get_all(self.session, key_expr, timeout):
+            if (k, p) not in seen:
+                seen.add((k, p))
+                out.append((k, p))
+        return out
+
     def status(self):
-        c = self.counters
+        ib = self.inbox
         with self._cv:
-            depth = len(self._fifo) + sum(map(len, self._latest)) + len(self._queries)
+            depth = ib.waiting()
+            more = dict(ib.more, queued_bytes=ib.intake.nbytes, sessions_waiting=ib.intake.sessions)
+            totals = (ib.frames_in, self.results_out, self.errors, ib.dropped)
+        if self._peers is not None:
+            more["peers"] = len(self._peers.instances() | {self.instance})
+        more.update({k: int(v) for k, v in self.handler.counters().items()})
         return schemas.ServiceStatus(
             service=self.handler.name, instance=self.instance, started_ns=self.started_ns,
-            time_ns=time.time_ns(), frames_in=c.frames_in, results_out=c.results_out,
-            errors=c.errors, dropped=c.dropped, queue_depth=depth, version="findme.v1",
-            counters={k: int(v) for k, v in self.handler.counters().items()})
+            time_ns=time.time_ns(), frames_in=totals[0], results_out=totals[1], errors=totals[2],
+            dropped=totals[3], queue_depth=depth, version="findme.v1",
+            counters={k: max(0, int(v)) for k, v in more.items()})
 
-    # ------------------------------------------------------------------ the worker
+    # ------------------------------------------------------------------ threads
     def _next(self):
+        tick_s = self.handler.tick_s
+        ib = self.inbox
         with self._cv:
             while not self._stop.is_set():
-                if self._queries:
-                    return "query", self._queries.popleft()
-                if self._fifo:
-                    item = self._fifo.popleft()
-                    self._cv.notify_all()
+                if ib.queries:
+                    return "query", ib.queries.popleft()
+                now = time.monotonic()
+                if tick_s is not None and now >= self._next_tick:
+                    self._next_tick = now + tick_s
+                    return "tick", now
+                item = ib.intake.pop()
+                if item is not None:
                     return "msg", item
-                for q in self._latest:
-                    if q:
-                        return "msg", q.popleft()
                 self.idle.set()
-                self._cv.wait(0.5)
+                wait = 0.5 if tick_s is None else max(0.0, min(0.5, self._next_tick - now))
+                self._cv.wait(wait)
         return None, None
 
     def _work(self) -> None:
@@ -211,32 +287,85 @@ class Service:
                 return
             if kind == "query":
                 self._answer(*item)
+            elif kind == "tick":
+                self._tick(item)
             else:
-                self.process(*item)
+                self.process(item.input, item.key, item.payload)
+
+    def _tick(self, now: float) -> None:
+        try:
+            for out in self.handler.tick(now):
+                self.publish(out)
+        except Exception as exc:  # noqa: BLE001 - reported and logged, the service goes on
+            self.report(f"{bus.SERVICES}/{self.ident}", exc)
+
+    def _report_loop(self) -> None:
+        while True:
             with self._cv:
-                if not (self._queries or self._fifo or any(self._latest)):
-                    self.idle.set()
+                while not self.inbox.reports and not self._stop.is_set():
+                    self._cv.wait(0.5)
+                if not self.inbox.reports:
+                    return
+                key, exc = self.inbox.reports.popleft()
+            self.report(key, exc)
 
-    def _mine(self, key: str, msg) -> bool:
-        if not self.handler.shard:
-            return True
-        with self._cv:
-            peers = sorted(self._peers | {self.instance})
-        if len(peers) == 1:
-            return True
-        h = zlib.crc32(self.handler.shard_key(key, msg).encode())
-        return peers[h % len(peers)] == self.instance
+    def _gets_loop(self) -> None:
+        while True:
+            with self._cv:
+                while not self.inbox.gets and not self._stop.is_set():
+                    self._cv.wait(0.5)
+                if not self.inbox.gets:
+                    return
+                query = self.inbox.gets.popleft()
+            self._reply_cached(query)
 
+    def _sweep_loop(self) -> None:
+        grace = 0.0   # at start nothing is in flight to this instance yet
+        while True:
+            self._sweep_now.wait(self.sweep_s)
+            if self._stop.is_set():
+                return
+            self._sweep_now.clear()
+            try:
+                self.sweep(grace)
+            except (zenoh.ZError, FindmeError) as e:
+                log.warning("%s: recovery sweep failed: %s", self.ident, e)
+            grace = self.grace_s
+
+    def sweep(self, grace_s: float = 0.0) -> int:
+        """Fetch and queue every unanswered input the bus holds that is this instance's and
+        not seen here (see ``recovery``); returns how many."""
+        todo = recovery.unanswered(self.session, self.handler, int(grace_s * 1e9), time.time_ns())
+        n = 0
+        for i, key, _ in todo:
+            if self._stop.is_set():
+                break
+            if self.handler.shard and not self._owns(key):
+                continue
+            if self.inbox.knows(key):
+                continue
+            data = self.fetch(key)
+            if data is not None and self.offer(i, key, data, recovered=True):
+                n += 1
+        self.inbox.bump("sweeps")
+        if n:
+            log.info("%s: recovered %d unanswered inputs from the bus", self.ident, n)
+        return n
+
+    # ------------------------------------------------------------------ handling (worker)
     def process(self, i: int, key: str, payload: bytes) -> None:
         """Decode, handle and publish one input (runs on the worker thread)."""
         inp = self.handler.inputs[i]
         try:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
-            if not self._mine(key, msg):
+            if self.handler.shard and not self._owns(key, msg):
+                self.inbox.bump("handed_over")   # the instances changed since it came:
+                self.inbox.forget(key)           # its owner sweeps it up
                 return
             outputs = self.handler.on_message(key, msg)
             for out in outputs:
                 self.publish(out)
+            self.inbox.bump("handled")
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
             self.report(key, exc)
 
@@ -248,7 +377,8 @@ class Service:
             msg = schemas.decode(q.type, query.payload.to_bytes())
             reply = self.handler.on_query(key, msg)
             query.reply(key, schemas.encode(reply))
-            self.counters.results_out += 1
+            with self._cv:
+                self.results_out += 1
         except Exception as exc:  # noqa: BLE001 - the asker gets the error, the log the reason
             ekey, err = self.report(key, exc)
             query.reply_err(schemas.encode(err))
@@ -261,20 +391,17 @@ class Service:
         if len(payload) > self.max_message_bytes:
             bus.put(self.session, out.key, payload, self.max_message_bytes)  # raises
         if out.cache:
-            with self._cv:
-                old = self._cache.pop(out.key, None)
-                self._cache_bytes += len(payload) - (len(old) if old else 0)
-                self._cache[out.key] = payload
-                while self._cache_bytes > self._cache_limit and len(self._cache) > 1:
-                    _, v = self._cache.popitem(last=False)
-                    self._cache_bytes -= len(v)
+            self._cache.put(out.key, payload)
         bus.put(self.session, out.key, payload, self.max_message_bytes)
-        self.counters.results_out += 1
+        with self._cv:
+            self.results_out += 1
 
     def report(self, key: str, exc: BaseException):
         """Publish and log an error about ``key``; returns (error key, Error)."""
-        self.counters.errors += 1
         ekey, err = error_message(key, exc, self.ident)
+        with self._cv:
+            self.errors += 1
+            self.inbox.count("error_" + schemas.ErrorCode.Name(err.code).removeprefix("ERROR_CODE_").lower())
         if isinstance(exc, FindmeError):
             log.warning("%s: %s: %s", self.ident, key, err.message)
         else:

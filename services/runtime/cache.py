@@ -1,0 +1,63 @@
+"""A service's latched outputs: the latest payload of each key it published, bounded in
+bytes (oldest first out), served to ``get`` queries on the handler's ``cache_keys`` so a
+service that starts late or restarts fetches what it missed.
+
+Answers the store's query protocol too (``runtime.store``): with the parameter ``meta`` a
+reply carries ``b"<publish time ns> <bytes>"`` instead of the payload (a listing, used by
+recovery to see which inputs are answered); ``since=<ns>`` keeps newer ones.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import OrderedDict
+
+import zenoh
+
+
+def is_exact(key_expr: str) -> bool:
+    """A key expression without wildcards (a dict lookup, not a scan)."""
+    return not any(c in key_expr for c in "*$")
+
+
+class OutputCache:
+    def __init__(self, max_bytes: int = 64 * 1024 * 1024, clock=time.time_ns):
+        self.max_bytes, self.clock = max_bytes, clock
+        self._items: OrderedDict[str, tuple[int, bytes]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def put(self, key: str, payload: bytes) -> None:
+        with self._lock:
+            old = self._items.pop(key, None)
+            self._bytes += len(payload) - (len(old[1]) if old else 0)
+            self._items[key] = (self.clock(), payload)
+            while self._bytes > self.max_bytes and len(self._items) > 1:
+                _, (_, v) = self._items.popitem(last=False)
+                self._bytes -= len(v)
+
+    def get(self, key: str) -> bytes | None:
+        with self._lock:
+            hit = self._items.get(key)
+            return hit[1] if hit else None
+
+    def lookup(self, key_expr: str, parameters=None) -> list[tuple[str, bytes]]:
+        """(key, payload or listing) of every held key intersecting ``key_expr``."""
+        meta = parameters is not None and parameters.get("meta") is not None
+        since = int(parameters.get("since") or 0) if parameters is not None else 0
+        with self._lock:
+            if is_exact(key_expr):
+                hit = self._items.get(key_expr)
+                hits = [(key_expr, *hit)] if hit else []
+            else:
+                want = zenoh.KeyExpr(key_expr)
+                hits = [(k, t, p) for k, (t, p) in self._items.items()
+                        if want.intersects(zenoh.KeyExpr(k))]
+        hits = [h for h in hits if h[1] >= since]
+        if meta:
+            return [(k, f"{t} {len(p)}".encode()) for k, t, p in hits]
+        return [(k, p) for k, _, p in hits]

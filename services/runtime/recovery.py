@@ -1,0 +1,97 @@
+"""Which inputs of a handler are unanswered on the bus: what a service that was down (or a
+new instance, or one whose peer died) must still handle.
+
+An input ``findme/<s>/<kind>/<n>`` with ``Input.answers`` is answered when the store holds
+one of its answer keys (e.g. ``findme/<s>/hypotheses/<n>``) or an Error from this service
+(``Error.service`` "<name>/<instance>") about that key. Everything else the store holds on
+the input's key expression, within its window, is unanswered. ``Service.sweep`` then
+handles those it owns and has not seen, fetched from the bus; handlers downstream drop
+what they have already handled (same key, same payload), so a race between two instances
+costs work, not a duplicate result.
+"""
+
+from __future__ import annotations
+
+import zenoh
+
+import schemas
+
+from . import bus
+from .handler import Handler, Input
+
+
+def _selector(template: str) -> str:
+    return template.format(session="*", n="*")
+
+
+def listing(session: zenoh.Session, key_expr: str, timeout: float = 5.0) -> dict[str, int]:
+    """key -> receive time (ns) of what the store(s) hold on ``key_expr``."""
+    out: dict[str, int] = {}
+    for k, meta in bus.get_all(session, f"{key_expr}?meta", timeout):
+        try:
+            t = int(meta.split(b" ", 1)[0])
+        except ValueError:
+            continue  # a cache that is not a store answered with a payload: not a listing
+        out[k] = max(t, out.get(k, 0))
+    return out
+
+
+def _identity(key: str) -> tuple[str, str] | None:
+    """(session, last part) of a session key, the photo an answer or input is about."""
+    try:
+        k = bus.parse_key(key)
+    except Exception:  # noqa: BLE001 - foreign key: not ours to answer
+        return None
+    return (k.session, k.parts[-1]) if k.parts else None
+
+
+def answered(session: zenoh.Session, handler: Handler, inp: Input,
+             errors: list[tuple[str, bytes]], timeout: float = 5.0) -> set[tuple[str, str]]:
+    """(session, n) of every input on ``inp`` that has an answer (or an Error of ours)."""
+    done: set[tuple[str, str]] = set()
+    for template in inp.answers:
+        if not template.endswith("/{n}"):
+            raise ValueError(f"answer template {template!r} must end with /{{n}}")
+        for k in listing(session, _selector(template), timeout):
+            ident = _identity(k)
+            if ident is not None:
+                done.add(ident)
+    want = zenoh.KeyExpr(inp.key)
+    for _, payload in errors:
+        try:
+            err = schemas.decode(schemas.Error, payload)
+        except Exception:  # noqa: BLE001 - a malformed error is no answer of ours
+            continue
+        if err.service.split("/")[0] != handler.name or not err.key:
+            continue
+        try:
+            if not want.intersects(zenoh.KeyExpr(err.key)):
+                continue
+        except zenoh.ZError:
+            continue
+        ident = _identity(err.key)
+        if ident is not None:
+            done.add(ident)
+    return done
+
+
+def unanswered(session: zenoh.Session, handler: Handler, grace_ns: int, now_ns: int,
+               timeout: float = 5.0) -> list[tuple[int, str, int]]:
+    """(input index, key, receive time) of every input the store holds for ``handler``
+    without an answer, received at least ``grace_ns`` before ``now_ns``, oldest first."""
+    todo = []
+    if not any(inp.answers for inp in handler.inputs):
+        return todo
+    errors = bus.get_all(session, "findme/*/error", timeout)
+    for i, inp in enumerate(handler.inputs):
+        if not inp.answers:
+            continue
+        held = listing(session, inp.key, timeout)
+        if not held:
+            continue
+        done = answered(session, handler, inp, errors, timeout)
+        for k, t in held.items():
+            if now_ns - t >= grace_ns and _identity(k) not in done:
+                todo.append((i, k, t))
+    todo.sort(key=lambda x: x[2])
+    return todo
