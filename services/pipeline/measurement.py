@@ -38,6 +38,7 @@ class _Photos:
         self.frames: OrderedDict[int, tuple] = OrderedDict()
         self.hsets: OrderedDict[int, object] = OrderedDict()
         self.scenes: OrderedDict[int, tuple] = OrderedDict()
+        self.waiting: dict[int, tuple[object, float]] = {}   # n -> (Selection, since)
 
     def put(self, table: OrderedDict, n: int, value) -> None:
         table[n] = value
@@ -54,10 +55,13 @@ class MeasurementHandler(Handler):
               Input("findme/*/selection/*", schemas.Selection,
                     answers=("findme/{session}/scene/{n}",)))
     queries = (Input("findme/*/measure", schemas.MeasureRequest),)
+    tick_s = 0.5
 
     def __init__(self, idle_s: float = 600.0, max_sessions: int = 1000, max_photos: int = 256,
-                 clock=time.monotonic):
+                 wait_s: float = 5.0, clock=time.monotonic):
         self.sessions = SessionTable(lambda s: _Photos(max_photos), idle_s, max_sessions, clock)
+        self.wait_s, self.clock = wait_s, clock
+        self._waiting: set[str] = set()   # sessions with a selection waiting for its inputs
         self.answered = self.built = 0
 
     def on_message(self, key, msg):
@@ -65,11 +69,56 @@ class MeasurementHandler(Handler):
         st = self.sessions.get(k.session)
         if isinstance(msg, schemas.Frame):
             self._frame(st, msg)
-            return []
-        if isinstance(msg, schemas.HypothesisSet):
+        elif isinstance(msg, schemas.HypothesisSet):
             st.put(st.hsets, msg.index, msg)
-            return []
-        return self._select(k.session, st, msg)
+        else:
+            st.waiting[msg.index] = (msg, self.clock())
+        n = msg.index
+        if n in st.waiting and self._ready(k.session, st, n, fetch=isinstance(msg, schemas.Selection)):
+            return self._select(k.session, st, st.waiting.pop(n)[0])
+        if st.waiting:
+            self._waiting.add(k.session)
+        return []
+
+    def _ready(self, session, st, n, fetch: bool) -> bool:
+        """Frame and hypotheses of photo n are here (``fetch``: asking the bus for missing
+        ones: the bus does not order a selection after the messages it follows)."""
+        for kind, table, cls in (("frame", st.frames, schemas.Frame),
+                                 ("hypotheses", st.hsets, schemas.HypothesisSet)):
+            if n not in table and fetch:
+                data = self.fetch(bus.key(session, kind, n)) if self.fetch else None
+                if data is not None:
+                    msg = schemas.decode(cls, data)
+                    self._frame(st, msg) if kind == "frame" else st.put(st.hsets, n, msg)
+            if n not in table:
+                return False
+        return True
+
+    def tick(self, now):
+        """Selections whose frame or hypotheses did not come within ``wait_s``: answered
+        with an Error naming them."""
+        out = []
+        for session in sorted(self._waiting):
+            st = self.sessions.peek(session)
+            if st is None:
+                continue
+            for n, (sel, since) in sorted(st.waiting.items()):
+                if now - since < self.wait_s:
+                    continue
+                if self._ready(session, st, n, fetch=True):
+                    out += self._select(session, st, st.waiting.pop(n)[0])
+                    continue
+                del st.waiting[n]
+                err = schemas.Error(session=session, key=bus.key(session, "selection", n),
+                                    code=schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS,
+                                    message=f"the frame or hypotheses of photo {n} did not come "
+                                            f"within {self.wait_s:g} s", service=self.name,
+                                    time_ns=time.time_ns())
+                out.append(Output(bus.key(session, "error"), err, cache=False))
+            if not st.waiting:
+                self._waiting.discard(session)
+        self.sessions.expire(now)
+        return out
 
     def _frame(self, st, f):
         w, h = image_size(f.image.data, f"frame {f.index}")

@@ -98,20 +98,36 @@ class OdometryHandler(Handler):
             p.frame = msg
         elif isinstance(msg, schemas.HypothesisSet):
             p.hset = msg
-            if not msg.hypotheses:
+            if p.selection is not None:
+                self._check_rank(st, n)
+            elif not msg.hypotheses:
                 st.close(n, "dead")      # nothing to select: nobody waits for it
         else:
             if n in st.closed:
                 st.closed.pop(n)        # selected after all: it gets a pose now
                 p = st.photo(n, now)
-            if p.hset is None:
-                p.hset = self.need(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
-            count = len(p.hset.hypotheses)
-            if not 1 <= msg.rank <= count:
-                raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which has "
-                                      f"{count} hypotheses")
             p.selection, p.selected_at = msg, now
+            if p.hset is None:          # the bus does not order it after its hypotheses
+                p.hset = self._try(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
+            if p.hset is not None:
+                self._check_rank(st, n)
         return self._advance(k.session, st, now)
+
+    def _check_rank(self, st, n) -> None:
+        p = st.photos[n]
+        count = len(p.hset.hypotheses)
+        if not 1 <= p.selection.rank <= count:
+            rank = p.selection.rank
+            p.selection = None
+            raise HypothesisError(f"selection of hypothesis {rank} of photo {n}, which has "
+                                  f"{count} hypotheses")
+
+    def _try(self, key, cls):
+        """``need`` that says None instead of raising when nobody has it yet."""
+        try:
+            return self.need(key, cls)
+        except HypothesisError:
+            return None
 
     def _error(self, session, st, err, now):
         if err.service.split("/")[0] == self.name:
@@ -140,10 +156,18 @@ class OdometryHandler(Handler):
     def _advance(self, session: str, st: OdometrySession, now: float) -> list[Output]:
         out: list[Output] = []
         for n in st.pending():
+            p, late = st.photos[n], now - st.photos[n].selected_at >= self.gap_wait_s
+            if p.hset is None and late:
+                p.hset = self._try(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
+                if p.hset is None:
+                    st.close(n, "failed")
+                    out.append(self._gap(session, n, None))
+                    continue
+                self._check_rank(st, n)
             blockers = st.blockers(n)
-            if blockers and now - st.photos[n].selected_at < self.gap_wait_s:
+            if (blockers or p.hset is None) and not late:
                 self._waiting.add(session)
-                break                     # n waits for a lower photo's selection
+                break                     # n waits for a lower photo's selection, or its hypotheses
             for m in blockers:            # waited long enough: chain past them, say so
                 st.close(m, "dead")
                 self.gaps += 1
@@ -161,11 +185,14 @@ class OdometryHandler(Handler):
         return out
 
     def _gap(self, session, m, n):
+        """An Error naming photo m: never selected (photo n chains past it), or, n None,
+        selected but its hypotheses never came."""
+        text = (f"photo {m} has no selected hypothesis after {self.gap_wait_s:g} s: photo {n} "
+                "chains past it" if n is not None else
+                f"the hypotheses of photo {m} did not come within {self.gap_wait_s:g} s")
         err = schemas.Error(session=session, key=bus.key(session, "selection", m),
                             code=schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS,
-                            message=f"photo {m} has no selected hypothesis after "
-                                    f"{self.gap_wait_s:g} s: photo {n} chains past it",
-                            time_ns=time.time_ns(), service=self.name)
+                            message=text, time_ns=time.time_ns(), service=self.name)
         return Output(bus.key(session, "error"), err, cache=False)
 
     def _step(self, session, st, b: int) -> list[Output]:
