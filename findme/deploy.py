@@ -377,8 +377,8 @@ def cmd_status(args) -> int:
 
 
 #: status counters that say where inputs went (``runtime.inbox``), in this order
-DELIVERY = ("overloaded", "superseded", "too_large", "deferred", "unreported", "duplicates",
-            "recovered", "handed_over")
+DELIVERY = ("overloaded", "expired", "superseded", "too_large", "deferred", "unreported",
+            "duplicates", "recovered", "handed_over")
 
 
 def delivery_detail(s) -> str:

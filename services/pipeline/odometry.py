@@ -43,6 +43,7 @@ from ..runtime.sessions import SessionTable
 from .odometry_session import OdometrySession
 
 NEVER_SELECTED = {"frame", "hypotheses"}   # an Error about these: the photo gets no selection
+OVERLOADED = schemas.ErrorCode.ERROR_CODE_OVERLOADED
 
 
 class OdometryHandler(Handler):
@@ -130,14 +131,17 @@ class OdometryHandler(Handler):
             return None
 
     def _error(self, session, st, err, now):
-        if err.service.split("/")[0] == self.name:
-            return []
+        """A photo that will get no pose is not waited for: an Error about its frame or
+        hypotheses (upstream failed), or this service's own OVERLOADED about its selection
+        (refused while this instance was too busy)."""
         try:
             k = bus.parse_key(err.key)
             n = k.index()
         except FindmeError:
             return []
-        if k.session == session and k.kind in NEVER_SELECTED and n not in st.poses:
+        ours = err.service.split("/")[0] == self.name
+        final = (k.kind == "selection" and err.code == OVERLOADED) if ours else k.kind in NEVER_SELECTED
+        if k.session == session and final and n not in st.poses:
             st.close(n, "dead")
             return self._advance(session, st, now)
         return []

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 import zlib
 from collections import OrderedDict, deque
 
@@ -39,8 +40,8 @@ class Inbox:
 
     def __init__(self, handler: Handler, ident: str, session_depth: int = 32,
                  session_bytes: int = 64 << 20, total_bytes: int = 512 << 20,
-                 seen_s: float = 180.0):
-        self.handler, self.ident = handler, ident
+                 seen_s: float = 180.0, max_wait_s: float | None = None):
+        self.handler, self.ident, self.max_wait_s = handler, ident, max_wait_s
         self.cv = threading.Condition()
         self.intake = Intake(session_depth, session_bytes, total_bytes)
         self.seen = SessionTable(lambda s: OrderedDict(), idle_s=seen_s, max_sessions=100000)
@@ -75,7 +76,7 @@ class Inbox:
                     f"limit of {self.handler.name}; it was not handled"), "too_large")
                 return False
             ok, superseded, why = self.intake.offer(
-                Item(i, key, payload, session, recovered),
+                Item(i, key, payload, session, recovered, time.monotonic()),
                 latest=inp.depth if inp.policy == "latest" else None)
             for old in superseded:
                 seen.pop(old.key, None)
@@ -111,6 +112,22 @@ class Inbox:
             return
         self.reports.append((key, exc))
         self.cv.notify_all()
+
+    def take(self) -> Item | None:
+        """(under ``cv``) The next item to handle, round-robin between sessions; one that
+        waited more than ``max_wait_s`` is answered OVERLOADED instead (a result that late
+        is of no use to a phone; a queue that deep says the service cannot keep up)."""
+        while True:
+            item = self.intake.pop()
+            if item is None or self.max_wait_s is None:
+                return item
+            waited = time.monotonic() - item.t
+            if waited <= self.max_wait_s:
+                return item
+            self.seen.get(item.session).pop(item.key, None)   # sending it again is no duplicate
+            self._refuse(self.handler.inputs[item.input], item.key, Overloaded(
+                f"{item.key} waited {waited:.0f} s in {self.handler.name}'s queue (at most "
+                f"{self.max_wait_s:g} s): not handled; send it again later"), "expired")
 
     def knows(self, key: str) -> bool:
         """Whether ``key`` was taken (queued or handled) here lately."""

@@ -24,6 +24,7 @@ class Item:
     payload: bytes
     session: str
     recovered: bool = False   # fetched from the bus by a recovery sweep, not received live
+    t: float = 0.0            # when it was queued (monotonic s)
 
     @property
     def nbytes(self) -> int:

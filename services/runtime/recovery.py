@@ -24,10 +24,13 @@ def _selector(template: str) -> str:
     return template.format(session="*", n="*")
 
 
-def listing(session: zenoh.Session, key_expr: str, timeout: float = 5.0) -> dict[str, int]:
-    """key -> receive time (ns) of what the store(s) hold on ``key_expr``."""
+def listing(session: zenoh.Session, key_expr: str, timeout: float = 5.0,
+            since_ns: int = 0) -> dict[str, int]:
+    """key -> receive time (ns) of what the store(s) hold on ``key_expr`` (received at or
+    after ``since_ns``)."""
     out: dict[str, int] = {}
-    for k, meta in bus.get_all(session, f"{key_expr}?meta", timeout):
+    params = f"meta;since={since_ns}" if since_ns else "meta"
+    for k, meta in bus.get_all(session, f"{key_expr}?{params}", timeout):
         try:
             t = int(meta.split(b" ", 1)[0])
         except ValueError:
@@ -46,13 +49,14 @@ def _identity(key: str) -> tuple[str, str] | None:
 
 
 def answered(session: zenoh.Session, handler: Handler, inp: Input,
-             errors: list[tuple[str, bytes]], timeout: float = 5.0) -> set[tuple[str, str]]:
+             errors: list[tuple[str, bytes]], timeout: float = 5.0,
+             since_ns: int = 0) -> set[tuple[str, str]]:
     """(session, n) of every input on ``inp`` that has an answer (or an Error of ours)."""
     done: set[tuple[str, str]] = set()
     for template in inp.answers:
         if not template.endswith("/{n}"):
             raise ValueError(f"answer template {template!r} must end with /{{n}}")
-        for k in listing(session, _selector(template), timeout):
+        for k in listing(session, _selector(template), timeout, since_ns):
             ident = _identity(k)
             if ident is not None:
                 done.add(ident)
@@ -76,20 +80,23 @@ def answered(session: zenoh.Session, handler: Handler, inp: Input,
 
 
 def unanswered(session: zenoh.Session, handler: Handler, grace_ns: int, now_ns: int,
-               timeout: float = 5.0) -> list[tuple[int, str, int]]:
+               timeout: float = 5.0, since_ns: int = 0) -> list[tuple[int, str, int]]:
     """(input index, key, receive time) of every input the store holds for ``handler``
-    without an answer, received at least ``grace_ns`` before ``now_ns``, oldest first."""
+    without an answer, received at least ``grace_ns`` before ``now_ns`` (and at or after
+    ``since_ns``: answers come after their inputs, so both are asked from then), oldest
+    first."""
     todo = []
     if not any(inp.answers for inp in handler.inputs):
         return todo
-    errors = bus.get_all(session, "findme/*/error", timeout)
+    errors = bus.get_all(session, f"findme/*/error?since={since_ns}" if since_ns else
+                         "findme/*/error", timeout)
     for i, inp in enumerate(handler.inputs):
         if not inp.answers:
             continue
-        held = listing(session, inp.key, timeout)
+        held = listing(session, inp.key, timeout, since_ns)
         if not held:
             continue
-        done = answered(session, handler, inp, errors, timeout)
+        done = answered(session, handler, inp, errors, timeout, since_ns)
         for k, t in held.items():
             if now_ns - t >= grace_ns and _identity(k) not in done:
                 todo.append((i, k, t))

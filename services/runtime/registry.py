@@ -31,6 +31,9 @@ def add_service_args(p) -> None:
     d.add_argument("--queue-depth", type=int, metavar="N",
                    help="messages a session may have waiting; more are answered OVERLOADED "
                         "(default 32; recorder 4096)")
+    d.add_argument("--max-wait", type=float, default=10.0, metavar="S",
+                   help="a message that waited longer in the queue is answered OVERLOADED "
+                        "instead of handled (default 10; the recorder and the store keep all)")
     d.add_argument("--sweep", type=float, default=10.0, metavar="S",
                    help="seconds between recovery sweeps: unanswered inputs the bus still holds "
                         "are fetched and handled (default 10; also at start and when an "
@@ -51,7 +54,9 @@ def service_options(args) -> dict:
     depth = getattr(args, "queue_depth", None)
     if depth is not None and depth < 1:
         raise InputError(f"--queue-depth must be at least 1, got {depth}")
-    return {"fifo_depth": depth, "sweep_s": getattr(args, "sweep", 10.0)}
+    wait = getattr(args, "max_wait", 10.0)
+    return {"fifo_depth": depth, "sweep_s": getattr(args, "sweep", 10.0),
+            "max_wait_s": wait if wait and wait > 0 else None}
 
 
 def make_handler(name: str, args) -> Handler:

@@ -61,7 +61,8 @@ class Service:
     """A handler running on a Zenoh session (see the module docstring).
 
     fifo_depth / session_bytes: messages / bytes a session may have waiting (default depth:
-    the handler's ``queue_depth``);
+    the handler's ``queue_depth``); max_wait_s: a message that waited longer is answered
+    OVERLOADED instead of handled (None: no limit; observers such as the recorder have none);
     queue_bytes: bytes all sessions may have waiting; sweep_s: seconds between recovery
     sweeps (None: none, not even at start); grace_s: a periodic sweep leaves inputs younger
     than this to their live delivery.
@@ -71,12 +72,12 @@ class Service:
                  fifo_depth: int | None = None, cache_bytes: int = 64 * 1024 * 1024,
                  max_message_bytes: int = bus.MAX_MESSAGE_BYTES, session_bytes: int = 64 << 20,
                  queue_bytes: int = 512 << 20, sweep_s: float | None = 10.0, grace_s: float = 2.0,
-                 seen_s: float = 180.0):
+                 seen_s: float = 180.0, max_wait_s: float | None = 10.0):
         self.handler, self.session = handler, session
         self.instance = instance or uuid.uuid4().hex[:8]
         self.ident = f"{handler.name}/{self.instance}"
         self.inbox = Inbox(handler, self.ident, fifo_depth or handler.queue_depth, session_bytes,
-                           queue_bytes, seen_s)
+                           queue_bytes, seen_s, max_wait_s if handler.report_overload else None)
         self._cv = self.inbox.cv
         self.results_out = self.errors = 0
         self.started_ns = time.time_ns()
@@ -272,7 +273,7 @@ class Service:
                 if tick_s is not None and now >= self._next_tick:
                     self._next_tick = now + tick_s
                     return "tick", now
-                item = ib.intake.pop()
+                item = ib.take()
                 if item is not None:
                     return "msg", item
                 self.idle.set()
@@ -320,22 +321,30 @@ class Service:
             self._reply_cached(query)
 
     def _sweep_loop(self) -> None:
-        grace = 0.0   # at start nothing is in flight to this instance yet
+        """The first sweep (at start) and one after a change of instances look at the
+        whole window the bus holds; periodic ones at what came since the last (with a
+        margin): every input is looked at, none twice in full."""
+        grace, done_to = 0.0, 0   # at start nothing is in flight to this instance yet
         while True:
-            self._sweep_now.wait(self.sweep_s)
+            whole = self._sweep_now.wait(self.sweep_s) or not done_to
             if self._stop.is_set():
                 return
             self._sweep_now.clear()
+            now = time.time_ns()
+            since = 0 if whole else max(0, done_to - int(1e9 * (self.grace_s + 5.0)))
             try:
-                self.sweep(grace)
+                self.sweep(grace, since)
+                done_to = now - int(grace * 1e9)
             except (zenoh.ZError, FindmeError) as e:
                 log.warning("%s: recovery sweep failed: %s", self.ident, e)
             grace = self.grace_s
 
-    def sweep(self, grace_s: float = 0.0) -> int:
-        """Fetch and queue every unanswered input the bus holds that is this instance's and
-        not seen here (see ``recovery``); returns how many."""
-        todo = recovery.unanswered(self.session, self.handler, int(grace_s * 1e9), time.time_ns())
+    def sweep(self, grace_s: float = 0.0, since_ns: int = 0) -> int:
+        """Fetch and queue every unanswered input the bus holds (received since
+        ``since_ns``) that is this instance's and not seen here (see ``recovery``); returns
+        how many."""
+        todo = recovery.unanswered(self.session, self.handler, int(grace_s * 1e9), time.time_ns(),
+                                   since_ns=since_ns)
         n = 0
         for i, key, _ in todo:
             if self._stop.is_set():
