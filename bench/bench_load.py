@@ -293,6 +293,64 @@ def soak(workers, phones, seconds, pool, session_s, every=30.0, odometry=1):
     return res
 
 
+def big_jpeg(target_mb: float = 12.0) -> bytes:
+    """A 4000x3000 photo of about ``target_mb`` MB (a render, upscaled, with sensor noise)."""
+    v = render(Room.rectangle(5.0, 6.0, floor_style="wood"), Pose(0.0, -1.5, 1.45, yaw_deg=5,
+                                                                  pitch_deg=25), 640, 480, seed=3)
+    img = cv2.resize(v.image, (4000, 3000), interpolation=cv2.INTER_CUBIC).astype(np.int16)
+    noisy = np.clip(img + np.random.default_rng(0).integers(-40, 40, img.shape), 0, 255)
+    for q in (100, 99, 98, 97, 96, 95, 90, 85):
+        data = cv2.imencode(".jpg", noisy.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, q])[1].tobytes()
+        if len(data) <= target_mb * 1.05e6:
+            return data
+    return data
+
+
+def fairness(pool, repeats: int = 3) -> dict:
+    """Phone B's one small photo alone, then right after phone A's four ~12 MB photos:
+    B's latency photo -> hypotheses and photo -> pose (1 hypotheses worker)."""
+    big = big_jpeg()
+    out = {"big_mb": round(len(big) / 1e6, 1), "alone": [], "after_big": []}
+    with tempfile.TemporaryDirectory(prefix="bench-fair-rec-") as rec:
+        dep = Deployment(1, rec)
+        got, cv = {}, threading.Condition()
+
+        def cb(sample):
+            with cv:
+                got[str(sample.key_expr)] = time.perf_counter()
+                cv.notify_all()
+        sub = dep.client.declare_subscriber("findme/*/**", cb)
+        try:
+            jpeg, cam, h = pool[0]
+            intr = (cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height)
+            for r in range(2 * repeats):
+                contended = r % 2 == 1
+                if contended:
+                    for n in range(4):
+                        f = make_frame(f"fa{r}", n, big, hfov_deg=70.0, gravity=cam.gravity,
+                                       camera_height_m=h)
+                        bus.put(dep.client, bus.key(f"fa{r}", "frame", n), schemas.encode(f))
+                s = f"fb{r}"
+                t0 = time.perf_counter()
+                bus.put(dep.client, bus.key(s, "frame", 0), schemas.encode(
+                    make_frame(s, 0, jpeg, intrinsics=intr, gravity=cam.gravity, camera_height_m=h)))
+                keys = [f"findme/{s}/hypotheses/0", f"findme/{s}/pose/0"]
+                with cv:
+                    cv.wait_for(lambda: all(k in got for k in keys), 120)
+                lat = [round(1e3 * (got[k] - t0)) if k in got else None for k in keys]
+                out["after_big" if contended else "alone"].append(lat)
+                if contended:   # A's photos are all answered before the next round
+                    def answered(n, a=f"findme/fa{r}/"):
+                        return a + f"pose/{n}" in got or any(
+                            k.startswith(a + "motion/") and k.endswith(f"/{n}") for k in got)
+                    with cv:
+                        cv.wait_for(lambda: all(answered(n) for n in range(4)), 300)
+        finally:
+            sub.undeclare()
+            out.update(dep.close())
+    return out
+
+
 def table(rows) -> str:
     lines = ["| hyp. workers | odometry | phones | offered | delivered | failed | errors | "
              "unaccounted | dup | p50 / p99 ms | RSS MB start -> end |", "|" + "---|" * 11]
@@ -315,13 +373,18 @@ def main() -> None:
     ap.add_argument("--soak", type=float, metavar="S", help="one long run of S seconds")
     ap.add_argument("--session-s", type=float, default=60.0,
                     help="soak: a phone starts a new session this often (default 60 s)")
+    ap.add_argument("--fairness", action="store_true",
+                    help="one small photo alone vs right after another phone's four 12 MB ones")
     ap.add_argument("--json", metavar="OUT")
     args = ap.parse_args()
     w, h = map(int, args.size.lower().split("x"))
     pool = photos(24, (w, h))
     print(f"{len(pool)} photos {w}x{h}, {np.mean([len(p[0]) for p in pool]) / 1e3:.1f} kB each; "
           f"{os.cpu_count()} cores", flush=True)
-    if args.soak:
+    if args.fairness:
+        out = {"fairness": fairness(pool)}
+        print(json.dumps(out, indent=1))
+    elif args.soak:
         res = soak(args.workers[0], args.phones[0], args.soak, pool, args.session_s,
                    odometry=args.odometry)
         out = {"soak": res}

@@ -34,12 +34,13 @@ class HypothesesHandler(Handler):
     name = "hypotheses"
     cache_keys = ("findme/*/hypotheses/*",)
     shard = True
+    threads = 2     # stateless: a small photo is not held up by a 12 MP one in progress
 
     def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
                  depth: int = 64):
         self.method, self.max_n = method, max_n
         self.inputs = (Input("findme/*/frame/*", schemas.Frame, policy, depth,
-                             answers=("findme/{session}/hypotheses/{n}",)),)
+                             answers=("findme/{session}/hypotheses/{n}",), once=True),)
         self.done = 0
 
     def on_message(self, key, frame):

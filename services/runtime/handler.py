@@ -35,6 +35,10 @@ class Input:
     deferred, not answered with an error. Any other input that cannot be queued is answered
     by an Error (OVERLOADED, TOO_LARGE), or only logged and counted if the handler does not
     ``report_overload`` (the recorder).
+    once: a key is handled once: a later message on it is dropped as a duplicate even if
+    its payload differs (a result recomputed elsewhere, e.g. by an instance cut off the
+    network that comes back); without it only identical payloads are (a user may change a
+    selection). Only while the key is remembered (``Service(seen_s=...)``, 180 s).
     max_bytes: larger payloads are refused with TOO_LARGE before they are queued.
     """
 
@@ -44,6 +48,7 @@ class Input:
     depth: int = 64
     answers: tuple[str, ...] = ()
     state: bool = False
+    once: bool = False
     max_bytes: int = bus.MAX_MESSAGE_BYTES
 
 
@@ -81,6 +86,10 @@ class Handler:
     #: fetch_all(key expression) -> [(key, payload)]: every message the bus still holds
     #: for a key expression (set by Service). None = no way to ask.
     fetch_all = None
+    #: worker threads: > 1 only for a handler whose ``on_message`` may run concurrently (no
+    #: shared state; OpenCV and numpy release the GIL): a second photo is not held up by a
+    #: large one in progress
+    threads = 1
     #: messages a session may have waiting (``Service(fifo_depth=...)`` overrides)
     queue_depth = 32
     #: call ``tick`` about every this many seconds (None: never), on the worker thread

@@ -67,7 +67,8 @@ class Inbox:
         with self.cv:
             self.frames_in += 1
             seen = self.seen.get(session)
-            if seen.get(key) == digest:
+            had = seen.get(key)
+            if had is not None and (had[0] == digest or (inp.once and had[1])):
                 self.count("duplicates")
                 return False
             if len(payload) > inp.max_bytes:
@@ -87,7 +88,7 @@ class Inbox:
                 self._refuse(inp, key, Overloaded(f"{key} was not handled by {self.handler.name}: "
                                                   f"{why}; send it again later"), "overloaded")
                 return False
-            seen[key] = digest
+            seen[key] = (digest, False)
             seen.move_to_end(key)
             while len(seen) > SEEN_PER_SESSION:
                 seen.popitem(last=False)
@@ -133,6 +134,13 @@ class Inbox:
         """Whether ``key`` was taken (queued or handled) here lately."""
         with self.cv:
             return key in self.seen.get(session_of(key))
+
+    def handled(self, key: str) -> None:
+        """``key`` was handled without error: for a ``once`` input, later copies are dropped."""
+        with self.cv:
+            seen = self.seen.get(session_of(key))
+            if key in seen:
+                seen[key] = (seen[key][0], True)
 
     def forget(self, key: str) -> None:
         with self.cv:

@@ -83,8 +83,9 @@ def unanswered(session: zenoh.Session, handler: Handler, grace_ns: int, now_ns: 
                timeout: float = 5.0, since_ns: int = 0) -> list[tuple[int, str, int]]:
     """(input index, key, receive time) of every input the store holds for ``handler``
     without an answer, received at least ``grace_ns`` before ``now_ns`` (and at or after
-    ``since_ns``: answers come after their inputs, so both are asked from then), oldest
-    first."""
+    ``since_ns``: answers come after their inputs, so both are asked from then); by session,
+    then photo number (the order a session's photos were taken, which the bus does not
+    keep)."""
     todo = []
     if not any(inp.answers for inp in handler.inputs):
         return todo
@@ -100,5 +101,8 @@ def unanswered(session: zenoh.Session, handler: Handler, grace_ns: int, now_ns: 
         for k, t in held.items():
             if now_ns - t >= grace_ns and _identity(k) not in done:
                 todo.append((i, k, t))
-    todo.sort(key=lambda x: x[2])
+    def order(x):
+        session, n = _identity(x[1]) or ("", "")
+        return (session, int(n) if n.isdigit() else -1, x[2])
+    todo.sort(key=order)
     return todo

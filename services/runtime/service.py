@@ -14,7 +14,8 @@ wires it to a session. Delivery (issue 10; README "Delivery"):
   later (``Input.state``) is skipped and counted as deferred. A callback that blocked would stall the
   router's queue to this process until the router closes the link ("Unable to push non
   droppable network message ... Closing transport!") and every message on it is lost.
-* one worker thread handles queries first, then messages; ``tick`` when the handler asks.
+* one worker thread (``Handler.threads`` for a handler that is safe to call from several:
+  hypotheses) handles queries first, then messages; ``tick`` when the handler asks.
 * any exception while handling becomes an Error and a log line; the service goes on.
 * outputs marked ``cache`` are kept (bounded) and served to ``get`` on ``cache_keys``.
 * with ``shard`` set, instances of a service split the work by rendezvous hashing over the
@@ -90,6 +91,9 @@ class Service:
         self._decls: list = []
         self._threads: list[threading.Thread] = []
         self._next_tick = 0.0
+        self._busy = 0                  # worker threads handling something now
+        if handler.threads > 1 and handler.tick_s is not None:
+            raise ValueError(f"{handler.name}: a handler with ticks has one worker thread")
         self.idle = threading.Event()   # set when nothing is queued or being handled
         self.idle.set()
         handler.fetch = self.fetch
@@ -114,8 +118,8 @@ class Service:
         base = f"{bus.SERVICES}/{h.name}/{self.instance}"
         self._decls.append(s.declare_queryable(base + "/status", self._on_status))
         self._decls.append(s.liveliness().declare_token(base))
-        for name, target in (("", self._work), ("report", self._report_loop),
-                             ("cache", self._gets_loop)):
+        workers = [(f"w{k}" if k else "", self._work) for k in range(max(1, h.threads))]
+        for name, target in workers + [("report", self._report_loop), ("cache", self._gets_loop)]:
             self._threads.append(threading.Thread(target=target, daemon=True,
                                                   name=f"{self.ident}{'/' + name if name else ''}"))
         if self.sweep_s is not None and any(inp.answers for inp in h.inputs):
@@ -262,28 +266,37 @@ class Service:
             counters={k: max(0, int(v)) for k, v in more.items()})
 
     # ------------------------------------------------------------------ threads
-    def _next(self):
+    def _next(self, done: bool):
+        """The next thing to do (``done``: the caller finished one): queries first, a tick
+        when due, then messages round-robin between sessions."""
         tick_s = self.handler.tick_s
         ib = self.inbox
         with self._cv:
+            self._busy -= done
             while not self._stop.is_set():
-                if ib.queries:
-                    return "query", ib.queries.popleft()
+                kind, item = None, None
                 now = time.monotonic()
-                if tick_s is not None and now >= self._next_tick:
+                if ib.queries:
+                    kind, item = "query", ib.queries.popleft()
+                elif tick_s is not None and now >= self._next_tick:
                     self._next_tick = now + tick_s
-                    return "tick", now
-                item = ib.take()
-                if item is not None:
-                    return "msg", item
-                self.idle.set()
+                    kind, item = "tick", now
+                else:
+                    item = ib.take()
+                    kind = "msg" if item is not None else None
+                if kind is not None:
+                    self._busy += 1
+                    return kind, item
+                if not self._busy:
+                    self.idle.set()
                 wait = 0.5 if tick_s is None else max(0.0, min(0.5, self._next_tick - now))
                 self._cv.wait(wait)
         return None, None
 
     def _work(self) -> None:
+        done = False
         while True:
-            kind, item = self._next()
+            kind, item = self._next(done)
             if kind is None:
                 return
             if kind == "query":
@@ -292,6 +305,7 @@ class Service:
                 self._tick(item)
             else:
                 self.process(item.input, item.key, item.payload)
+            done = True
 
     def _tick(self, now: float) -> None:
         try:
@@ -375,6 +389,7 @@ class Service:
             for out in outputs:
                 self.publish(out)
             self.inbox.bump("handled")
+            self.inbox.handled(key)
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
             self.report(key, exc)
 
