@@ -140,6 +140,14 @@ def put(session: zenoh.Session, k: str, payload: bytes,
                 encoding=zenoh.Encoding.APPLICATION_PROTOBUF)
 
 
+def fetch(session: zenoh.Session, key: str, timeout: float = 2.0) -> bytes | None:
+    """The payload of the first reply to a ``get`` of ``key``, or None."""
+    for reply in session.get(key, timeout=timeout):
+        if reply.ok is not None:
+            return reply.ok.payload.to_bytes()
+    return None
+
+
 def get_all(session: zenoh.Session, selector: str, timeout: float = 5.0,
             payload: bytes | None = None) -> list[tuple[str, bytes]]:
     """Every reply (key, payload) to ``selector`` from every matching queryable: target ALL

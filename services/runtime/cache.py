@@ -9,11 +9,14 @@ recovery to see which inputs are answered); ``since=<ns>`` keeps newer ones.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 
 import zenoh
+
+log = logging.getLogger("findme.services")
 
 
 def is_exact(key_expr: str) -> bool:
@@ -61,3 +64,47 @@ class OutputCache:
         if meta:
             return [(k, f"{t} {len(p)}".encode()) for k, t, p in hits]
         return [(k, p) for k, _, p in hits]
+
+
+class CacheServer:
+    """Answers ``get`` on a handler's ``cache_keys`` from its ``OutputCache`` and the
+    handler's own ``cached`` (the store): an exact key in Zenoh's callback (a dict lookup),
+    a key expression with wildcards (a scan) on this server's thread, never Zenoh's."""
+
+    def __init__(self, cache: OutputCache, handler, ident: str):
+        self.cache, self.handler, self.ident = cache, handler, ident
+        self._cv = threading.Condition()
+        self._scans: deque = deque()
+
+    def on_query(self, query: zenoh.Query) -> None:
+        if is_exact(str(query.key_expr)):
+            self.reply(query)
+            return
+        with self._cv:
+            self._scans.append(query)
+            self._cv.notify_all()
+
+    def reply(self, query: zenoh.Query) -> None:
+        key, params = str(query.key_expr), query.parameters
+        try:
+            for k, v in self.cache.lookup(key, params) + self.handler.cached(key, params):
+                query.reply(k, v)
+        except (zenoh.ZError, ValueError) as e:
+            log.warning("%s: cannot answer %s: %s", self.ident, key, e)
+        finally:
+            query.drop()
+
+    def run(self, stop: threading.Event) -> None:
+        """The scan thread: until ``stop`` is set (``wake`` to notice it at once)."""
+        while True:
+            with self._cv:
+                while not self._scans and not stop.is_set():
+                    self._cv.wait(0.5)
+                if not self._scans:
+                    return
+                query = self._scans.popleft()
+            self.reply(query)
+
+    def wake(self) -> None:
+        with self._cv:
+            self._cv.notify_all()

@@ -46,9 +46,10 @@ class Inbox:
         self.intake = Intake(session_depth, session_bytes, total_bytes)
         self.seen = SessionTable(lambda s: OrderedDict(), idle_s=seen_s, max_sessions=100000)
         self.queries: deque = deque()
-        self.gets: deque = deque()
         self.reports: deque = deque()
         self.frames_in = self.dropped = 0
+        self.busy = 0            # worker threads handling something now
+        self.next_tick = 0.0
         self.more: dict[str, int] = {}     # counts by cause
 
     def count(self, what: str, n: int = 1) -> None:
@@ -129,6 +130,31 @@ class Inbox:
             self._refuse(self.handler.inputs[item.input], item.key, Overloaded(
                 f"{item.key} waited {waited:.0f} s in {self.handler.name}'s queue (at most "
                 f"{self.max_wait_s:g} s): not handled; send it again later"), "expired")
+
+    def next_work(self, done: bool, stop: threading.Event, tick_s: float | None,
+                  idle: threading.Event):
+        """What a worker thread does next (``done``: it finished one): a query first, a
+        tick when due, then a message, round-robin between sessions; (None, None) once
+        ``stop`` is set. Sets ``idle`` when nothing waits and no worker is busy."""
+        with self.cv:
+            self.busy -= done
+            while not stop.is_set():
+                now = time.monotonic()
+                if self.queries:
+                    kind, item = "query", self.queries.popleft()
+                elif tick_s is not None and now >= self.next_tick:
+                    self.next_tick = now + tick_s
+                    kind, item = "tick", now
+                else:
+                    item = self.take()
+                    kind = "msg" if item is not None else None
+                if kind is not None:
+                    self.busy += 1
+                    return kind, item
+                if not self.busy:
+                    idle.set()
+                self.cv.wait(0.5 if tick_s is None else max(0.0, min(0.5, self.next_tick - now)))
+        return None, None
 
     def knows(self, key: str) -> bool:
         """Whether ``key`` was taken (queued or handled) here lately."""

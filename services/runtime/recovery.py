@@ -12,12 +12,18 @@ costs work, not a duplicate result.
 
 from __future__ import annotations
 
+import logging
+import time
+
 import zenoh
 
 import schemas
+from findme_core.errors import FindmeError
 
 from . import bus
 from .handler import Handler, Input
+
+log = logging.getLogger("findme.services")
 
 
 def _selector(template: str) -> str:
@@ -106,3 +112,53 @@ def unanswered(session: zenoh.Session, handler: Handler, grace_ns: int, now_ns: 
         return (session, int(n) if n.isdigit() else -1, x[2])
     todo.sort(key=order)
     return todo
+
+
+class Sweeper:
+    """The recovery thread of a ``service.Service``: the first sweep (at start) and one
+    after a change of instances look at the whole window the bus holds; periodic ones
+    (every ``sweep_s``) at what came since the last, with a margin: every input is looked
+    at, none twice in full."""
+
+    MARGIN_S = 5.0
+
+    def __init__(self, service):
+        self.svc = service
+
+    def run(self) -> None:
+        svc = self.svc
+        grace, done_to = 0.0, 0   # at start nothing is in flight to this instance yet
+        while True:
+            whole = svc._sweep_now.wait(svc.sweep_s) or not done_to
+            if svc._stop.is_set():
+                return
+            svc._sweep_now.clear()
+            now = time.time_ns()
+            since = 0 if whole else max(0, done_to - int(1e9 * (svc.grace_s + self.MARGIN_S)))
+            try:
+                self.sweep(grace, since)
+                done_to = now - int(grace * 1e9)
+            except (zenoh.ZError, FindmeError) as e:
+                log.warning("%s: recovery sweep failed: %s", svc.ident, e)
+            grace = svc.grace_s
+
+    def sweep(self, grace_s: float = 0.0, since_ns: int = 0) -> int:
+        """Fetch and queue every unanswered input the bus holds (received since
+        ``since_ns``, at least ``grace_s`` ago) that is this instance's and not seen here;
+        returns how many."""
+        svc = self.svc
+        todo = unanswered(svc.session, svc.handler, int(grace_s * 1e9), time.time_ns(),
+                          since_ns=since_ns)
+        n = 0
+        for i, key, _ in todo:
+            if svc._stop.is_set():
+                break
+            if (svc.handler.shard and not svc._owns(key)) or svc.inbox.knows(key):
+                continue
+            data = svc.fetch(key)
+            if data is not None and svc.offer(i, key, data, recovered=True):
+                n += 1
+        svc.inbox.bump("sweeps")
+        if n:
+            log.info("%s: recovered %d unanswered inputs from the bus", svc.ident, n)
+        return n

@@ -1,28 +1,22 @@
 """Runs a pure handler on the bus: decode, handle, encode, publish; errors, counters,
-liveliness, status, a latched cache of outputs, sharding among instances, recovery of what
-was missed, shutdown.
+liveliness, status, a latched cache of outputs, sharding, recovery, shutdown.
 
-A *handler* (``handler.Handler``) knows nothing about Zenoh: it declares its inputs and
-queries and turns one decoded message into outputs, so tests drive it directly. ``Service``
-wires it to a session. Delivery (issue 10; README "Delivery"):
+A *handler* (``handler.Handler``) knows nothing about Zenoh, so tests drive it directly;
+``Service`` wires it to a session (delivery: issue 10, README "Delivery"):
 
-* Zenoh's callback never waits: it checks the size, the owner (sharding) and duplicates
-  (same key, same payload), and queues the message in its session's bounded FIFO
-  (``intake.Intake``, served round-robin between sessions). A message that does not fit is
-  answered at once by an Error (OVERLOADED, TOO_LARGE) on ``findme/<session>/error``,
-  published by a reporter thread (``inbox.Inbox``); an input the handler can fetch again
-  later (``Input.state``) is skipped and counted as deferred. A callback that blocked would stall the
-  router's queue to this process until the router closes the link ("Unable to push non
-  droppable network message ... Closing transport!") and every message on it is lost.
-* one worker thread (``Handler.threads`` for a handler that is safe to call from several:
-  hypotheses) handles queries first, then messages; ``tick`` when the handler asks.
-* any exception while handling becomes an Error and a log line; the service goes on.
-* outputs marked ``cache`` are kept (bounded) and served to ``get`` on ``cache_keys``.
-* with ``shard`` set, instances of a service split the work by rendezvous hashing over the
-  live instances (``peers.Peers``: a liveliness subscriber with history).
-* recovery: at start, when an instance joins or leaves, and every ``sweep_s`` seconds, the
-  inputs the bus still holds (the store's window, the producers' caches) that have no
-  answer yet and are this instance's are fetched and handled (``recovery``).
+* Zenoh's callbacks never wait: a message is queued in its session's bounded FIFO, served
+  round-robin, or answered at once (OVERLOADED, TOO_LARGE) by a reporter thread
+  (``inbox``). A blocked callback would stall the router's queue to this process until the
+  router closes the link ("Unable to push non droppable network message ... Closing
+  transport!") and everything on it is lost.
+* worker threads (one; ``Handler.threads`` for stateless handlers) handle queries first,
+  then messages, and ``tick`` when the handler asks; any exception becomes an Error on
+  ``findme/<session>/error`` and a log line, and the service goes on.
+* outputs marked ``cache`` are kept (bounded) and served on ``cache_keys`` (``cache``).
+* with ``shard`` set, instances split the work by rendezvous hashing over the live
+  instances (``peers``: a liveliness subscriber with history).
+* a sweeper thread recovers unanswered inputs the bus still holds (``recovery``): at start,
+  when an instance of the service comes or goes, and every ``sweep_s``.
 """
 
 from __future__ import annotations
@@ -40,7 +34,7 @@ import schemas
 from findme_core.errors import FindmeError, SchemaError
 
 from . import bus, recovery
-from .cache import OutputCache, is_exact
+from .cache import CacheServer, OutputCache
 from .handler import Handler, Input, Output, error_message
 from .inbox import Inbox
 from .peers import Peers, owner
@@ -87,11 +81,10 @@ class Service:
         self._stop = threading.Event()
         self._sweep_now = threading.Event()
         self._cache = OutputCache(cache_bytes)
+        self._cache_server = CacheServer(self._cache, handler, self.ident)
         self._peers: Peers | None = None
         self._decls: list = []
         self._threads: list[threading.Thread] = []
-        self._next_tick = 0.0
-        self._busy = 0                  # worker threads handling something now
         if handler.threads > 1 and handler.tick_s is not None:
             raise ValueError(f"{handler.name}: a handler with ticks has one worker thread")
         self.idle = threading.Event()   # set when nothing is queued or being handled
@@ -114,18 +107,20 @@ class Service:
         for q in h.queries:
             self._decls.append(s.declare_queryable(q.key, self._on_query(q)))
         for ck in h.cache_keys:
-            self._decls.append(s.declare_queryable(ck, self._on_cache_query))
+            self._decls.append(s.declare_queryable(ck, self._cache_server.on_query))
         base = f"{bus.SERVICES}/{h.name}/{self.instance}"
         self._decls.append(s.declare_queryable(base + "/status", self._on_status))
         self._decls.append(s.liveliness().declare_token(base))
         workers = [(f"w{k}" if k else "", self._work) for k in range(max(1, h.threads))]
-        for name, target in workers + [("report", self._report_loop), ("cache", self._gets_loop)]:
+        for name, target in workers + [("report", self._report_loop)]:
             self._threads.append(threading.Thread(target=target, daemon=True,
                                                   name=f"{self.ident}{'/' + name if name else ''}"))
+        self._threads.append(threading.Thread(target=self._cache_server.run, args=(self._stop,),
+                                              daemon=True, name=f"{self.ident}/cache"))
         if self.sweep_s is not None and any(inp.answers for inp in h.inputs):
             self._sweep_now.set()   # the first sweep at once: what was missed while down
-            self._threads.append(threading.Thread(target=self._sweep_loop, daemon=True,
-                                                  name=f"{self.ident}/sweep"))
+            self._threads.append(threading.Thread(target=recovery.Sweeper(self).run,
+                                                  daemon=True, name=f"{self.ident}/sweep"))
         for t in self._threads:
             t.start()
         log.info("%s started", self.ident)
@@ -138,6 +133,7 @@ class Service:
         self._sweep_now.set()
         with self._cv:
             self._cv.notify_all()
+        self._cache_server.wake()
         for t in self._threads:
             t.join(timeout)
         for d in reversed(self._decls):
@@ -208,47 +204,18 @@ class Service:
                 self._cv.notify_all()
         return cb
 
-    def _on_cache_query(self, query: zenoh.Query) -> None:
-        key = str(query.key_expr)
-        if is_exact(key):   # a dict lookup: answered here
-            self._reply_cached(query)
-            return
-        with self._cv:      # a scan: on the cache thread, not Zenoh's
-            self.inbox.gets.append(query)
-            self._cv.notify_all()
-
-    def _reply_cached(self, query: zenoh.Query) -> None:
-        key, params = str(query.key_expr), query.parameters
-        try:
-            for k, v in self._cache.lookup(key, params) + self.handler.cached(key, params):
-                query.reply(k, v)
-        except (zenoh.ZError, ValueError) as e:
-            log.warning("%s: cannot answer %s: %s", self.ident, key, e)
-        finally:
-            query.drop()
-
     def _on_status(self, query: zenoh.Query) -> None:
         query.reply(f"{bus.SERVICES}/{self.ident}/status", schemas.encode(self.status()))
 
     # ------------------------------------------------------------------ asking the bus
     def fetch(self, key: str, timeout: float = 2.0) -> bytes | None:
-        """The latest payload of ``key`` from whoever holds it on the bus, or None."""
+        """The latest payload of ``key``: this service's own output, or whoever holds it."""
         local = self._cache.get(key)
-        if local is not None:
-            return local
-        for reply in self.session.get(key, timeout=timeout):
-            if reply.ok is not None:
-                return reply.ok.payload.to_bytes()
-        return None
+        return local if local is not None else bus.fetch(self.session, key, timeout)
 
     def fetch_all(self, key_expr: str, timeout: float = 5.0) -> list[tuple[str, bytes]]:
         """Every message the bus holds on ``key_expr`` (store and caches), each once."""
-        seen, out = set(), []
-        for k, p in bus.get_all(self.session, key_expr, timeout):
-            if (k, p) not in seen:
-                seen.add((k, p))
-                out.append((k, p))
-        return out
+        return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
 
     def status(self):
         ib = self.inbox
@@ -266,37 +233,10 @@ class Service:
             counters={k: max(0, int(v)) for k, v in more.items()})
 
     # ------------------------------------------------------------------ threads
-    def _next(self, done: bool):
-        """The next thing to do (``done``: the caller finished one): queries first, a tick
-        when due, then messages round-robin between sessions."""
-        tick_s = self.handler.tick_s
-        ib = self.inbox
-        with self._cv:
-            self._busy -= done
-            while not self._stop.is_set():
-                kind, item = None, None
-                now = time.monotonic()
-                if ib.queries:
-                    kind, item = "query", ib.queries.popleft()
-                elif tick_s is not None and now >= self._next_tick:
-                    self._next_tick = now + tick_s
-                    kind, item = "tick", now
-                else:
-                    item = ib.take()
-                    kind = "msg" if item is not None else None
-                if kind is not None:
-                    self._busy += 1
-                    return kind, item
-                if not self._busy:
-                    self.idle.set()
-                wait = 0.5 if tick_s is None else max(0.0, min(0.5, self._next_tick - now))
-                self._cv.wait(wait)
-        return None, None
-
     def _work(self) -> None:
         done = False
         while True:
-            kind, item = self._next(done)
+            kind, item = self.inbox.next_work(done, self._stop, self.handler.tick_s, self.idle)
             if kind is None:
                 return
             if kind == "query":
@@ -324,56 +264,10 @@ class Service:
                 key, exc = self.inbox.reports.popleft()
             self.report(key, exc)
 
-    def _gets_loop(self) -> None:
-        while True:
-            with self._cv:
-                while not self.inbox.gets and not self._stop.is_set():
-                    self._cv.wait(0.5)
-                if not self.inbox.gets:
-                    return
-                query = self.inbox.gets.popleft()
-            self._reply_cached(query)
-
-    def _sweep_loop(self) -> None:
-        """The first sweep (at start) and one after a change of instances look at the
-        whole window the bus holds; periodic ones at what came since the last (with a
-        margin): every input is looked at, none twice in full."""
-        grace, done_to = 0.0, 0   # at start nothing is in flight to this instance yet
-        while True:
-            whole = self._sweep_now.wait(self.sweep_s) or not done_to
-            if self._stop.is_set():
-                return
-            self._sweep_now.clear()
-            now = time.time_ns()
-            since = 0 if whole else max(0, done_to - int(1e9 * (self.grace_s + 5.0)))
-            try:
-                self.sweep(grace, since)
-                done_to = now - int(grace * 1e9)
-            except (zenoh.ZError, FindmeError) as e:
-                log.warning("%s: recovery sweep failed: %s", self.ident, e)
-            grace = self.grace_s
-
     def sweep(self, grace_s: float = 0.0, since_ns: int = 0) -> int:
-        """Fetch and queue every unanswered input the bus holds (received since
-        ``since_ns``) that is this instance's and not seen here (see ``recovery``); returns
-        how many."""
-        todo = recovery.unanswered(self.session, self.handler, int(grace_s * 1e9), time.time_ns(),
-                                   since_ns=since_ns)
-        n = 0
-        for i, key, _ in todo:
-            if self._stop.is_set():
-                break
-            if self.handler.shard and not self._owns(key):
-                continue
-            if self.inbox.knows(key):
-                continue
-            data = self.fetch(key)
-            if data is not None and self.offer(i, key, data, recovered=True):
-                n += 1
-        self.inbox.bump("sweeps")
-        if n:
-            log.info("%s: recovered %d unanswered inputs from the bus", self.ident, n)
-        return n
+        """Fetch and queue what this instance should have handled and nobody answered
+        (``recovery.Sweeper.sweep``); returns how many."""
+        return recovery.Sweeper(self).sweep(grace_s, since_ns)
 
     # ------------------------------------------------------------------ handling (worker)
     def process(self, i: int, key: str, payload: bytes) -> None:
