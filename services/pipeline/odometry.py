@@ -67,13 +67,24 @@ class OdometryHandler(Handler):
     def shard_key(self, key, msg):
         return bus.parse_key(key).session  # a session's photos stay on one instance
 
+    def peers_changed(self):
+        """Another instance may have chained some sessions meanwhile (this one was cut off,
+        or one came and went): each takes the poses on the bus again when next used."""
+        for _, st in self.sessions.items():
+            st.stale = True
+
     def _open_session(self, session: str) -> OdometrySession:
         """A session seen for the first time here: take the poses it already has on the bus
         (published before this instance restarted, or before the session was evicted)."""
         st = OdometrySession()
-        if self.fetch_all is None:
-            return st
+        st.adopt(*self._bus_poses(session))
+        return st
+
+    def _bus_poses(self, session: str):
+        """(poses, capture times) of a session's photos from the bus."""
         poses, times = {}, {}
+        if self.fetch_all is None:
+            return poses, times
         for k, payload in self.fetch_all(bus.key(session, "pose", "*")):
             try:
                 p = schemas.decode(schemas.Pose, payload)
@@ -82,12 +93,14 @@ class OdometryHandler(Handler):
             cov = np.diag([p.sigma_x_m ** 2, p.sigma_z_m ** 2, p.sigma_yaw_rad ** 2])
             poses[p.index] = PlanarPose(p.x_m, 0.0, p.z_m, p.yaw_rad, cov)
             times[p.index] = p.time_ns
-        st.adopt(poses, times)
-        return st
+        return poses, times
 
     def on_message(self, key, msg):
         k = bus.parse_key(key)
         st = self.sessions.get(k.session)
+        if st.stale:
+            st.stale = False
+            st.adopt(*self._bus_poses(k.session))
         now = self.clock()
         if isinstance(msg, schemas.Error):
             return self._error(k.session, st, msg, now)

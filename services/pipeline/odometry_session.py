@@ -36,6 +36,7 @@ class OdometrySession:
         self.times: dict[int, int] = {}
         self.closed: dict[int, str] = {}     # n -> "failed" | "dead" (never selected)
         self.origin: int | None = None
+        self.stale = False    # another instance may have posed photos since: ask the bus
 
     def photo(self, n: int, now: float) -> Photo:
         p = self.photos.get(n)
@@ -80,9 +81,12 @@ class OdometrySession:
             self.photos[n].frame = None
 
     def adopt(self, poses: dict[int, PlanarPose], times: dict[int, int]) -> None:
-        """Take poses already on the bus (this session was handled before a restart or an
-        eviction); the lowest is the origin."""
-        self.poses.update(poses)
-        self.times.update(times)
+        """Take poses already on the bus that this session does not have (it was handled
+        before a restart or an eviction, or by another instance); the lowest is the origin."""
+        for n, p in poses.items():
+            if n not in self.poses:
+                self.poses[n] = p
+                self.times[n] = times.get(n, 0)
+                self.closed.pop(n, None)
         if self.poses and self.origin is None:
             self.origin = min(self.poses)

@@ -127,6 +127,10 @@ class Handler:
         waits on time, e.g. giving up on a photo that never comes."""
         return []
 
+    def peers_changed(self) -> None:
+        """(sharded handlers) An instance of this service came or went, so the sessions this
+        one owns changed: drop state that another instance may have moved on meanwhile."""
+
     def shard_key(self, key: str, msg) -> str:
         """What decides which instance handles a message (default: the whole key). Called
         with ``msg=None`` when the message is not decoded yet: depend on the key only."""

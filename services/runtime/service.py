@@ -83,6 +83,7 @@ class Service:
         self._cache = OutputCache(cache_bytes)
         self._cache_server = CacheServer(self._cache, handler, self.ident)
         self._peers: Peers | None = None
+        self._stale = False
         self._decls: list = []
         self._threads: list[threading.Thread] = []
         if handler.threads > 1 and handler.tick_s is not None:
@@ -101,7 +102,7 @@ class Service:
     def start(self) -> "Service":
         s, h = self.session, self.handler
         if h.shard:
-            self._peers = Peers(s, h.name, on_change=self._sweep_now.set)
+            self._peers = Peers(s, h.name, on_change=self._peers_changed)
         for i, inp in enumerate(h.inputs):
             self._decls.append(s.declare_subscriber(inp.key, self._on_sample(i)))
         for q in h.queries:
@@ -187,6 +188,12 @@ class Service:
                 self.idle.clear()
         return queued
 
+    def _peers_changed(self) -> None:
+        """(Zenoh's thread) An instance came or went: sweep, and let the handler know on
+        the worker thread (its state of sessions it owned before may be stale)."""
+        self._sweep_now.set()
+        self._stale = True
+
     def _owns(self, key: str, msg=None) -> bool:
         if self._peers is None:
             return True
@@ -239,6 +246,9 @@ class Service:
             kind, item = self.inbox.next_work(done, self._stop, self.handler.tick_s, self.idle)
             if kind is None:
                 return
+            if self._stale:
+                self._stale = False
+                self.handler.peers_changed()
             if kind == "query":
                 self._answer(*item)
             elif kind == "tick":

@@ -49,8 +49,9 @@ def test_malformed_then_good(handler, key, good, zsession, level_view):
                                        by=schemas.SELECTED_BY_USER)}[good]
     zsession.put(key, schemas.encode(wrong_place))
     errs = [schemas.decode(schemas.Error, p) for _, p in errors.wait(3)]
-    codes = [e.code for e in errs]
-    assert codes[:2] == [schemas.ErrorCode.ERROR_CODE_MALFORMED, schemas.ErrorCode.ERROR_CODE_WRONG_TYPE]
+    codes = sorted(e.code for e in errs)       # (hypotheses handles 2 at once: any order)
+    assert schemas.ErrorCode.ERROR_CODE_WRONG_TYPE in codes
+    assert codes.count(schemas.ErrorCode.ERROR_CODE_MALFORMED) >= 1
     assert all(e.key == key and e.session == "t1" and e.message for e in errs)
     good_msg = {"frame": frame, "hset": hs.msg, "selection": GOOD_SELECTION}[good]
     zsession.put(key, schemas.encode(good_msg))
