@@ -16,7 +16,9 @@ frame, hypotheses or selection); unaccounted = offered - the above (goal 0); dup
 poses; latency photo -> pose (send to arrival, p50/p99); RSS and CPU of each process at
 start and end. A run ends when every frame is accounted for, or 30 s after the last photo
 if some never are. The baseline is 1 phone, same run. ``--soak`` runs one deployment for
-that many seconds (phones start a new session every ``--session-s``) and samples RSS.
+that many seconds (phones start a new session every ``--session-s``; services forget a
+session idle for 60 s and the store holds small results for 120 s, so that the plateau
+shows within minutes) and samples RSS.
 """
 
 from __future__ import annotations
@@ -271,7 +273,7 @@ def run(workers, phones, seconds, pool, extra=(), odometry=1):
 def soak(workers, phones, seconds, pool, session_s, every=30.0, odometry=1):
     samples = []
     with tempfile.TemporaryDirectory(prefix="bench-soak-rec-") as out:
-        dep = Deployment(workers, out, ("--idle", "60"), odometry)
+        dep = Deployment(workers, out, ("--idle", "60", "--latch", "120"), odometry)
         try:
             ledger = Ledger(dep.client)
             samples.append((0.0, {k: round(v[0]) for k, v in dep.stats().items()}))

@@ -1,5 +1,5 @@
 """A service's latched outputs: the latest payload of each key it published, bounded in
-bytes (oldest first out), served to ``get`` queries on the handler's ``cache_keys`` so a
+bytes and age (oldest first out: what a session still needs is recent), served to ``get`` queries on the handler's ``cache_keys`` so a
 service that starts late or restarts fetches what it missed.
 
 Answers the store's query protocol too (``runtime.store``): with the parameter ``meta`` a
@@ -25,8 +25,10 @@ def is_exact(key_expr: str) -> bool:
 
 
 class OutputCache:
-    def __init__(self, max_bytes: int = 64 * 1024 * 1024, clock=time.time_ns):
+    def __init__(self, max_bytes: int = 64 * 1024 * 1024, max_age_s: float = 900.0,
+                 clock=time.time_ns):
         self.max_bytes, self.clock = max_bytes, clock
+        self.max_age_ns = int(max_age_s * 1e9)
         self._items: OrderedDict[str, tuple[int, bytes]] = OrderedDict()
         self._bytes = 0
         self._lock = threading.Lock()
@@ -38,9 +40,13 @@ class OutputCache:
         with self._lock:
             old = self._items.pop(key, None)
             self._bytes += len(payload) - (len(old[1]) if old else 0)
-            self._items[key] = (self.clock(), payload)
-            while self._bytes > self.max_bytes and len(self._items) > 1:
-                _, (_, v) = self._items.popitem(last=False)
+            now = self.clock()
+            self._items[key] = (now, payload)
+            while len(self._items) > 1:
+                t, v = next(iter(self._items.values()))
+                if self._bytes <= self.max_bytes and now - t <= self.max_age_ns:
+                    break
+                self._items.popitem(last=False)
                 self._bytes -= len(v)
 
     def get(self, key: str) -> bytes | None:

@@ -39,14 +39,17 @@ def add_service_args(p) -> None:
                         "are fetched and handled (default 10; also at start and when an "
                         "instance comes or goes)")
     d.add_argument("--idle", type=float, default=600.0, metavar="S",
-                   help="measurement, odometry: evict a session idle this long (default 600; "
-                        "rebuilt from the bus when it comes back)")
+                   help="forget a session idle this long: measurement and odometry state, the "
+                        "recorder's open file, cached results (default 600; rebuilt from the "
+                        "bus when it comes back)")
     d.add_argument("--gap-wait", type=float, default=5.0, metavar="S",
                    help="odometry: wait this long for a lower photo's selection before "
                         "chaining past it (default 5)")
     d.add_argument("--window", type=float, default=60.0, metavar="S",
                    help="store: hold every message this long for services that missed it "
                         "(default 60)")
+    d.add_argument("--latch", type=float, default=900.0, metavar="S",
+                   help="store: hold the latest small result of each key this long (default 900)")
 
 
 def service_options(args) -> dict:
@@ -56,7 +59,8 @@ def service_options(args) -> dict:
         raise InputError(f"--queue-depth must be at least 1, got {depth}")
     wait = getattr(args, "max_wait", 10.0)
     return {"fifo_depth": depth, "sweep_s": getattr(args, "sweep", 10.0),
-            "max_wait_s": wait if wait and wait > 0 else None}
+            "max_wait_s": wait if wait and wait > 0 else None,
+            "cache_age_s": getattr(args, "idle", 600.0)}
 
 
 def make_handler(name: str, args) -> Handler:

@@ -67,7 +67,8 @@ class Service:
                  fifo_depth: int | None = None, cache_bytes: int = 64 * 1024 * 1024,
                  max_message_bytes: int = bus.MAX_MESSAGE_BYTES, session_bytes: int = 64 << 20,
                  queue_bytes: int = 512 << 20, sweep_s: float | None = 10.0, grace_s: float = 2.0,
-                 seen_s: float = 180.0, max_wait_s: float | None = 10.0):
+                 seen_s: float = 180.0, max_wait_s: float | None = 10.0,
+                 cache_age_s: float = 900.0):
         self.handler, self.session = handler, session
         self.instance = instance or uuid.uuid4().hex[:8]
         self.ident = f"{handler.name}/{self.instance}"
@@ -80,7 +81,7 @@ class Service:
         self.sweep_s, self.grace_s = sweep_s, grace_s
         self._stop = threading.Event()
         self._sweep_now = threading.Event()
-        self._cache = OutputCache(cache_bytes)
+        self._cache = OutputCache(cache_bytes, cache_age_s)
         self._cache_server = CacheServer(self._cache, handler, self.ident)
         self._peers: Peers | None = None
         self._stale = False

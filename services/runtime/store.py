@@ -131,5 +131,6 @@ class StoreHandler(Handler):
 
 
 def make_store(args) -> StoreHandler:
-    """``findme serve store [--window S]``."""
-    return StoreHandler(window_s=getattr(args, "window", None) or 60.0)
+    """``findme serve store [--window S] [--latch S]``."""
+    return StoreHandler(window_s=getattr(args, "window", None) or 60.0,
+                        latch_s=getattr(args, "latch", None) or 900.0)

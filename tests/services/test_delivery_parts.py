@@ -116,3 +116,12 @@ def test_rendezvous_moves_only_the_work_of_the_instance_that_left():
     assert set(three.values()) == {"a", "b", "c"}
     assert all(two[k] == three[k] for k in keys if three[k] != "c")   # a's and b's stay
     assert owner("x", ["a"]) == "a"
+
+
+def test_output_cache_forgets_what_is_older_than_its_age():
+    now = [0]
+    c = OutputCache(max_age_s=10, clock=lambda: now[0])
+    c.put("findme/s/pose/0", b"a")
+    now[0] = 11_000_000_000
+    c.put("findme/s/pose/1", b"b")
+    assert c.get("findme/s/pose/0") is None and c.get("findme/s/pose/1") == b"b"
