@@ -73,7 +73,8 @@ def proc_stats(pid: int) -> tuple[float, float]:
 class Deployment:
     """Router + services as processes; a client session for the phones and the results."""
 
-    def __init__(self, workers: int, out_dir: str, extra=(), odometry: int = 1):
+    def __init__(self, workers: int, out_dir: str, extra=(), odometry: int = 1,
+                 services=SERVICES):
         with socket.socket() as s:
             s.bind(("127.0.0.1", 0))
             self.ep = f"tcp/127.0.0.1:{s.getsockname()[1]}"
@@ -83,7 +84,8 @@ class Deployment:
         self._wait_log("router", "listening on")
         self.client = bus.open_session(bus.BusConfig(mode="client", connect=(self.ep,)))
         names = ([("hypotheses", f"h{i}") for i in range(workers)] +
-                 [("odometry", f"o{i}") for i in range(odometry)] + [(n, n) for n in SERVICES])
+                 [("odometry", f"o{i}") for i in range(odometry) if workers] +
+                 [(n, n) for n in services])
         for name, inst in names:
             args = ["serve", name, "--connect", self.ep, "--instance", inst, *extra]
             args += {"selection": ["--auto"], "recorder": ["--out", out_dir]}.get(name, [])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 
@@ -16,7 +17,10 @@ Measure a room and locate yourself from phone photos.
   findme hypotheses PHOTO         the photo's floor-boundary hypotheses, best first
   findme locate PHOTO --point U,V 3D of tapped pixels under a hypothesis
   findme motion PHOTO_A PHOTO_B   how the camera moved between two photos
+  findme plan PHOTO...            the room's floor plan from a session of photos
   findme app                      the phone web page, with every service
+  findme up                       router + one process per service on this machine
+  findme send PHOTOS --connect E  photos to running services, with their results
 """
 
 
@@ -34,12 +38,14 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import app_cli, demo, deploy, evaluate, motion_cli, record_cli, single
+    from . import (app_cli, demo, deploy, evaluate, export_cli, motion_cli, plan_cli, record_cli,
+                   send_cli, single, up_cli)
     p = _Parser(prog="findme", description=DESCRIPTION,
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for mod in (demo, single, evaluate, motion_cli, deploy, app_cli, record_cli):
+    for mod in (demo, single, evaluate, motion_cli, plan_cli, deploy, app_cli, up_cli, send_cli,
+                record_cli, export_cli):
         mod.register(sub)
     return p
 
@@ -62,6 +68,12 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("interrupted\n")
         return 130
+    except BrokenPipeError:
+        # the reader of our output stopped (``findme run | head -3``): not an error; point
+        # stdout at /dev/null so that the interpreter's final flush does not complain either
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
     except Exception as e:  # a bug, not bad input: one line unless --debug
         if args.debug:
             raise

@@ -1,4 +1,5 @@
-"""``findme run | serve | router | status``: the services on a Zenoh bus.
+"""``findme run | serve | router | status``: the services on a Zenoh bus (what a session
+prints: report.py).
 
 * ``run``: every service in this process on one Zenoh session (the default deployment):
   photos (default: the bundled example) -> hypotheses -> selection -> scenes, motion and
@@ -10,12 +11,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import logging
+import os
 import sys
 import threading
 import time
 import uuid
-from importlib import resources
 from pathlib import Path
 
 import zenoh
@@ -28,19 +31,28 @@ from services.runtime.registry import (add_service_args, make_handler, service_n
                                       service_options, wait_for_signal)
 from services.runtime.service import Group, Service
 
-from .options import add_camera_args, floats
+from .options import add_camera_args, finite_float, floats
+from .report import Printer, _example_paths, _measure, read_photos, report_session
 
-PIPELINE = ("hypotheses", "selection", "measurement", "odometry")
+PIPELINE = ("hypotheses", "selection", "measurement", "odometry", "mapper")
 
 
 def _bus_args(p, default_listen=()):
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                   help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+                   help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 or "
+                        "tls/server.example:7447 (repeatable)")
     p.add_argument("--listen", action="append", default=list(default_listen), metavar="ENDPOINT",
                    help="Zenoh endpoint to listen on (repeatable)")
     p.add_argument("--mode", choices=("peer", "client"),
                    help="Zenoh mode (default: client of the router with --connect, else peer)")
     p.add_argument("--config", metavar="FILE.json5", help="a full Zenoh configuration file")
+    p.add_argument("--ca", metavar="CA.pem", help="tls/ endpoints: the CA that signed the "
+                   "router's certificate (tools/make_certs.py writes certs/ca.pem)")
+    p.add_argument("--user", help="user name for a router with passwords (certs/users.txt)")
+    p.add_argument("--password-file", metavar="FILE",
+                   help="file holding the --user's password (default: $FINDME_PASSWORD)")
+    p.add_argument("--quiet", action="store_true",
+                   help="log warnings and errors only (not one line per handled message)")
 
 
 def register(sub) -> None:
@@ -50,7 +62,7 @@ def register(sub) -> None:
                                              "(default: the bundled example)")
     r.add_argument("--session", help="session id (default: a new one)")
     add_camera_args(r)
-    r.add_argument("--camera-height", type=float, metavar="M")
+    r.add_argument("--camera-height", type=finite_float, metavar="M")
     r.add_argument("--measure", action="append", metavar="U,V",
                    help="pixels of photo 0 to measure at the end (repeatable)")
     add_service_args(r)
@@ -65,9 +77,12 @@ def register(sub) -> None:
     s.add_argument("--session", help="capture: session id")
     s.add_argument("--instance", help="instance id (default: random)")
     add_camera_args(s)
-    s.add_argument("--camera-height", type=float, metavar="M")
+    s.add_argument("--camera-height", type=finite_float, metavar="M")
     s.add_argument("--wait-for", action="append", default=[], metavar="SERVICE",
                    help="capture: publish only once these services are alive")
+    s.add_argument("--linger", type=float, default=120.0, metavar="S",
+                   help="capture: after publishing, serve the frames until every photo's "
+                        "results are in, at most S seconds (default 120), then exit")
     add_service_args(s)
     _bus_args(s)
     s.set_defaults(func=cmd_serve)
@@ -79,6 +94,8 @@ def register(sub) -> None:
     st = sub.add_parser("status", help="which services are alive, with their counters")
     _bus_args(st)
     st.add_argument("--json", action="store_true")
+    st.add_argument("--wait", type=float, default=2.0, metavar="S",
+                    help="how long to wait for the router (default 2 s)")
     st.set_defaults(func=cmd_status)
 
 
@@ -86,16 +103,42 @@ def bus_config(args, mode: str | None = None) -> bus.BusConfig:
     mode = mode or args.mode or ("client" if args.connect else "peer")
     if getattr(args, "config", None):
         return bus.BusConfig(mode=mode, extra={"__file__": args.config})
-    return bus.BusConfig(mode=mode, listen=tuple(args.listen), connect=tuple(args.connect))
+    tls = {"root_ca_certificate": args.ca} if getattr(args, "ca", None) else None
+    user = getattr(args, "user", None)
+    password = None
+    if user is not None:
+        pf = getattr(args, "password_file", None)
+        if pf:
+            try:
+                password = Path(pf).read_text().strip()
+            except OSError as e:
+                raise InputError(f"--password-file {pf}: {e.strerror}") from None
+        else:
+            password = os.environ.get("FINDME_PASSWORD", "")
+    return bus.BusConfig(mode=mode, listen=tuple(args.listen), connect=tuple(args.connect),
+                         tls=tls, user=user, password=password)
 
 
-def _open(args, mode=None) -> zenoh.Session:
+def _open(args, mode=None, connect_timeout_s: float | None = None) -> zenoh.Session:
+    """The session the command line asked for. ``connect_timeout_s``: how long a client
+    waits for its router (default: the configuration's, 30 s for services, which then do
+    not depend on start order); a short one makes ``status`` and ``send`` fail fast."""
     cfg = bus_config(args, mode)
     if "__file__" in cfg.extra:
+        path = cfg.extra["__file__"]
         try:
-            return zenoh.open(zenoh.Config.from_file(cfg.extra["__file__"]))
+            conf = zenoh.Config.from_file(path)
+            if connect_timeout_s is not None:
+                conf.insert_json5("connect/timeout_ms", json.dumps(
+                    {"router": -1, "peer": -1, "client": int(connect_timeout_s * 1000)}))
+            return zenoh.open(conf)
         except zenoh.ZError as e:
-            raise BusError(f"cannot open the Zenoh session from {cfg.extra['__file__']}: {e}") from None
+            reason = bus.zenoh_reason(e)
+            if "Timeout" in reason:
+                reason = f"no router answered ({reason})"
+            raise BusError(f"cannot open the Zenoh session from {path}: {reason}") from None
+    if connect_timeout_s is not None:
+        cfg = dataclasses.replace(cfg, connect_timeout_ms=int(connect_timeout_s * 1000))
     return bus.open_session(cfg)
 
 
@@ -106,108 +149,21 @@ def _lens(args) -> Lens:
                 camera_height_m=args.camera_height)
 
 
-def _logging(level=logging.INFO):
+def _logging(level=logging.INFO, args=None):
+    """Log to stderr; ``--quiet`` on the command line raises the level to WARNING."""
+    if args is not None and getattr(args, "quiet", False):
+        level = max(level, logging.WARNING)
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
 
 
 # ------------------------------------------------------------------------------ run
-class Printer:
-    """Prints a session's results as they arrive on the bus."""
-
-    def __init__(self, session: str, out=None):
-        self.session, self.out = session, out or sys.stdout
-        self.cv = threading.Condition()
-        self.seen: dict[str, object] = {}
-
-    def __call__(self, sample: zenoh.Sample) -> None:
-        k = str(sample.key_expr)
-        try:
-            msg = schemas.decode_any(sample.payload.to_bytes())
-        except Exception:  # noqa: BLE001 - a foreign payload: nothing to print
-            return
-        with self.cv:
-            self.seen[k] = msg
-            self.cv.notify_all()
-
-    ORDER = ("frame", "hypotheses", "selection", "scene", "motion", "pose")
-
-    def report(self, n: int) -> None:
-        """Print photo n's results in pipeline order (they arrive in any order)."""
-        p = f"findme/{self.session}/"
-        with self.cv:
-            items = list(self.seen.items())
-        lines = []
-        for kind in self.ORDER:
-            for k, m in items:
-                if (k.startswith(p + kind + "/") and k.endswith(f"/{n}")) or \
-                        (kind == "frame" and type(m).__name__ == "Error" and k.endswith("/error")
-                         and f"/{n}" in m.key):
-                    line = self.describe(k, m)
-                    if line and line not in lines:
-                        lines.append(line)
-        print("\n".join(lines), file=self.out, flush=True)
-
-    def wait(self, done, timeout: float) -> bool:
-        """Until ``done(seen)`` is true (results arrived), or the timeout."""
-        with self.cv:
-            return self.cv.wait_for(lambda: done(self.seen), timeout)
-
-    def photo_done(self, n: int, odometry: bool):
-        """Photo n's results are all in: its scene (or an error about it), and its pose or
-        motion when odometry runs."""
-        def errors_about(seen, what):
-            return any(type(m).__name__ == "Error" and f"/{what}/{n}" in m.key for m in seen.values())
-
-        def done(seen):
-            p = f"findme/{self.session}/"
-            scene = (p + f"scene/{n}" in seen and p + f"hypotheses/{n}" in seen) or \
-                errors_about(seen, "frame") or \
-                errors_about(seen, "hypotheses") or errors_about(seen, "selection")
-            if not odometry or not scene:
-                return scene
-            return p + f"pose/{n}" in seen or any(k.startswith(p + "motion/") and
-                                                   k.endswith(f"/{n}") for k in seen)
-        return done
-
-    @staticmethod
-    def describe(k: str, m) -> str | None:
-        name = type(m).__name__
-        if name == "Frame":
-            return f"photo {m.index}: {m.device or 'frame'} ({len(m.image.data) // 1024} kB)"
-        if name == "HypothesisSet":
-            t = sum(m.timing_ms.values())
-            return (f"photo {m.index}: {len(m.hypotheses)} hypotheses in {t:.0f} ms"
-                    + (f" ({m.reason})" if m.reason else ""))
-        if name == "Selection":
-            return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
-        if name == "Scene":
-            return f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m" \
-                   f"{'' if m.metric else ', up to scale'})"
-        if name == "Motion":
-            if m.error:
-                return f"motion {m.index_a} -> {m.index_b}: no estimate: {m.error}"
-            return (f"motion {m.index_a} -> {m.index_b}: x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, yaw "
-                    f"{__import__('math').degrees(m.yaw_rad):+.2f} deg ({m.inliers}/{m.matches} inliers)")
-        if name == "Pose":
-            return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
-                    f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
-        if name == "Error":
-            return f"error on {m.key}: {m.message}"
-        return None
-
-
-def _example_paths() -> list[str]:
-    base = resources.files("findme") / "examples"
-    return [str(base / "room_a.jpg"), str(base / "room_b.jpg")]
-
-
 def cmd_run(args) -> int:
     _logging(logging.WARNING)
     session_id = args.session or f"run-{uuid.uuid4().hex[:6]}"
     photos = args.photos or _example_paths()
     Path(args.out).mkdir(parents=True, exist_ok=True)
-    srcs = list(sources(photos))  # read and validate every photo before starting
+    srcs, errors = read_photos(photos)   # read and validate every photo before starting
     session = _open(args)
     group = Group(session)
     printer = Printer(session_id)
@@ -224,13 +180,8 @@ def cmd_run(args) -> int:
                 names.append(group.add(make_handler(name, args)).handler.name)
             except ImportError:  # a service whose module is not installed
                 continue
-        t0 = time.perf_counter()
-        n = publish_frames(capture, session_id, srcs, _lens(args))
-        for i in range(n):
-            if not printer.wait(printer.photo_done(i, "odometry" in names), 600):
-                raise BusError(f"no result for photo {i} within 10 minutes")
-            printer.report(i)
-        print(f"session {session_id}: {n} photos processed in {time.perf_counter() - t0:.2f} s")
+        report_session(printer, capture, session_id, srcs, _lens(args), "odometry" in names, 600,
+                       "mapper" in names)
         _measure(session, session_id, args, photos)
     finally:
         sub.undeclare()
@@ -238,84 +189,89 @@ def cmd_run(args) -> int:
         session.close()
     if recorder is not None and recorder.path_of(session_id):
         print(f"recording: {recorder.path_of(session_id)}")
-    return 0
-
-
-def _measure(session, session_id, args, photos) -> None:
-    pixels = [floats(p, 2, "--measure") for p in args.measure or []]
-    if not pixels and not args.photos:  # the example: its ground-truth floor points
-        import json
-        meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())
-        pixels = [tuple(q["px"]) for q in meta["ground_truth"]["floor_points"][1:3]]
-    if not pixels:
-        return
-    req = schemas.MeasureRequest(session=session_id, index=0)
-    req.pixels.extend(schemas.pixels_to_msg(pixels))
-    for reply in session.get(bus.key(session_id, "measure"), payload=schemas.encode(req), timeout=10):
-        if reply.ok is None:
-            err = schemas.decode(schemas.Error, reply.err.payload.to_bytes())
-            print(f"measure: {err.message}")
-            continue
-        rep = schemas.decode(schemas.MeasureReply, reply.ok.payload.to_bytes())
-        bus.put(session, bus.key(session_id, "measured", rep.index), reply.ok.payload.to_bytes())  # for the record
-        unit = "m" if rep.metric else "camera heights"
-        for p in rep.points:
-            where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "
-                     f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
-                     if not p.error else p.error)
-            print(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): {where}")
-        for d in rep.distances:
-            if not d.error:
-                print(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} {unit} ± {d.sigma_m:.3f}")
-        if not args.photos:
-            _example_truth(pixels)
-        return
-
-
-def _example_truth(pixels) -> None:
-    """The bundled example is rendered: print its true motion and distance to compare."""
-    import json
-    import math
-    base = resources.files("findme") / "examples"
-    pair = json.loads((base / "pair.json").read_text())["motion"]
-    pts = {tuple(q["px"]): q["xyz_m"] for q in
-           json.loads((base / "room_a.json").read_text())["ground_truth"]["floor_points"]}
-    d = math.dist(pts[tuple(pixels[0])], pts[tuple(pixels[1])])
-    print(f"truth (the example is rendered): motion x {pair['x_m']:+.3f} m, z {pair['z_m']:+.3f} m,"
-          f" yaw {pair['yaw_deg']:+.2f} deg; distance 1-2 {d:.3f} m")
+    return 2 if errors else 0
 
 
 # ------------------------------------------------------------------------------ serve
+def alive_services(session: zenoh.Session, timeout: float = 3.0) -> set[str]:
+    """Names of the services whose liveliness tokens are on the bus now."""
+    return {str(r.ok.key_expr).split("/")[-2] for r in
+            session.liveliness().get(f"{bus.SERVICES}/**", timeout=timeout) if r.ok}
+
+
 def cmd_serve(args) -> int:
-    _logging()
+    _logging(args=args)
+    if args.service == "capture" and (not args.photos or not args.session):
+        raise InputError("capture needs --session and at least one photo")
+    stop = stop_on_signal()
     session = _open(args)
     svc = Service(make_handler(args.service, args), session, instance=args.instance,
                   **service_options(args)).start()
     try:
         if args.service == "capture":
-            if not args.photos or not args.session:
-                raise InputError("capture needs --session and at least one photo")
-            for name in args.wait_for:
-                bus.wait_alive(session, name)
-            n = publish_frames(svc, args.session, sources(args.photos), _lens(args))
-            logging.getLogger("findme.services").info("capture: published %d frames", n)
-        wait_for_signal()
+            return _serve_capture(args, session, svc)
+        wait_for_signal(stop)
     finally:
         svc.stop()
         session.close()
     return 0
 
 
+def _serve_capture(args, session, svc) -> int:
+    """Publish the photos, then stay (serving the frames to services that ask for them)
+    until each photo's results are in, or ``--linger`` seconds; bad files are reported (log
+    and an Error on the session) and the rest is sent. Exit status 2 if any was bad."""
+    import signal
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)          # a one-shot command: stop now
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    log = logging.getLogger("findme.services")
+    for name in args.wait_for:
+        bus.wait_alive(session, name)
+    printer = Printer(args.session, out=open(os.devnull, "w"))   # noqa: SIM115 - closed below
+    sub = session.declare_subscriber(f"findme/{args.session}/**", printer)
+    errors: list = []
+    try:
+        n = publish_frames(svc, args.session, sources(args.photos, errors=errors), _lens(args))
+        for path, e in errors:
+            svc.report(bus.key(args.session, "frame"), e)
+        log.info("capture: published %d frames of %s (%d refused)", n, args.session, len(errors))
+        odometry = "odometry" in alive_services(session)
+        deadline = time.monotonic() + args.linger
+        for i in range(n):
+            if not printer.wait(printer.photo_done(i, odometry), max(0.0, deadline - time.monotonic())):
+                log.warning("capture: photo %d of %s has no result after %.0f s; stopping",
+                            i, args.session, args.linger)
+                break
+        else:
+            log.info("capture: every photo of %s has its results; stopping", args.session)
+    finally:
+        sub.undeclare()
+        printer.out.close()
+    return 2 if errors else 0
+
+
 # ------------------------------------------------------------------------------ router
+def stop_on_signal() -> threading.Event:
+    """An event set by SIGTERM/SIGINT from now on: opening a session can take a while (the
+    router routes before ``zenoh.open`` returns), and a stop asked meanwhile must still be a
+    clean one (``wait_for_signal(event)`` then returns at once)."""
+    import signal
+    stop = threading.Event()
+    for s in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(s, lambda *_: stop.set())
+    return stop
+
+
 def cmd_router(args) -> int:
-    _logging()
+    _logging(args=args)
     if not args.listen and not args.config:
         raise InputError("router needs --listen ENDPOINT (e.g. tcp/127.0.0.1:7447)")
+    stop = stop_on_signal()
     session = _open(args, mode="router")
     logging.getLogger("findme.services").info("router %s listening on %s", session.zid(),
                                               ", ".join(args.listen) or args.config)
     try:
-        wait_for_signal()
+        wait_for_signal(stop)
     finally:
         session.close()
     return 0
@@ -350,13 +306,12 @@ def service_statuses(session: zenoh.Session, timeout: float = 3.0, peers=None) -
 
 
 def cmd_status(args) -> int:
-    session = _open(args)
+    session = _open(args, connect_timeout_s=args.wait)
     try:
         st = service_statuses(session)
     finally:
         session.close()
     if args.json:
-        import json
         from google.protobuf.json_format import MessageToDict
         print(json.dumps([MessageToDict(s, preserving_proto_field_name=True) for s in st]))
         return 0

@@ -4,8 +4,15 @@ the format ``shared/eval/score.py`` reads.
 Only inputs are used: the image, ``intrinsics``, ``gravity_cam``, ``camera_height_m`` and the
 query pixels (``px`` of ``floor_points`` / ``wall_points`` / ``nonfloor_points``); of a pair
 only its two view ids (``a``, ``b``): the motion comes from the two views' images and inputs
-(rank-1 hypothesis of each). The result is the same on a copy of the dataset with its ground
+(rank-1 hypothesis of each chosen, the next ranks as candidate layouts). The result is the same on a copy of the dataset with its ground
 truth removed.
+
+``--no-gravity`` withholds every view's ``gravity_cam``: gravity then comes from the image
+(vanishing directions) or is assumed level, as for a photo without sensors. Each view's
+prediction says which gravity it used (``gravity_cam``), where it came from
+(``gravity_source``: input, image or level), its 1-sigma (``gravity_sigma_deg``) and the
+1-sigma of every 3D point (``<kind>_sigma_m``, metres), so the estimate can be scored against
+the dataset's gravity and the sigmas against the errors (``tools/gravity_report.py``).
 """
 
 from __future__ import annotations
@@ -23,14 +30,18 @@ from tqdm import tqdm
 
 from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
+from findme_core.provenance import Provenance
 from findme_core.methods import METHODS, hypothesize
 from findme_core.motion import METHODS as MOTION_METHODS
-from findme_core.scene import Scene
+from findme_core.scene import Scene, boundary_sigma_px
 
+from findme_io.camera_source import with_gravity
 from findme_io.imageio import read_image
-from findme_core.pair import motion_pair, scene_of
+from findme_core.pair import motion_photos, photo_of
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
+#: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``
+SIGMA_PARTS = ("boundary", "height", "pixel", "gravity")
 
 
 def register(sub) -> None:
@@ -44,7 +55,13 @@ def register(sub) -> None:
                    help="pair motion estimator(s): " + ", ".join(MOTION_METHODS) + " (default "
                         "findme); with several, the first goes to --out and each other one to "
                         "OUT.<name>.json, from the same features and hypotheses")
+    p.add_argument("--no-gravity", action="store_true",
+                   help="withhold the views' gravity_cam: gravity from the image, else level")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
+                   help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
+                        "the view ids, as a capture app marks a new spot) or 'auto' (from "
+                        "rotation-only feature matches)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -57,36 +74,56 @@ def view_inputs(meta: dict) -> tuple[Camera, float, dict]:
     return cam, float(meta.get("camera_height_m") or 1.0), queries
 
 
+def view_camera(meta: dict, image, use_gravity: bool = True) -> tuple[Camera, Provenance]:
+    """A view's camera from its intrinsics, and its gravity: ``gravity_cam`` (source input)
+    or, when withheld or absent, the image's estimate (``camera_source.with_gravity``)."""
+    cam, _, _ = view_inputs(meta)
+    g = meta.get("gravity_cam") if use_gravity else None
+    return with_gravity(cam, image, g)
+
+
 def predict_view(args) -> tuple[str, dict | None, str | None]:
     """Prediction for one view: ranked polylines and the 3D of each query pixel."""
-    view_dir, vid, method, max_n = args
+    view_dir, vid, method, max_n, *rest = args
+    use_gravity = rest[0] if rest else True
     cv2.setNumThreads(1)
     try:
         with open(os.path.join(view_dir, vid + ".json")) as f:
             meta = json.load(f)
-        cam, h, queries = view_inputs(meta)
+        _, h, queries = view_inputs(meta)
         image = read_image(os.path.join(view_dir, meta["image"]))
+        cam, prov = view_camera(meta, image, use_gravity)
         hs = hypothesize(image, cam, method, max_n)
-        pred = {"hypotheses": [h_.polyline.round(3).tolist() for h_ in hs.hypotheses]}
+        pred = {"hypotheses": [h_.polyline.round(3).tolist() for h_ in hs.hypotheses],
+                "gravity_cam": [round(float(x), 6) for x in cam.gravity],
+                "gravity_source": prov.gravity,
+                "gravity_sigma_deg": round(math.degrees(prov.gravity_sigma), 4)}
         if hs.hypotheses and any(queries.values()):
             top = hs.hypotheses[0]
             try:
-                scene = Scene(cam, h, top.polyline, top.kinds)
+                scene = Scene(cam, h, top.polyline, top.kinds, gravity_cov=prov.gravity_cov,
+                              boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
             except FindmeError:  # e.g. a level-camera polyline crossing a tilted horizon:
                 scene = None     # its points have no answer, its hypotheses still count
             for kind, px in queries.items():
                 if px:
-                    pred[kind] = ([None] * len(px) if scene is None else
-                                  [None if p.xyz is None else p.xyz.round(5).tolist()
-                                   for p in scene.locate(px)])
+                    located = [None] * len(px) if scene is None else scene.locate(px)
+                    pred[kind] = [None if p is None or p.xyz is None else p.xyz.round(5).tolist()
+                                  for p in located]
+                    pred[kind + "_sigma_m"] = [None if p is None or p.xyz is None
+                                               else round(p.sigma_m, 5) for p in located]
+                    pred[kind + "_sigma_parts_m"] = [
+                        None if p is None or p.xyz is None else
+                        [round(p.sigma_parts[k], 5) for k in SIGMA_PARTS] for p in located]
         return vid, pred, None
     except FindmeError as e:
         return vid, None, str(e)
 
 
-def pair_inputs(pair_dir, view_dir, pid: str) -> tuple[dict, list]:
+def pair_inputs(pair_dir, view_dir, pid: str, use_gravity: bool = True) -> tuple[dict, list]:
     """A dataset pair's record and, for its photos A and B, (image, camera, camera height);
-    of each view only its inputs are read (``view_inputs``)."""
+    of each view only its inputs are read (``view_inputs``; ``view_camera`` estimates gravity
+    when ``use_gravity`` is False)."""
     with open(os.path.join(pair_dir, pid + ".json")) as f:
         pair = json.load(f)
     photos = []
@@ -94,21 +131,24 @@ def pair_inputs(pair_dir, view_dir, pid: str) -> tuple[dict, list]:
         with open(os.path.join(view_dir, pair[which] + ".json")) as f:
             meta = json.load(f)
         cam, h, _ = view_inputs(meta)
-        photos.append((read_image(os.path.join(view_dir, meta["image"])), cam, h))
+        image = read_image(os.path.join(view_dir, meta["image"]))
+        if not use_gravity:
+            cam, _ = view_camera(meta, image, False)
+        photos.append((image, cam, h))
     return pair, photos
 
 
 def predict_pair(args) -> tuple[str, dict, dict]:
     """Motion of one pair by each method: ({method: {x_m, z_m, yaw_deg, ...}}, {method: error})."""
-    pair_dir, view_dir, pid, hyp_method, methods = args
+    pair_dir, view_dir, pid, hyp_method, methods, *rest = args
+    use_gravity = rest[0] if rest else True
     cv2.setNumThreads(1)
     preds, errs = {}, {}
     try:
-        _, photos = pair_inputs(pair_dir, view_dir, pid)
-        (ia, ca, ha, sa), (ib, cb, hb, sb) = [
-            (image, cam, h, scene_of(image, cam, h, 1, hyp_method, which)[0])
-            for (image, cam, h), which in zip(photos, "AB")]
-        for method, r in motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods).items():
+        _, photos = pair_inputs(pair_dir, view_dir, pid, use_gravity)
+        pa, pb = [photo_of(image, cam, h, 1, hyp_method, which)
+                  for (image, cam, h), which in zip(photos, "AB")]
+        for method, r in motion_photos(pa, pb, methods).items():
             if isinstance(r, FindmeError):
                 errs[method] = str(r)
                 continue
@@ -142,9 +182,11 @@ def cmd_eval(args) -> int:
         raise InputError(f"{args.dataset}: no index.json (not a findme-eval dataset)") from None
     view_dir = os.path.join(args.dataset, index.get("views_dir", "views"))
     views = sorted({v for ss in index["subsets"].values() for v in ss.get("views", [])})
-    preds = {"views": {}, "pairs": {}, "method": args.method}
+    use_gravity = not args.no_gravity
+    preds = {"views": {}, "pairs": {}, "method": args.method, "gravity": "given" if use_gravity
+             else "withheld: from the image, else level"}
     failures = []
-    jobs = [(view_dir, v, args.method, args.max) for v in views]
+    jobs = [(view_dir, v, args.method, args.max, use_gravity) for v in views]
     bar = tqdm(total=len(jobs), desc=f"views ({args.method})", unit="view", file=sys.stderr)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=mp.get_context("spawn")) as ex:
@@ -160,7 +202,7 @@ def cmd_eval(args) -> int:
     pairs = sorted({p for ss in index["subsets"].values() for p in ss.get("pairs", [])})
     by_method = {m: {} for m in motion_methods}
     pair_failures = {m: [] for m in motion_methods}
-    jobs = [(pair_dir, view_dir, p, args.method, motion_methods) for p in pairs]
+    jobs = [(pair_dir, view_dir, p, args.method, motion_methods, use_gravity) for p in pairs]
     bar = tqdm(total=len(jobs), desc=f"pairs ({','.join(motion_methods)})", unit="pair",
                file=sys.stderr)
 
@@ -180,6 +222,7 @@ def cmd_eval(args) -> int:
         for job in jobs:
             collect(*predict_pair(job))
     bar.close()
+    preds["rooms"] = predict_rooms(args.dataset, index, view_dir, args.room_spots, args.jobs)
     stem, ext = os.path.splitext(args.out)
     for i, m in enumerate(motion_methods):
         out = args.out if i == 0 else f"{stem}.{m}{ext or '.json'}"
@@ -201,3 +244,20 @@ def _collect(preds, failures, vid, pred, err):
         failures.append((vid, err))
     else:
         preds["views"][vid] = pred
+
+
+def predict_rooms(dataset, index, view_dir, spots: str, jobs: int) -> dict:
+    """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame."""
+    from findme.plan_cli import room_job   # rooms live in plan_cli (one hunk here)
+    room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
+    rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
+    out = {}
+    jobs_ = [(room_dir, view_dir, r, spots) for r in rooms]
+    with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("spawn")) as ex:
+        for rid, pred, err in tqdm(ex.map(room_job, jobs_), total=len(jobs_), desc="rooms",
+                                   unit="room", file=sys.stderr):
+            if err:
+                print(f"  {rid}: {err}", file=sys.stderr)
+            else:
+                out[rid] = pred
+    return out

@@ -17,8 +17,9 @@ from findme_core.methods import METHODS as HYPOTHESIS_METHODS
 from findme_core.motion import METHODS
 from findme_core.pair import PairResult, motion_pair, scene_of
 
-from findme_io.imageio import read_image
-from .options import add_camera_args, camera_from, camera_height
+from findme_io.camera_source import camera_json
+from findme_io.imageio import read_photo
+from .options import add_camera_args, camera_height, finite_float, photo_camera_from
 
 
 def motion_json(r: PairResult, metric: bool) -> dict:
@@ -40,7 +41,7 @@ def register(sub) -> None:
     p.add_argument("image_a", metavar="IMAGE_A")
     p.add_argument("image_b", metavar="IMAGE_B")
     add_camera_args(p, gravity_flags=("--gravity-a", "--gravity-b"))
-    p.add_argument("--camera-height", type=float, metavar="M",
+    p.add_argument("--camera-height", type=finite_float, metavar="M",
                    help="camera height above the floor in metres, both photos (default: 1, "
                         "results up to scale)")
     p.add_argument("--hypothesis-a", type=int, default=1, metavar="RANK",
@@ -57,12 +58,14 @@ def register(sub) -> None:
 
 def cmd_motion(args) -> int:
     h, metric = camera_height(args.camera_height)
-    images, cams = [], []
+    images, cams, sources = [], [], []
     for path, grav, flag in ((args.image_a, args.gravity_a, "--gravity-a"),
                              (args.image_b, args.gravity_b, "--gravity-b")):
-        img = read_image(path)
-        images.append(img)
-        cams.append(camera_from(img.shape[1], img.shape[0], args.hfov, args.intrinsics, grav, flag))
+        photo = read_photo(path)   # lens: flags, else EXIF; gravity: flag, else the image
+        cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, grav, flag)
+        images.append(photo.image)
+        cams.append(cam)
+        sources.append(camera_json(cam, prov))
     clock = time.perf_counter
     scenes, hyp_ms = [], 0.0
     for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b), "AB"):
@@ -74,6 +77,7 @@ def cmd_motion(args) -> int:
         raise res
     out = motion_json(res, metric)
     out["timing_ms"]["hypotheses"] = round(hyp_ms, 3)
+    out["photos"] = [{"camera": s["camera"], "gravity": s["gravity"]} for s in sources]
     if args.json:
         print(json.dumps(out))
         return 0
@@ -84,6 +88,12 @@ def cmd_motion(args) -> int:
           "(> 0: turned right)")
     print(f"  {out['inliers']} of {out['matches']} matches agree, {out['scale_points']} 3D points "
           f"fix the scale; {sum(out['timing_ms'].values()):.0f} ms")
+    for which, s in zip("AB", sources):
+        g = s["gravity"]
+        note = {"input": "given", "image": f"from the photo's lines, ± {g['sigma_deg']:.1f} deg",
+                "level": "NOT KNOWN: level assumed"}[g["source"]]
+        print(f"  photo {which}: camera {s['camera']['hfov_deg']:.1f} deg ({s['camera']['source']}), "
+              f"pitch {g['pitch_deg']:+.1f} roll {g['roll_deg']:+.1f} deg ({note})", file=sys.stderr)
     if not metric:
         print("  (no --camera-height given: distances are in units of the camera height)",
               file=sys.stderr)

@@ -27,17 +27,29 @@ def floats(text: str, n: int, name: str) -> tuple[float, ...]:
     return vals
 
 
+def finite_float(text: str) -> float:
+    """argparse type: a finite number (``nan`` and ``inf`` are refused, one line, exit 2)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return v
+
+
 def add_camera_args(p: argparse.ArgumentParser, gravity_flags=("--gravity",)) -> None:
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--hfov", type=float, metavar="DEG",
-                   help=f"horizontal field of view in degrees (default {DEFAULT_HFOV_DEG:g}, a "
-                        "typical phone camera, when --intrinsics is not given either)")
+    g.add_argument("--hfov", type=finite_float, metavar="DEG",
+                   help="horizontal field of view in degrees (default: from the photo's EXIF "
+                        f"focal length, else {DEFAULT_HFOV_DEG:g}, a typical phone camera)")
     g.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                    help="focal lengths and principal point in pixels of this image")
     for flag in gravity_flags:
         p.add_argument(flag, metavar="GX,GY,GZ",
                        help="gravity in camera coordinates (x right, y down, z forward), e.g. "
-                            "from the phone's accelerometer; default level (0,1,0)")
+                            "from the phone's accelerometer; default: estimated from the "
+                            "photo's vertical and horizontal lines, else level (0,1,0)")
 
 
 def camera_from(width: int, height: int, hfov: float | None = None,
@@ -50,6 +62,21 @@ def camera_from(width: int, height: int, hfov: float | None = None,
             fx, fy, cx, cy = floats(intrinsics, 4, "--intrinsics")
             return Camera(fx, fy, cx, cy, width, height, g)
         return Camera.from_hfov(DEFAULT_HFOV_DEG if hfov is None else hfov, width, height, g)
+    except CameraError as e:
+        raise InputError(str(e)) from None
+
+
+def photo_camera_from(photo, hfov: float | None = None, intrinsics: str | None = None,
+                      gravity: str | None = None, gravity_name: str = "--gravity"):
+    """(Camera, Provenance) of a decoded ``findme_io.imageio.Photo`` from flag values: flags
+    first, then the photo's EXIF and its vanishing directions, then the defaults."""
+    from findme_io.camera_source import photo_camera
+    g = floats(gravity, 3, gravity_name) if gravity else None
+    k = floats(intrinsics, 4, "--intrinsics") if intrinsics else None
+    if hfov is not None and not (0.0 < hfov < 180.0):
+        raise InputError(f"--hfov: the horizontal field of view must be in (0, 180) degrees, got {hfov:g}")
+    try:
+        return photo_camera(photo.image, photo.exif, k, hfov, g)
     except CameraError as e:
         raise InputError(str(e)) from None
 

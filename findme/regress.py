@@ -309,4 +309,7 @@ def _handlers(recs, kinds, method, max_n, notes) -> list:
                          "service")
     else:
         notes.append("odometry not run: the recording has no motion, pose or trajectory")
+    if "plan" in kinds:   # the recording was made with a mapper
+        from services.pipeline.mapper import MapperHandler
+        hs.append(MapperHandler())
     return hs

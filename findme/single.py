@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 
@@ -12,11 +13,15 @@ import numpy as np
 from findme_core.errors import HypothesisError, InputError
 from findme_core.methods import METHODS, hypothesize
 from findme_core.overlay import draw_hypotheses
-from findme_core.scene import Scene, distances
+from findme_core.scene import Scene, boundary_sigma_px, distances
 from findme_core.search import SegKind
 
-from findme_io.imageio import read_image
-from .options import add_camera_args, camera_from, camera_height, floats
+from findme_io.camera_source import camera_json
+from findme_io.imageio import read_photo
+from .options import add_camera_args, camera_height, finite_float, floats, photo_camera_from
+
+#: Extensions the selection image can be written as (what OpenCV encodes).
+OVERLAY_EXT = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
 
 KIND_NAMES = {int(k): k.name.lower() for k in SegKind}
 
@@ -38,7 +43,7 @@ def register(sub) -> None:
                                    "or a wall, under a chosen boundary hypothesis.")
     q.add_argument("image")
     add_camera_args(q)
-    q.add_argument("--camera-height", type=float, metavar="M",
+    q.add_argument("--camera-height", type=finite_float, metavar="M",
                    help="camera height above the floor in metres (default: 1, results up to scale)")
     q.add_argument("--hypothesis", type=int, default=1, metavar="RANK",
                    help="which hypothesis (1 = best ranked)")
@@ -59,15 +64,23 @@ def argparse_suppress():
 
 
 def _load(args):
-    image = read_image(args.image)
-    H, W = image.shape[:2]
-    cam = camera_from(W, H, args.hfov, args.intrinsics, getattr(args, "gravity", None))
-    return image, cam
+    """(image, Camera, Provenance) of the photo: flags, else EXIF and the image, else defaults."""
+    photo = read_photo(args.image)
+    cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, getattr(args, "gravity", None))
+    return photo.image, cam, prov
 
 
-def hypotheses_json(hs) -> dict:
-    """The JSON contract of ``findme hypotheses --json`` (best first, rank from 1)."""
-    return {
+def _check_overlay(path: str | None) -> None:
+    if path and not path.lower().endswith(OVERLAY_EXT):
+        raise InputError(f"cannot write the overlay image {path!r}: its name must end in one of "
+                         + ", ".join(OVERLAY_EXT))
+
+
+def hypotheses_json(hs, camera=None, provenance=None) -> dict:
+    """The JSON contract of ``findme hypotheses --json`` (best first, rank from 1), with the
+    camera and gravity used and where they came from when given."""
+    out = camera_json(camera, provenance) if camera is not None else {}
+    return {**out,
         "width": hs.width, "height": hs.height,
         "hypotheses": [{"rank": i + 1, "score": round(float(h.score), 6),
                         "support": round(float(h.support), 4),
@@ -80,14 +93,21 @@ def hypotheses_json(hs) -> dict:
 
 
 def cmd_hypotheses(args) -> int:
-    image, cam = _load(args)
+    _check_overlay(args.overlay)
     t0 = time.perf_counter()
+    image, cam, prov = _load(args)
+    t1 = time.perf_counter()
     hs = hypothesize(image, cam, args.method, args.max, clock=time.perf_counter)
-    out = hypotheses_json(hs)
+    out = hypotheses_json(hs, cam, prov)
+    out["timing_ms"]["decode_and_camera"] = round(1e3 * (t1 - t0), 3)
     out["timing_ms"]["total"] = round(1e3 * (time.perf_counter() - t0), 3)
     if args.overlay:
         img = draw_hypotheses(image, [h.polyline for h in hs.hypotheses])
-        if not cv2.imwrite(args.overlay, img):
+        try:
+            ok = cv2.imwrite(args.overlay, img)
+        except cv2.error:
+            ok = False
+        if not ok:
             raise InputError(f"cannot write the overlay image {args.overlay!r}")
     if args.json:
         print(json.dumps(out))
@@ -95,6 +115,7 @@ def cmd_hypotheses(args) -> int:
     if not hs.hypotheses:
         print(f"no hypotheses: {hs.reason}")
         return 0
+    _say_sources(out)
     print(f"{len(hs.hypotheses)} hypotheses for {args.image} ({hs.width}x{hs.height}), best first:")
     for h in out["hypotheses"]:
         corners = " ".join(f"({u:.0f},{v:.0f})" for u, v in h["polyline"])
@@ -105,16 +126,35 @@ def cmd_hypotheses(args) -> int:
     return 0
 
 
+def _say_sources(out: dict) -> None:
+    """One line on stderr saying where the camera and gravity came from (a warning when
+    level was assumed)."""
+    c, g = out["camera"], out["gravity"]
+    text = {"input": "given", "exif": "from the photo's EXIF", "default": "assumed"}[c["source"]]
+    gtext = {"input": "given", "image": f"from the photo's lines (± {g['sigma_deg']:.1f} deg)",
+             "level": f"NOT KNOWN: level assumed (± {g['sigma_deg']:.0f} deg), give --gravity"}
+    print(f"  camera {c['hfov_deg']:.1f} deg wide ({text}); gravity pitch {g['pitch_deg']:+.1f} "
+          f"roll {g['roll_deg']:+.1f} deg ({gtext[g['source']]})", file=sys.stderr)
+
+
 def read_points(args) -> list[tuple[float, float]]:
     if args.point:
         return [floats(p, 2, "--point") for p in args.point]
     try:
-        with open(args.points) as f:
-            data = json.load(f)
+        with open(args.points, "rb") as f:
+            raw = f.read(1_000_001)
     except OSError as e:
         raise InputError(f"cannot read {args.points}: {e.strerror}") from None
+    if len(raw) > 1_000_000:
+        raise InputError(f"{args.points}: over 1 MB, not a points file")
+    try:
+        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
+    except UnicodeDecodeError:
+        raise InputError(f"{args.points} is not a text file (not UTF-8 JSON)") from None
     except json.JSONDecodeError as e:
         raise InputError(f"{args.points} is not valid JSON: {e.msg} at line {e.lineno}") from None
+    except ValueError as e:
+        raise InputError(f"{args.points}: {e}") from None
     pts = data.get("points") if isinstance(data, dict) else data
     if not isinstance(pts, list) or not pts:
         raise InputError(f'{args.points}: expected [[u, v], ...] or {{"points": [[u, v], ...]}}')
@@ -123,18 +163,31 @@ def read_points(args) -> list[tuple[float, float]]:
         if (not isinstance(p, (list, tuple)) or len(p) != 2
                 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in p)):
             raise InputError(f"{args.points}: point {i} is {p!r}, expected [u, v] numbers")
-        out.append((float(p[0]), float(p[1])))
+        try:
+            out.append((float(p[0]), float(p[1])))
+        except OverflowError:   # a 400-digit integer
+            raise InputError(f"{args.points}: point {i} is not a finite pixel") from None
+        if not all(math.isfinite(x) for x in out[-1]):
+            raise InputError(f"{args.points}: point {i} is {p!r}, not finite")
     return out
 
 
-def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool) -> dict:
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a pixel coordinate (finite numbers only)")
+
+
+def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool,
+                provenance=None) -> dict:
     located = scene.locate(pixels)
     dist = distances(located, scene.height, scene.height_sigma)
     r = lambda x: None if x is None else round(float(x), 6)  # noqa: E731
-    return {
+    src = camera_json(scene.camera, provenance) if provenance is not None else {}
+    return {**src,
         "points": [{"pixel": [r(p.pixel[0]), r(p.pixel[1])], "surface": p.surface,
                     "xyz_m": None if p.xyz is None else [r(x) for x in p.xyz],
-                    "sigma_m": r(p.sigma_m), "error": p.error} for p in located],
+                    "sigma_m": r(p.sigma_m), "error": p.error,
+                    "sigma_parts_m": None if p.sigma_parts is None else
+                    {k: r(v) for k, v in p.sigma_parts.items()}} for p in located],
         "distances_m": [r(d) for d, _, _ in dist],
         "distance_sigma_m": [r(s) for _, s, _ in dist],
         "camera_height_m": scene.height, "metric": metric,
@@ -144,19 +197,21 @@ def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool) -> dict
 
 def cmd_locate(args) -> int:
     pixels = read_points(args)
-    image, cam = _load(args)
     h, metric = camera_height(args.camera_height)
+    image, cam, prov = _load(args)
     hs = hypothesize(image, cam, args.method, max(args.max, args.hypothesis))
     if args.hypothesis < 1 or args.hypothesis > len(hs.hypotheses):
         raise HypothesisError(
             f"hypothesis {args.hypothesis} does not exist: this photo has "
             f"{len(hs.hypotheses)} hypotheses" + (f" ({hs.reason})" if hs.reason else ""))
     hyp = hs.hypotheses[args.hypothesis - 1]
-    scene = Scene(cam, h, hyp.polyline, hyp.kinds)
-    out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric)
+    scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov,
+                  boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+    out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov)
     if args.json:
         print(json.dumps(out))
         return 0
+    _say_sources(out)
     unit = "m" if metric else "camera heights"
     for i, p in enumerate(out["points"]):
         if p["error"]:

@@ -22,11 +22,12 @@ import numpy as np
 from .appearance import FloorLikelihood, RegionStats, to_lab
 from .camera import Camera
 from .errors import InputError
-from .lines import Lines, LineKind, classify, detect_segments, merge_collinear
+from .lines import Lines, LineKind, classify, detect_segments, horizon_top_row, merge_collinear
 from .refine import SnapParams, snap_polyline
-from .ranking import RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
-from .search import (SearchParams, best_paths, events, path_features, path_pieces,
-                     path_polyline, path_rows, rewards, track_rows, track_tables)
+from .ranking import IDX, N_ADDITIVE, RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
+from .paths import path_features, path_pieces, path_polyline, path_rows
+from .search import (SearchParams, best_paths, events, rewards, track_rows, track_tables,
+                     with_region)
 from .support import EdgeField, SupportParams, tabulate
 
 
@@ -65,6 +66,7 @@ class HypothesisSet:
 class HypothesisParams:
     segment_method: str = "lsd"
     lsd_scale: float = 0.5
+    below_horizon_only: bool = True  # detect lines only below the horizon (less work)
     min_segment_px: float = 12.0
     min_line_support_px: float = 25.0
     max_lines: int = 30
@@ -92,18 +94,27 @@ def suppress_duplicates(rows: np.ndarray, order: np.ndarray, nms_px: float, max_
     rows differ from a kept one by less than ``nms_px`` on average."""
     rows = rows[order]
     head = min(len(rows), 4 * max_n + 8)  # the kept ones nearly always come from the head
-    near = np.abs(rows[:head, None, :] - rows[None, :head, :]).mean(2) < nms_px
+    near = (np.abs(rows[:head, None, :] - rows[None, :head, :]).mean(2) < nms_px).tolist()
     kept: list[int] = []
-    for i in range(len(order)):
-        if kept:
-            dup = (near[i, kept].any() if i < head else
-                   (np.abs(rows[kept] - rows[i]).mean(1) < nms_px).any())
-            if dup:
-                continue
+    dup = [False] * head   # near a kept one (the distance is symmetric)
+    for i in range(head):
+        if dup[i]:
+            continue
         kept.append(i)
         if len(kept) >= max_n:
-            break
-    return [int(order[i]) for i in kept]
+            return [int(order[k]) for k in kept]
+        dup = [a or b for a, b in zip(dup, near[i])]
+    if head < len(rows):  # the tail, against every kept one (those of the head at once)
+        dup_t = (np.abs(rows[head:, None, :] - rows[kept][None, :, :]).mean(2) < nms_px).any(1)
+        tail: list[int] = []
+        for i in range(head, len(rows)):
+            if dup_t[i - head] or (tail and (np.abs(rows[tail] - rows[i]).mean(1) < nms_px).any()):
+                continue
+            kept.append(i)
+            tail.append(i)
+            if len(kept) >= max_n:
+                break
+    return [int(order[k]) for k in kept]
 
 
 def vertical_in_floor(rows: np.ndarray, verticals: np.ndarray, n_samples: int = 8,
@@ -135,8 +146,9 @@ def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams
     Returns:
         (Lines, kinds (N,), indices of floor-candidate lines, indices of vertical lines).
     """
+    top = horizon_top_row(camera) if params.below_horizon_only else 0
     segs = detect_segments(image, params.segment_method, params.min_segment_px,
-                           lsd_scale=params.lsd_scale)
+                           lsd_scale=params.lsd_scale, top_row=top)
     lines = merge_collinear(segs)
     kinds = classify(lines, camera, horizon_margin=params.horizon_margin)
     floor = np.isin(kinds, (LineKind.LEFT, LineKind.FRONT, LineKind.RIGHT))
@@ -180,29 +192,32 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         return HypothesisSet(W, H, [], lines, kinds, reason, _timing(t, ("lines",)))
     coef = lines.coef[cand]
     lab = to_lab(image)
-    table = tabulate(EdgeField(image, params.support, color=lab), coef, params.substeps)
+    top = horizon_top_row(camera) if params.below_horizon_only else 0
+    table = tabulate(EdgeField(image, params.support, color=lab, top_row=top), coef,
+                     params.substeps)
     if clock:
         t.append(clock())
     sp, w, ws = params.search, params.weights.vector(), params.search_weights.vector()
     rows_t = track_rows(table, H)
     verts = lines.ends[vert]
     stats = RegionStats(lab)
-    F, valid = track_tables(table, camera, sp)
+    F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT)
     ev = events(coef, rows_t, valid, verts, camera, sp)
     if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
-        paths = best_paths(rewards(F, valid, ws[:6]), valid, ev, -ws[6], -ws[7], limit=1)
+        paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],
+                           -ws[IDX["steps"]], limit=1)
         ranked, seed = None, (paths[0] if paths else None)
     else:
         ranked, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
                                         rows_t, params.seed_top)
-    if ws[5] != 0 and seed is not None:
+    if ws[IDX["region"]] != 0 and seed is not None:
         # the colour model is seeded by the best under the *search* weights, so the candidate
         # pool does not depend on the re-ranking weights (no feedback when fitting them)
         best = path_polyline(seed[1], seed[2], ev, coef, W, H)[0]
         fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)),
                              scale=params.likelihood_scale)
         if fl.valid:  # second pass with colour evidence inside the search
-            F, _ = track_tables(table, camera, sp, fl.below(rows_t))
+            F = with_region(F, fl.below(rows_t))
             ranked = None
     if ranked is None:
         ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
@@ -226,7 +241,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         if params.snap:
             poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache, built[2])
         f = ranked[i][3]
-        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[10])))
+        hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[IDX["fraction"]])))
     if clock:
         t.append(clock())
     return HypothesisSet(W, H, hyps, lines, kinds, None,
@@ -235,16 +250,25 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
 
 def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows_t,
                      top: int):
-    """Best paths under search weights ``ws``, re-scored under weights ``w``.
+    """Best paths under search weights ``ws``, re-scored under weights ``w``; the answer
+    "no floor visible" is among them when the search found it or when the search's best
+    boundary lies partly implausibly far (``search.farness``).
 
     Returns:
         (list of (score, path, rows at ``stats.cols``, features), best first;
          the best path under ``ws``). A path is (score, start track, event chain).
     """
-    A = rewards(F, valid, ws[:6])
-    paths = best_paths(A, valid, ev, -ws[6], -ws[7], limit=top)
+    A = rewards(F, valid, ws[:N_ADDITIVE])
+    paths = best_paths(A, valid, ev, -ws[IDX["corners"]], -ws[IDX["steps"]], limit=top)
     if not paths:
         return [], None
+    found = len(paths)
+    none = len(A) - 1   # the BOTTOM track alone: "no floor visible"
+    if (not any(p[1] == none and not p[2] for p in paths)
+            and path_features(path_pieces(paths[:1], ev, W), F, 1)[0, IDX["far"]] > 0):
+        # the search's best boundary puts a wall implausibly far (a counter top's edge seen
+        # level): then "no floor visible" is a candidate even when 120 paths score higher
+        paths.append((float(A[none, -1] - A[none, 0]), none, ()))
     pieces = path_pieces(paths, ev, W)
     full_rows = np.clip(path_rows(pieces, rows_t, len(paths)), 0.0, float(H))
     rows = full_rows[:, stats.cols]
@@ -252,7 +276,7 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows
                            vertical_in_floor(full_rows, verts), rows, W, H)
     score = feats @ w
     order = np.argsort(-score, kind="stable")
-    seed = paths[int(np.argmax(feats @ ws))]
+    seed = paths[int(np.argmax(feats[:found] @ ws))]   # among the search's own paths
     return [(float(score[i]), paths[i], rows[i], feats[i]) for i in order], seed
 
 

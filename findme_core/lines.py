@@ -8,6 +8,7 @@ origin). A merged line also carries its homogeneous image line ``(a, b, c)`` wit
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -67,8 +68,30 @@ def _gray(image: np.ndarray) -> np.ndarray:
     return image
 
 
+_LOCAL = threading.local()  # one LSD per thread and scale: detect() is not re-entrant
+
+
+def _lsd(scale: float):
+    cache = _LOCAL.__dict__.setdefault("lsd", {})
+    if scale not in cache:
+        cache[scale] = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD, scale)
+    return cache[scale]
+
+
+def horizon_top_row(camera: Camera, margin_px: float = 8.0) -> int:
+    """First image row (even, >= 0) at or below which every floor line of ``camera`` lies:
+    ``margin_px`` above the highest point of the horizon in the image; 0 when the horizon
+    does not run across the image with the floor below it (the whole image is searched)."""
+    a, b, c = camera.horizon_line()
+    if b <= 1e-12 or abs(a) > 4 * b:  # floor not below the horizon, or horizon too steep
+        return 0
+    top = min(-(c + a * u) / b for u in (0.0, camera.width - 1.0)) - margin_px
+    return int(np.clip(np.floor(top / 2) * 2, 0, max(camera.height - 2, 0)))
+
+
 def detect_segments(image: np.ndarray, method: str = "lsd", min_length: float = 12.0,
-                    lsd_scale: float = 0.8, border_px: float = 2.5) -> np.ndarray:
+                    lsd_scale: float = 0.8, border_px: float = 2.5,
+                    top_row: int = 0) -> np.ndarray:
     """Detect straight segments.
 
     Args:
@@ -79,18 +102,24 @@ def detect_segments(image: np.ndarray, method: str = "lsd", min_length: float = 
         lsd_scale: LSD's internal down-scaling (0.8 is LSD's default; smaller is faster).
         border_px: segments lying within this distance of one image border are the frame's
             own edge (dark borders), not scene lines, and are dropped.
+        top_row: detect in rows >= ``top_row`` only (e.g. ``horizon_top_row``: the rows
+            below the horizon, where floor lines are); an even row keeps LSD's sampling grid.
     Returns:
-        (N, 4) float64 ``[u1, v1, u2, v2]``.
+        (N, 4) float64 ``[u1, v1, u2, v2]`` in the pixels of the whole image.
     """
     gray = _gray(image)
+    h, w = gray.shape
+    top = int(np.clip(top_row, 0, max(h - 1, 0)))
     if method == "lsd":
-        segs = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD, lsd_scale).detect(gray)[0]
+        segs = _lsd(float(lsd_scale)).detect(gray[top:] if top else gray)[0]
+        if segs is not None and top:
+            segs = segs.reshape(-1, 4) + np.array([0, top, 0, top], np.float32)
     elif method == "hough":
-        edges = cv2.Canny(gray, 50, 150)
+        edges = cv2.Canny(gray[top:] if top else gray, 50, 150)
         segs = cv2.HoughLinesP(edges, 1, np.pi / 180, 40, minLineLength=int(min_length) + 8,
                                maxLineGap=4)
         if segs is not None:  # Canny marks the pixel before a step: shift to the step itself
-            segs = segs.astype(float) + 0.5
+            segs = segs.reshape(-1, 4).astype(float) + np.array([0.5, 0.5 + top, 0.5, 0.5 + top])
     else:
         raise InputError(f"unknown segment method {method!r}; choose one of {SEGMENT_METHODS}")
     if segs is None or len(segs) == 0:
@@ -99,7 +128,6 @@ def detect_segments(image: np.ndarray, method: str = "lsd", min_length: float = 
     d = segs[:, 2:] - segs[:, :2]
     keep = np.hypot(d[:, 0], d[:, 1]) >= min_length
     # edges of the image frame itself (dark borders left by rectification or registration)
-    h, w = gray.shape
     u, v = segs[:, [0, 2]], segs[:, [1, 3]]
     m = border_px
     frame = ((u <= m).all(1) | (u >= w - 1 - m).all(1) | (v <= m).all(1) | (v >= h - 1 - m).all(1))

@@ -1,310 +1,400 @@
-"""Planar camera motion between two photos (paper step 5, eqs. 5-8, and a robust default).
+"""Planar camera motion between two photos (paper step 5): the default estimator, which
+registers the two photos' room layouts together with their feature matches, and dispatch.
 
 Frames and units (DESIGN.md): each photo has a level frame (y down along gravity, z the
 optical axis projected on the horizontal plane, x right). The motion of a pair (A, B) is
 the pose of camera B in A's level frame: X_A = R_y(yaw) X_B + t for level-frame points,
-R_y(yaw) = [[c, 0, s], [0, 1, 0], [-s, 0, c]], t = (x, dy, z) metres, yaw radians (> 0: B
-turned right of A); dy is expected near h_A - h_B (the heights are inputs). Per match i:
-unit level bearings a_i (A), b_i (B) and, where a photo's chosen hypothesis gives one, its
-lifted 3D point in that photo's level frame (``features.Lifted``; paper eqs. 2-4).
+t = (x, dy, z) metres, yaw radians (> 0: B turned right of A); dy is expected near
+h_A - h_B. Per match i: unit level bearings a_i (A), b_i (B) and, where a photo's chosen
+hypothesis gives one, its lifted 3D point (paper eqs. 2-4). Per photo: the layouts of its
+candidate hypotheses (``layout.Layout``, the chosen one first) and the room's orientation
+from its lines (``layout.Orientation``).
 
 Estimators (``METHODS``):
 
-* ``findme`` (default). (1) Verification: adaptive RANSAC over minimal samples of the
-  gravity-aware epipolar constraint a^T [t]x R_y b = 0 (2-point planar solver when
-  h_A = h_B, 3-point solver with a free vertical baseline otherwise, and 1-point pure
-  rotations), locally optimised: yaw and the baseline direction. With equal heights the
-  camera moved parallel to the floor, so a significant elevation of that baseline is the
-  given gravity's tilt along the motion: floor points are re-lifted on the corrected floor.
-  (2) Metric candidates: that motion scaled by the 1-D consensus of the lifted points, and
-  the best closed-form 2-point floor alignment of matches lifted in both photos (another
-  model when the epipolar consensus is spurious: few correct matches in white rooms); the
-  better by MSAC score (epipolar residuals of all matches + transfer residuals of the
-  lifted points, pixels over their sigma) is refined by robust Levenberg-Marquardt of
-  (yaw, x, dy, z). Floor points first: wall points (right only when the hypothesis is)
-  count only when fewer than ``min_floor`` floor points agree.
-* ``lifted`` (``motion_baselines``): 2-point RANSAC on the matches lifted in both photos
-  projected to the floor, weighted closed-form 2-D rigid alignment (Kabsch), refit on the
-  inliers.
-* ``paper`` (``motion_baselines``): the paper's estimator as written, on the matches verified in (1) and lifted in
-  both photos: yaw = 1/Z-weighted mean of the bearing differences (eq. 5), translation =
-  1/Z-weighted mean of P_A - R_y P_B on the floor (eqs. 6-8).
+* ``findme`` (default): (1) yaws: the two photos' room orientations (their difference
+  modulo 90 deg: four candidates in a box room), the feature matches' free gravity-aware
+  epipolar RANSAC, and walls of B turned onto walls of A. (2) Per yaw, the baseline
+  directions the matches agree on (one match fixes the direction of a known-yaw motion:
+  t . (R_y b x a) = 0), each scaled by the lifted points' consensus, by a wall of B put on
+  a wall of A, and by a 1-D search of the layouts' agreement; and the translations two
+  non-parallel walls or a corner fix on their own (textureless walls: no match at all).
+  (3) Every candidate is scored by the matches (MSAC of epipolar and lifted transfer
+  residuals, pixels), the layouts (``register``: boundary samples of each photo on the
+  other's walls, minus samples on floor the other photo sees) and the orientations; the
+  best distinct ones are refined by robust Levenberg-Marquardt of (yaw, x, dy, z) on all
+  three, and ranked. Motions the evidence allows nearly as well (a symmetric room) are the
+  answer's ``alternatives``.
+* ``features`` (``motion_features``): the matches alone (the default before layouts).
+* ``lifted``, ``paper`` (``motion_baselines``): 2-point Kabsch on lifted matches; the
+  paper's eqs. 5-8 on the ``features`` RANSAC's verified matches.
 
 Every estimate carries its inliers and 1-sigma uncertainties (covariance of the fit, inflated
-by the robust chi^2 per degree of freedom). Degenerate input raises ``MotionError`` naming
-the cause. Pure: numpy in, numbers out; randomness is seeded by ``MotionParams.seed``.
+by the robust chi^2 per degree of freedom, plus model errors). Degenerate input raises
+``MotionError`` naming the cause. Pure: numpy in, numbers out; seeded randomness.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Callable
 
 import numpy as np
 
+from . import register
 from .camera import Camera
 from .errors import InputError, MotionError
-from .features import Lifted, Matches
-from .motion_baselines import lifted_estimate, paper_estimate
-from .motion_model import (MotionInputs, MotionParams, PlanarMotion, motion_result,  # noqa: F401
-                           no_common_view)
-from .planar import (_epipolar_terms, _kabsch_pairs, _rot2, _rotate, _spread, bearings,
-                     epipolar_residuals, rot_y, solve_gravity_3pt, solve_planar_2pt,
+from .features import Matches
+from .layout import Orientation
+from .motion_features import (Lifter, _epipolar_ransac, _inflate, _lift_order, _model_error,
+                              _scale, check_matches, features_estimate, local_optimisation)
+from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result  # noqa: F401
+from .planar import (_epipolar_terms, _rotate, _spread, bearings, epipolar_residuals, rot_y,
                      transfer_residuals)
-from .robust import levenberg_marquardt, msac, samples
+from .robust import levenberg_marquardt, msac
 
-METHODS = ("findme", "lifted", "paper")
-Lifter = Callable[[np.ndarray], Lifted]  # match indices -> Lifted of all matches (NaN = not)
+METHODS = ("findme", "features", "lifted", "paper")
 
 
-# ---------------------------------------------------------------------------- estimation
 def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: float,
              lift_a: Lifter | None, lift_b: Lifter | None, method: str = "findme",
-             params: MotionParams = MotionParams()) -> PlanarMotion:
-    """Planar motion of B in A's level frame from matches and their lifted points.
+             params: MotionParams = MotionParams(), *, layouts=((), ()),
+             orientations=(None, None)) -> PlanarMotion:
+    """Planar motion of B in A's level frame.
 
     Args:
-        matches: putative matches (pixels of A and B).
+        matches: putative matches (pixels of A and B); may be empty for ``findme``.
         cam_a, cam_b: intrinsics and gravity of each photo.
         h_a, h_b: camera heights above the floor, metres.
         lift_a, lift_b: match indices -> ``Lifted`` of all matches (3D where computed), e.g.
             ``lambda i: features.lift(scene_a, matches.ua, i)``; None for a photo without
             a usable hypothesis. At most ``params.max_lift`` matches are asked for.
         method: one of ``METHODS``.
+        layouts: (A's, B's) sequences of ``layout.Layout`` of candidate hypotheses, the
+            chosen one first (``findme`` only).
+        orientations: (A's, B's) ``layout.Orientation`` or None (``findme`` only).
 
     Raises:
-        MotionError: too few matches, identical photos, no common view, no 3D for scale.
+        MotionError: too few matches and no common wall, identical photos, no common view,
+            only parallel walls in common and no match, no 3D for scale.
     """
     if method not in METHODS:
         raise InputError(f"unknown motion method {method!r}; choose one of {', '.join(METHODS)}")
-    n = len(matches)
-    if n < params.min_matches:
-        raise MotionError(f"only {n} feature matches between the photos ({matches.n_a} and "
-                          f"{matches.n_b} keypoints; need {params.min_matches}): they show "
-                          "too little common texture or no common view")
-    if np.mean(np.linalg.norm(matches.ua - matches.ub, axis=1) < params.min_parallax_px) > 0.8:
-        raise MotionError("the two photos are identical (their features did not move), so "
-                          "there is no motion to measure")
-    a, b = bearings(cam_a, matches.ua), bearings(cam_b, matches.ub)
-    pix, planar = 1.0 / np.sqrt(cam_a.fx * cam_b.fx), abs(h_a - h_b) < 1e-6
-    rng = np.random.default_rng(params.seed)
-
-    def pair(e_in, normal=None):
-        sel = _lift_order(a, matches.ratio, e_in, params.max_lift)
-        return MotionInputs(a, b, _inflate(lift_a, sel, n, h_a, params, normal, a),
-                     _inflate(lift_b, sel, n, h_b, params,
-                              None if normal is None else rot_y(yaw).T @ normal, b),
-                     float(h_a - h_b), float(h_a), pix)
-
-    if method == "lifted":
-        return _model_error(lifted_estimate(pair(np.ones(n, bool)), params, rng), params)
-    yaw, t, e_in = _epipolar_ransac(a, b, planar, pix, params, rng)
-    if method == "paper":
-        return _model_error(paper_estimate(pair(e_in), e_in), params)
-    for _ in range(2):   # local optimisation: refine on the inliers, take them again
-        yaw, t, sig_elev = _refine_dir(a, b, yaw, t, e_in, planar, pix)
-        r, front, _, far = _epipolar_terms(a, b, yaw, t, pix)
-        e_in = ((r < params.thr_px) & (front | far))[0]
-    normal = None
-    if planar and abs(t[1]) > 3.0 * np.sin(sig_elev):   # moved parallel to the floor: the
-        normal = np.array([0.0, 1.0, 0.0]) - t[1] * t      # floor normal is orthogonal to t
-        normal /= np.linalg.norm(normal)
-    return _model_error(_findme(pair(e_in, normal), yaw, t, e_in, params, rng), params)
+    if method != "findme":
+        return features_estimate(matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, method, params)
+    return _Registration(matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts,
+                         orientations, params).run()
 
 
-def _model_error(m: PlanarMotion, params: MotionParams) -> PlanarMotion:
-    """``m`` with the model errors of ``params`` added to its sigmas (along / across the
-    baseline rotated into x, z)."""
-    base = np.hypot(m.x, m.z)
-    u = np.array([m.x, m.z]) / max(base, 1e-12)
-    along, across = params.scale_sigma * base, np.radians(params.direction_sigma_deg) * base
-    C = np.diag([m.sigma_x ** 2, m.sigma_z ** 2]) + along ** 2 * np.outer(u, u) \
-        + across ** 2 * np.outer([-u[1], u[0]], [-u[1], u[0]])
-    return replace(m, sigma_x=float(np.sqrt(C[0, 0])), sigma_z=float(np.sqrt(C[1, 1])),
-                   sigma_yaw=float(np.hypot(m.sigma_yaw, np.radians(params.yaw_sigma_deg))))
+def _wrap90(x):
+    """Angle difference modulo a quarter turn, in [-pi/4, pi/4)."""
+    return (np.asarray(x) + np.pi / 4) % (np.pi / 2) - np.pi / 4
 
 
-def _lift_order(a, ratio, first, k: int) -> np.ndarray:
-    """At most k match indices to lift: of the ``first`` ones, half the steepest below the
-    horizon (likely floor, nearest first), then the most distinctive; then the others."""
-    steep = [i for i in np.argsort(-a[:, 1]) if first[i] and a[i, 1] > 0][:k // 2]
-    taken = set(steep)
-    rest = [i for i in np.lexsort((ratio, ~first)) if i not in taken]
-    return np.array((steep + rest)[:k], int)
+class _Registration:
+    """One run of the ``findme`` estimator (see the module docstring)."""
 
+    def __init__(self, matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts, orientations,
+                 params: MotionParams):
+        self.p, self.m, self.n = params, matches, len(matches)
+        self.feats = self.n >= params.min_matches
+        if self.feats:
+            check_matches(matches, params)       # identical photos: an error whatever else
+        self.a, self.b = bearings(cam_a, matches.ua), bearings(cam_b, matches.ub)
+        self.pix = 1.0 / np.sqrt(cam_a.fx * cam_b.fx)
+        self.planar, self.dy, self.h = abs(h_a - h_b) < 1e-6, float(h_a - h_b), (h_a, h_b)
+        self.lifts = (lift_a, lift_b)
+        self.la = list(layouts[0])[:params.max_layouts]
+        self.lb = list(layouts[1])[:params.max_layouts]
+        oa, ob = orientations
+        self.orient = (None if oa is None or ob is None
+                       or min(oa.support, ob.support) < params.min_orientation_support
+                       else (oa.angle - ob.angle, min(oa.support, ob.support)))
+        self.rng = np.random.default_rng(params.seed)
+        self.floor_first = None   # decided on the first candidates scored
+        self.normal = None        # (floor normal in A, yaw) when the features correct gravity
+        self.seeds = np.argsort(matches.ratio, kind="stable")[:params.max_direction_seeds]
+        self.rp = register.RegisterParams(weight=params.layout_weight,
+                                          violation=params.layout_violation)
 
-def _inflate(lift: Lifter | None, sel, n: int, h: float, params: MotionParams,
-             normal=None, rays=None) -> Lifted:
-    """The lifted matches ``sel`` with the gravity error added to their sigma; floor points
-    re-lifted on the plane normal . X = h (eq. 2 with a corrected normal) if given."""
-    if lift is None:
-        return Lifted.empty(n)
-    L = lift(sel)
-    pts = L.points.copy()
-    if normal is not None:
-        f = np.flatnonzero(L.floor & L.valid & (rays @ normal > 1e-3))
-        pts[f] = h / (rays[f] @ normal)[:, None] * rays[f]
-    d2 = pts[:, 0] ** 2 + pts[:, 2] ** 2
-    return Lifted(pts, np.hypot(L.sigma, d2 / h * np.radians(params.gravity_sigma_deg)),
-                  L.floor & L.valid)
+    # ------------------------------------------------------------------ candidates
+    def _yaws(self):
+        yaws, free = [], None
+        if self.orient is not None:
+            yaws += [self.orient[0] + k * np.pi / 2 for k in range(4)]
+        if self.feats:
+            try:
+                y, t, e = _epipolar_ransac(self.a, self.b, self.planar, self.pix, self.p, self.rng)
+                y, t, e, sig_elev = local_optimisation(self.a, self.b, y, t, e, self.planar,
+                                                       self.pix, self.p)
+                yaws.append(y)
+                free = (y, t, e)
+                if self.planar and abs(t[1]) > 3.0 * np.sin(sig_elev):
+                    # moved parallel to the floor: the floor normal is orthogonal to t, and
+                    # floor points are lifted on that corrected floor (``features``)
+                    normal = np.array([0.0, 1.0, 0.0]) - t[1] * t
+                    self.normal = (normal / np.linalg.norm(normal), y)
+            except MotionError:
+                pass
+        if self.la and self.lb:   # the longest wall pairs first
+            yaws += list(register.wall_yaws(self.la[0], self.lb[0], self.rp)[:self.p.max_wall_yaws])
+        out = []
+        for y in np.angle(np.exp(1j * np.array(yaws, float))):
+            if all(abs(np.angle(np.exp(1j * (y - z)))) > np.radians(2.0) for z in out):
+                out.append(float(y))
+        return out, free
 
-
-def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
-    """Scale-free (yaw, unit t, inliers) with the best MSAC score, t signed so that the
-    inliers are in front of both cameras; stops adaptively (``confidence``)."""
-    n, thr = len(a), params.thr_px
-    k, solver = (2, solve_planar_2pt) if planar else (3, solve_gravity_3pt)
-    best, best_score, done, need = None, -1.0, 0, params.max_iters
-    while done < need:
-        j = samples(rng, n, k, 64)
-        done += 64
-        yaw, t, _ = solver(a[j], b[j])
-        j0 = j[:, 0]   # and the pure rotation through each first match (no solver answer)
-        yaw = np.r_[yaw, np.arctan2(a[j0, 0], a[j0, 2]) - np.arctan2(b[j0, 0], b[j0, 2])]
-        t = np.vstack([t, np.tile([1.0, 0.0, 0.0], (len(j0), 1))])
-        # cheirality only removes inliers: the residuals' score bounds the full one, so only
-        # the best 8 candidates of the batch get the depths
-        top = np.argsort(-msac(np.abs(epipolar_residuals(yaw, t, a, b)) / pix, thr))[:8]
-        yaw, t = yaw[top], t[top]
-        r, front, back, far = _epipolar_terms(a, b, yaw, t, pix)
-        flip = (back & (r < thr)).sum(1) > (front & (r < thr)).sum(1)
-        t[flip] = -t[flip]
-        inl = (r < thr) & (far | np.where(flip[:, None], back, front))
-        score = msac(np.where(inl, r, thr), thr)
-        i = int(np.argmax(score))
-        if score[i] > best_score:
-            best, best_score = (float(yaw[i]), t[i], inl[i]), score[i]
-            w = max(inl[i].sum(), k) / n
-            need = min(params.max_iters,
-                       int(np.log(1 - params.confidence) / np.log(max(1e-12, 1 - w ** k))) + 1)
-    if best is None or best[2].sum() < min(params.min_inliers, n):
-        raise no_common_view(0 if best is None else int(best[2].sum()), n)
-    return best
-
-
-def _score(P: MotionInputs, yaw, t, use, thr: float):
-    """MSAC score of C metric motions, yaw (C,), t (C, 3): epipolar residuals of all matches
-    plus transfer residuals of the lifted points in ``use`` (masks of A, B). Returns (score
-    (C,), epipolar inliers (C, M), lifted-A inliers (C, M), lifted-B inliers (C, M))."""
-    yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
-    r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t, P.pix)
-    e_in = (r < thr) & (front | far)
-    score, ins = msac(np.where(e_in, r, thr), thr), []
-    for L, u, rays, into_b in ((P.la, use[0], P.b, True), (P.lb, use[1], P.a, False)):
-        i, m = np.flatnonzero(u), np.zeros(e_in.shape, bool)
-        if len(i):
-            rt = transfer_residuals(yaw, t, L.points[i], L.sigma[i], rays[i], into_b, P.pix)
-            m[:, i] = rt < thr
-            score = score + msac(rt, thr)
-        ins.append(m)
-    return score, e_in, ins[0], ins[1]
-
-
-def _scale(P: MotionInputs, yaw, t, e_in, use) -> float | None:
-    """Baseline length along the unit t on which most lifted epipolar inliers agree (1-D
-    consensus; each point's s puts it on the other photo's ray; relative sigma = relative
-    depth sigma (+) one pixel over the parallax); None without a lifted inlier."""
-    s, sg = [], []
-    for L, u, into_b in ((P.la, use[0], True), (P.lb, use[1], False)):
-        i = np.flatnonzero(e_in & u)
-        pts = L.points[i]
-        c, v = (pts, _rotate(np.atleast_1d(yaw), P.b[i])[0]) if into_b else \
-            (-_rotate(np.atleast_1d(yaw), pts)[0], P.a[i])
-        tv = v @ t
-        den = np.maximum(1.0 - tv ** 2, 1e-9)
-        si = (c @ t - tv * np.sum(v * c, 1)) / den
-        rel = np.hypot(L.sigma[i] / np.linalg.norm(pts, axis=1), 2.0 * P.pix / np.sqrt(den))
-        s.append(si)
-        sg.append(rel * np.abs(si) + 1e-3)
-    s, sg = np.concatenate(s), np.concatenate(sg)
-    s, sg = s[s > 0], sg[s > 0]
-    if len(s) == 0:
-        return None
-    score = np.maximum(0.0, 1.0 - ((s[None, :] - s[:, None]) / (2.5 * sg[None, :])) ** 2).sum(1)
-    ok = np.abs(s - s[np.argmax(score)]) < 2.5 * sg
-    return float(np.sum(s[ok] / sg[ok] ** 2) / np.sum(1.0 / sg[ok] ** 2))
-
-
-def _refine_dir(a, b, yaw, t, e_in, planar: bool, pix: float, sigma_elev=np.radians(3.0)):
-    """Robust LM of (yaw, azimuth, elevation) of the unit baseline on the inliers' epipolar
-    residuals (pixels); a level prior on the elevation when h_A = h_B. Returns (yaw, unit
-    t, sigma of the elevation)."""
-    ae, be = a[e_in], b[e_in]   # indexed once, not per residual evaluation
-    unit = lambda q: np.stack([np.sin(q[..., 1]) * np.cos(q[..., 2]), np.sin(q[..., 2]),  # noqa
-                               np.cos(q[..., 1]) * np.cos(q[..., 2])], -1)
-
-    def resid(q):  # (C, 3) -> (C, R)
-        r = epipolar_residuals(q[:, 0], unit(q), ae, be) / pix
-        return np.concatenate([r, q[:, 2:3] / sigma_elev], 1) if planar else r
-
-    q0 = np.array([yaw, np.arctan2(t[0], t[2]), np.arcsin(np.clip(t[1], -1.0, 1.0))])
-    q, cov = levenberg_marquardt(resid, q0, n_prior=int(planar))
-    return float(q[0]), unit(q), float(np.sqrt(cov[2, 2]))
-
-
-def _refine(P: MotionInputs, yaw, t, e_in, ta_in, tb_in):
-    """Robust LM of p = (yaw, tx, ty, tz) (radians, metres) on the epipolar residuals of the
-    inliers ``e_in`` and the transfer residuals of the lifted inliers (``ta_in`` A into B,
-    ``tb_in`` B into A), pixels; Gaussian prior ty = dy, 2 cm + 3 % of the baseline (a floor
-    or road that is not quite level, a hand-held phone). Returns (p, covariance)."""
-    ia, ib = np.flatnonzero(ta_in), np.flatnonzero(tb_in)
-    ae, be = P.a[e_in], P.b[e_in]   # indexed once, not per residual evaluation
-    lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
-              (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
-    spread = [_spread(yaw, t, *x, P.pix) for x in lifted]   # at the start: barely changes
-
-    def resid(p):  # (C, 4) -> (C, R)
-        y, tq = p[:, 0], p[:, 1:4]
-        return np.concatenate(
-            [epipolar_residuals(y, tq, ae, be) / P.pix]
-            + [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)]
-            + [((tq[:, 1] - P.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None]], 1)
-
-    return levenberg_marquardt(resid, np.array([yaw, *t]), n_prior=1)
-
-
-def _kabsch_candidate(P: MotionInputs, use, params: MotionParams, rng):
-    """Best 2-point floor alignment of matches lifted in both photos: cheap 2-D agreement of
-    the lifted pairs first, then the full score of the best 32. None if fewer than 2."""
-    both = np.flatnonzero(use[0] & use[1])
-    if len(both) < 2:
-        return None
-    A, B = P.la.points[both][:, [0, 2]], P.lb.points[both][:, [0, 2]]
-    yaw, t2 = _kabsch_pairs(A, B, samples(rng, len(both), 2, params.max_iters))
-    sig = np.maximum(np.hypot(P.la.sigma[both], P.lb.sigma[both]), 0.02)
-    d = np.linalg.norm(A - _rot2(yaw[:, None], B) - t2[:, None], axis=-1) / sig
-    top = np.argsort(-msac(d, 3.0))[:32]
-    t = np.column_stack([t2[top, 0], np.full(len(top), P.dy), t2[top, 1]])
-    i = int(np.argmax(_score(P, yaw[top], t, use, params.thr_px)[0]))
-    return float(yaw[top][i]), t[i]
-
-
-def _findme(P: MotionInputs, yaw, t, e_in, params: MotionParams, rng) -> PlanarMotion:
-    """The better (full score) of the scaled epipolar motion and the best lifted alignment,
-    refined twice (inliers re-taken). Floor points first; wall points too when fewer than
-    ``min_floor`` floor points agree with it (wrong matches on a repetitive carpet are
-    floor points too, so they are counted after the fit)."""
-    for walls in (False, True):
-        use = P.usable(walls)
-        s = _scale(P, yaw, t, e_in, use)
-        cands = ([(yaw, s * t)] if s is not None else []) + \
-            [c for c in [_kabsch_candidate(P, use, params, rng)] if c is not None]
-        if not cands:
-            continue
-        scores = _score(P, [c[0] for c in cands], [c[1] for c in cands], use, params.thr_px)[0]
-        p = np.array([cands[int(np.argmax(scores))][0], *cands[int(np.argmax(scores))][1]])
-        for _ in range(2):
-            _, e2, ta, tb = (m[0] for m in _score(P, p[0], p[1:], use, params.thr_px))
-            if e2.sum() < params.min_inliers or not (ta.any() or tb.any()):
+    def _directions(self, yaw: float):
+        """Unit horizontal baseline directions (K, 3) the matches agree on at this yaw, with
+        their epipolar inliers (K, M): one match fixes the direction (t . (R b x a) = 0);
+        all of them are scored at once (matrix products) and the best distinct ones kept."""
+        a, Rb, p = self.a, _rotate(np.array([yaw]), self.b)[0], self.p
+        m = np.cross(Rb, a)
+        seeds = self.seeds   # the directions of the most distinctive matches are tried
+        T = np.column_stack([m[seeds, 2], np.zeros(len(seeds)), -m[seeds, 0]])
+        T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
+        num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
+        r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / self.pix
+        ab = np.sum(a * Rb, 1)
+        det = np.maximum(1.0 - ab * ab, 1e-12)
+        la, lb = (at - ab * bt) / det, (ab * at - bt) / det
+        far = np.linalg.norm(m, axis=1) / self.pix < 1.0
+        ok = r < p.thr_px
+        fwd, bwd = ok & (far | ((la > 0) & (lb > 0))), ok & (far | ((la < 0) & (lb < 0)))
+        T, inl = np.vstack([T, -T]), np.vstack([fwd, bwd])
+        score = msac(np.where(inl, np.vstack([r, r]), p.thr_px), p.thr_px)
+        keep = []
+        for i in np.argsort(-score):
+            if score[i] < max(2.0, 0.3 * score[np.argsort(-score)[0]]) or len(keep) == 3:
                 break
-            p, cov = _refine(P, p[0], p[1:], e2, ta, tb)
-        else:
-            _, e2, ta, tb = (m[0] for m in _score(P, p[0], p[1:], use, params.thr_px))
-            if e2.sum() >= params.min_inliers and (walls or (ta | tb).sum() >= params.min_floor):
-                return motion_result(p[[0, 1, 3]], p[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
-                               e2 | ta | tb, int(ta.sum() + tb.sum()), "findme")
-    raise MotionError("no matched point lies on the floor or on a chosen wall consistently "
-                      "with the motion in either photo, so the distance between the photos "
-                      "cannot be measured")
+            if all(T[i] @ T[j] < np.cos(np.radians(3.0)) for j in keep):
+                keep.append(i)
+        return T[keep], inl[keep], score[keep]
 
+    def _lift(self, first):
+        sel = _lift_order(self.a, self.m.ratio, first, self.p.max_lift)
+        na = nb = None
+        if self.normal is not None:
+            na, nb = self.normal[0], rot_y(self.normal[1]).T @ self.normal[0]
+        return MotionInputs(self.a, self.b,
+                            _inflate(self.lifts[0], sel, self.n, self.h[0], self.p, na, self.a),
+                            _inflate(self.lifts[1], sel, self.n, self.h[1], self.p, nb, self.b),
+                            self.dy, self.h[0], self.pix)
 
+    def _candidates(self, yaws, free):
+        none = (np.zeros((0, 3)), np.zeros((0, self.n), bool), np.zeros(0))
+        per_yaw = [self._directions(y) if self.feats else none for y in yaws]
+        # lift the inliers of the free RANSAC and of the best direction at any yaw first
+        first = np.zeros(self.n, bool) if free is None else free[2].copy()
+        best = max(per_yaw, key=lambda d: d[2][0] if len(d[2]) else -1.0)
+        if len(best[2]):
+            first |= best[1][0]
+        self.P = self._lift(first)
+        uses = (self.P.usable(False), self.P.usable(True))   # floor points first
+        cy, ct = [], []
+
+        def add(yaw, t2):
+            t2 = np.asarray(t2, float).reshape(-1, 2)
+            cy.extend([yaw] * len(t2))
+            ct.append(t2)
+
+        dirs = [(y, T, inl) for y, (T, inl, _) in zip(yaws, per_yaw)]
+        if free is not None:
+            dirs.append((free[0], free[1][None], free[2][None]))
+        for y, T, inl in dirs:
+            for t, e in zip(T, inl):
+                for use in uses:
+                    s = _scale(self.P, y, t, e, use)
+                    if s is not None:
+                        add(y, s * t[[0, 2]])
+            d2 = T[:, [0, 2]] / np.maximum(np.linalg.norm(T[:, [0, 2]], axis=1, keepdims=True), 1e-12)
+            for la in self.la[:1]:
+                for lb in self.lb[:1]:
+                    add(y, register.translations(la, lb, y, d2, self.rp))
+        if self.la and self.lb:
+            for y in yaws:
+                add(y, register.translations(self.la[0], self.lb[0], y, None, self.rp))
+        if not cy:
+            return np.zeros(0), np.zeros((0, 2))
+        return np.array(cy), np.vstack(ct)
+
+    # ------------------------------------------------------------------ scoring
+    def _t3(self, t2):
+        return np.column_stack([t2[:, 0], np.full(len(t2), self.dy), t2[:, 1]])
+
+    def _feature_score(self, yaw, t3):
+        """(C,) MSAC of the epipolar residuals of all matches and the transfer residuals of
+        the lifted points (pixels over their spread, the spread capped at 3): floor points
+        only once some motion has ``min_floor`` of them agreeing (``self.floor_first``: a
+        wall point is right only when its wall is), else wall points too."""
+        if self.n == 0:
+            return np.zeros(len(yaw))
+        thr, P = self.p.thr_px, self.P
+        r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t3 / np.linalg.norm(t3, axis=1,
+                                                                             keepdims=True), P.pix)
+        score = msac(np.where((r < thr) & (front | far), r, thr), thr)
+        floor, wall, n_floor = np.zeros(len(yaw)), np.zeros(len(yaw)), np.zeros(len(yaw))
+        for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
+            i = np.flatnonzero(L.valid)
+            if len(i):
+                x = (L.points[i], L.sigma[i], rays[i], into_b)
+                sp = np.minimum(_spread(yaw, t3, *x, P.pix), 3.0)
+                rt = transfer_residuals(yaw, t3, *x, P.pix, sp)
+                f = L.floor[i]
+                floor += msac(rt[:, f], thr)
+                wall += msac(rt[:, ~f], thr)
+                n_floor += (rt[:, f] < thr).sum(1)
+        if self.floor_first is None:
+            self.floor_first = bool(n_floor.max(initial=0) >= self.p.min_floor)
+        return score + floor + (0.0 if self.floor_first else wall)
+
+    def _layout_score(self, yaw, t2):
+        """(C,) best layout score over the candidate layout pairs (a layout that is not the
+        chosen one loses ``rank_penalty`` per step; layouts that disagree add nothing rather
+        than count against: a wrong hypothesis must not outvote the matches), and the pair
+        (i, j) of each."""
+        best, which = np.full(len(yaw), self.p.layout_floor), np.zeros((len(yaw), 2), int)
+        for i, la in enumerate(self.la):
+            for j, lb in enumerate(self.lb):
+                s = register.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
+                better = s > best
+                best = np.where(better, s, best)
+                which[better] = (i, j)
+        return best, which
+
+    def _orient_score(self, yaw):
+        if self.orient is None:
+            return np.zeros(len(yaw))
+        d = _wrap90(self.orient[0] - yaw) / (3.0 * np.radians(self.p.orientation_sigma_deg))
+        return self.p.orientation_weight * self.orient[1] * np.maximum(0.0, 1.0 - d * d)
+
+    def _total(self, yaw, t2):
+        yaw = np.atleast_1d(np.asarray(yaw, float))
+        t2 = np.atleast_2d(t2)
+        lay, which = self._layout_score(yaw, t2)
+        return self._feature_score(yaw, self._t3(t2)) + lay + self._orient_score(yaw), which
+
+    # ------------------------------------------------------------------ refinement
+    def _inliers(self, yaw, t3):
+        thr, P = self.p.thr_px, self.P
+        if self.n == 0:
+            return np.zeros(0, bool), np.zeros(0, bool), np.zeros(0, bool)
+        r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t3 / np.linalg.norm(t3), P.pix)
+        e_in = ((r < thr) & (front | far))[0]
+        tin = []
+        for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
+            m = np.zeros(self.n, bool)
+            i = np.flatnonzero(L.valid & (L.floor | (not self.floor_first)))
+            if len(i):
+                x = (L.points[i], L.sigma[i], rays[i], into_b)
+                m[i] = transfer_residuals(yaw, t3, *x, P.pix) < thr
+            tin.append(m)
+        return e_in, tin[0], tin[1]
+
+    def _refine(self, yaw: float, t3, pair):
+        """Robust LM of p = (yaw, tx, ty, tz) on the inliers' epipolar and transfer
+        residuals, the layouts' agreeing samples (each wall's samples weighted as ~2
+        independent ones) and the priors on the orientation and on ty = dy."""
+        P = self.P
+        e_in, ta, tb = self._inliers(yaw, t3)
+        ia, ib = np.flatnonzero(ta), np.flatnonzero(tb)
+        ae, be = P.a[e_in], P.b[e_in]
+        lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
+                  (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
+        spread = [_spread(yaw, t3, *x, P.pix) for x in lifted]
+        lay = (register.residual_terms(self.la[pair[0]], self.lb[pair[1]], yaw, t3[[0, 2]], self.rp)
+               if self.la and self.lb else None)
+        sig_o = np.radians(self.p.orientation_sigma_deg)
+        use_o = self.orient is not None and abs(_wrap90(self.orient[0] - yaw)) < 3 * sig_o
+
+        def resid(q):
+            y, tq = q[:, 0], q[:, 1:4]
+            parts = [epipolar_residuals(y, tq, ae, be) / P.pix if len(ae) else np.zeros((len(q), 0))]
+            parts += [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)
+                      if len(x[0])]
+            if lay is not None:
+                parts.append(lay(y, tq[:, [0, 2]]))
+            if use_o:
+                parts.append((_wrap90(self.orient[0] - y) / sig_o)[:, None])
+            parts.append(((tq[:, 1] - self.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None])
+            return np.concatenate(parts, 1)
+
+        q, cov = levenberg_marquardt(resid, np.array([yaw, *t3]), n_prior=1 + int(use_o))
+        return q, cov
+
+    # ------------------------------------------------------------------ answer
+    def run(self) -> PlanarMotion:
+        yaws, free = self._yaws()
+        if not yaws:
+            raise self._refusal(0)
+        cy, ct = self._candidates(yaws, free)
+        if len(cy) == 0 and free is not None:
+            raise MotionError("no matched point lies on the floor or on a chosen wall "
+                              "consistently with the motion in either photo, and no wall is "
+                              "known in both, so the distance between the photos cannot be "
+                              "measured")
+        if len(cy) == 0:
+            raise self._refusal(0)
+        ok = np.isfinite(ct).all(1) & (np.linalg.norm(ct, axis=1) < self.p.max_baseline_m)
+        cy, ct = cy[ok], ct[ok]
+        if len(cy) == 0:
+            raise self._refusal(0)
+        total, which = self._total(cy, ct)
+        results = []
+        for i in np.argsort(-total):
+            if len(results) == self.p.refine_top:
+                break
+            if any(self._same(cy[i], ct[i], r[0][0], r[0][[1, 3]]) for r in results):
+                continue
+            q, cov = self._refine(cy[i], self._t3(ct[i:i + 1])[0], which[i])
+            s, w = self._total(q[0], q[[1, 3]])
+            results.append((q, cov, float(s[0]), w[0]))
+        results.sort(key=lambda r: -r[2])
+        out = []
+        for r in results:
+            o = self._result(*r)
+            if not any(self._same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
+                out.append((o, r[3]))
+        best, pair = out[0]
+        if best.n_inliers < self.p.min_inliers:
+            if best.layout is None or best.layout.samples < self.p.min_layout_samples:
+                raise self._refusal(best.n_inliers)
+            self._check_layout_only(best, pair)
+        alts = tuple(o for o, _ in out[1:] if o.score >= self.p.alternative_ratio * best.score)
+        return replace(best, alternatives=alts)
+
+    def _same(self, y1, t1, y2, t2) -> bool:
+        dt = np.hypot(t1[0] - t2[0], t1[1] - t2[1])
+        return (abs(np.angle(np.exp(1j * (y1 - y2)))) < np.radians(3.0)
+                and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
+
+    def _result(self, q, cov, score, pair) -> PlanarMotion:
+        t3 = q[1:4]
+        e_in, ta, tb = self._inliers(q[0], t3)
+        lay = (register.agreement(self.la[pair[0]], self.lb[pair[1]], q[0], t3[[0, 2]], self.rp)
+               if self.la and self.lb else None)
+        r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
+                          e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
+        return _model_error(replace(r, layout=lay, score=score), self.p)
+
+    def _refusal(self, k: int) -> MotionError:
+        walls = ("the photos' boundaries share no wall" if self.la and self.lb else
+                 "a photo has no boundary hypothesis, so its walls are unknown")
+        if not self.feats:
+            return MotionError(f"only {self.n} feature matches between the photos ({self.m.n_a} "
+                               f"and {self.m.n_b} keypoints; need {self.p.min_matches}) and "
+                               f"{walls}: they show too little in common")
+        return MotionError(f"the photos have no common view: only {k} of {self.n} feature "
+                           f"matches agree on one camera motion and {walls}")
+
+    def _check_layout_only(self, m: PlanarMotion, pair) -> None:
+        """Without matches, the walls must fix both directions of the translation."""
+        lay = m.layout
+        if lay.corners:
+            return
+        la = self.la[pair[0]]
+        n = la.normals[[i for i, _ in lay.walls]] if lay.walls else np.zeros((0, 2))
+        if len(n) and np.abs(np.cross(n[:, None], n[None])).max() > np.sin(np.radians(30)):
+            return
+        what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
+        raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
+                          "along the wall cannot be measured")

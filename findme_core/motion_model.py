@@ -38,6 +38,20 @@ class MotionParams:
             normalised error is a calibrated Gaussian's; held out, zind-pairs-tilted has
             62-81 % of its errors within 1 sigma (gross failures stay outside 3 sigma).
         seed: RANSAC seed.
+        max_layouts: candidate hypotheses (layouts) of each photo that take part (``findme``).
+        layout_weight, layout_violation: score of one boundary sample on the other photo's
+            wall, and lost per sample on floor the other photo sees (a match scores 1).
+        rank_penalty: score lost per rank step of a layout that is not the chosen one.
+        min_orientation_support: a photo's line orientation takes part when at least this
+            fraction of its line evidence supports it.
+        orientation_sigma_deg, orientation_weight: 1-sigma of the yaw the two photos' line
+            orientations give (modulo 90 deg), and the score of a yaw that agrees with it.
+        refine_top: candidates refined (the best distinct ones).
+        max_baseline_m: candidates farther apart are not considered.
+        min_layout_samples: without agreeing matches, fewer boundary samples on each other's
+            walls mean no common wall.
+        alternative_ratio: other refined motions scoring at least this fraction of the best
+            are its alternatives.
     """
 
     thr_px: float = 3.0
@@ -53,6 +67,20 @@ class MotionParams:
     direction_sigma_deg: float = 5.0
     yaw_sigma_deg: float = 1.4
     seed: int = 0
+    max_layouts: int = 1
+    layout_weight: float = 0.25
+    layout_violation: float = 0.25
+    rank_penalty: float = 2.0
+    min_orientation_support: float = 0.2
+    orientation_sigma_deg: float = 1.0
+    orientation_weight: float = 10.0
+    refine_top: int = 6
+    max_baseline_m: float = 30.0
+    min_layout_samples: int = 8
+    alternative_ratio: float = 0.8
+    layout_floor: float = 0.0
+    max_wall_yaws: int = 4
+    max_direction_seeds: int = 300
 
 
 @dataclass(frozen=True)
@@ -67,6 +95,11 @@ class PlanarMotion:
         inliers: (M,) bool over the matches: consistent with the estimate.
         n_scale: lifted points that fixed the metric scale.
         method: the estimator.
+        layout: ``register.Agreement`` of the two photos' layouts with this motion (which
+            walls and corners matched, residuals), None when no layouts took part.
+        score: the evidence's score (``findme``: matches + layouts + orientations).
+        alternatives: other motions the evidence allows nearly as well (``findme``; a
+            symmetric room), best first, each with its own evidence.
     """
 
     x: float
@@ -79,6 +112,9 @@ class PlanarMotion:
     inliers: np.ndarray
     n_scale: int
     method: str
+    layout: object = None
+    score: float = float("nan")
+    alternatives: tuple = ()
 
     @property
     def n_inliers(self) -> int:

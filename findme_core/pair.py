@@ -1,20 +1,24 @@
 """Two photos -> their planar motion: the pipeline shared by ``findme motion``, ``findme
 eval``, the odometry service and the benchmark.
 
-Hypotheses of each photo (the chosen rank becomes the photo's scene), ORB features and
-matches, then ``motion.estimate`` lifts the matched points under each scene and estimates
-(x, z, yaw) of photo B in photo A's level frame (metres, radians). ``clock`` is injected
-(the core reads no clock itself); the default ``time.perf_counter`` only times stages.
+Per photo, once (``Photo``, ``photo_of`` / ``prepare``): ORB features, the scene of the chosen
+hypothesis (for lifting matched points), the layouts of its candidate hypotheses (the chosen
+one first) and the room's orientation from its straight lines. A photo then takes part in
+every motion it belongs to (``motion_photos``; the odometry service chains many) without
+being computed again. ``motion.estimate`` gives (x, z, yaw) of photo B in photo A's level
+frame (metres, radians). ``clock`` is injected (the core reads no clock itself); the default
+``time.perf_counter`` only times stages.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from . import features
+from . import features, layout
 from .camera import Camera
 from .errors import FindmeError, HypothesisError
+from .lines import detect_segments
 from .methods import hypothesize
 from .motion import MotionParams, PlanarMotion, estimate
 from .scene import Scene
@@ -28,6 +32,85 @@ class PairResult:
     matches: int
     keypoints: tuple[int, int]
     timing_ms: dict
+
+
+@dataclass
+class Photo:
+    """One photo's part in its motions, computed once.
+
+    Attributes:
+        camera: intrinsics and gravity; height: camera height above the floor, metres.
+        features: its keypoints (None until ``with_features``).
+        scene: the chosen hypothesis' scene (lifts matched points), None without one.
+        layouts: ``layout.Layout`` of the candidate hypotheses, the chosen one first.
+        orientation: the room's orientation from its lines, None without usable lines.
+        timing_ms: milliseconds per stage of its preparation.
+    """
+
+    camera: Camera
+    height: float
+    features: features.Features | None = None
+    scene: Scene | None = None
+    layouts: list = field(default_factory=list)
+    orientation: layout.Orientation | None = None
+    timing_ms: dict = field(default_factory=dict)
+
+
+def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
+            segments=None, max_layouts: int = 3,
+            feature_params: features.FeatureParams = features.FeatureParams(),
+            clock=time.perf_counter) -> Photo:
+    """A photo ready for its motions.
+
+    Args:
+        image: (H, W, 3) BGR or (H, W) grey uint8, the size of ``camera``.
+        hypotheses: ranked hypotheses (objects with ``polyline`` and ``kinds``), best first.
+        rank: the chosen one (1-based); its scene lifts the matched points and its layout
+            comes first; the next best ranks follow, ``max_layouts`` in all.
+        segments: (N, 4) image line segments (e.g. ``HypothesisSet.lines.ends``); detected
+            (LSD) when None.
+    """
+    t0 = clock()
+    f = features.detect(image, feature_params)
+    t1 = clock()
+    hyps = list(hypotheses)
+    order = ([rank - 1] if 1 <= rank <= len(hyps) else []) + \
+        [i for i in range(len(hyps)) if i != rank - 1]
+    scene, lays = None, []
+    for i in order[:max_layouts]:
+        h = hyps[i]
+        try:
+            if i == rank - 1:
+                scene = Scene(camera, height, h.polyline, h.kinds)
+            lays.append(layout.from_hypothesis(camera, height, h.polyline, h.kinds, i + 1))
+        except FindmeError:   # e.g. a level-camera polyline crossing a tilted horizon
+            continue
+    t2 = clock()
+    if segments is None:
+        segments = detect_segments(image)
+    o = layout.orientation(segments, camera)
+    t3 = clock()
+    return Photo(camera, float(height), f, scene, lays, o,
+                 {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t2 - t1 + t3 - t2)})
+
+
+def photo_of(image, camera: Camera, height: float, rank: int = 1,
+             hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 3,
+             feature_params: features.FeatureParams = features.FeatureParams(),
+             clock=time.perf_counter) -> Photo:
+    """``prepare`` with the photo's own hypotheses (``methods.hypothesize``, timed as
+    "hypotheses"); a rank beyond the hypotheses found is a bad input (HypothesisError)."""
+    t0 = clock()
+    hs = hypothesize(image, camera, hypothesis_method, max(rank, max_layouts, 1))
+    ms = 1e3 * (clock() - t0)
+    if rank < 1 or rank > max(1, len(hs.hypotheses)):
+        raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "
+                              f"{len(hs.hypotheses)} hypotheses"
+                              + (f" ({hs.reason})" if hs.reason else ""))
+    photo = prepare(image, camera, height, hs.hypotheses, rank, hs.lines.ends, max_layouts,
+                    feature_params, clock)
+    photo.timing_ms["hypotheses"] = ms
+    return photo
 
 
 def scene_of(image, camera: Camera, height: float, rank: int = 1,
@@ -50,18 +133,15 @@ def scene_of(image, camera: Camera, height: float, rank: int = 1,
     return Scene(camera, height, h.polyline, h.kinds), ms
 
 
-def motion_pair(image_a, image_b, cam_a: Camera, cam_b: Camera, scene_a, scene_b,
-                h_a: float, h_b: float, methods=("findme",),
-                feature_params: features.FeatureParams = features.FeatureParams(),
-                params: MotionParams = MotionParams(), clock=time.perf_counter) -> dict:
-    """Features, matches and the motion by each method of ``methods``.
+def motion_photos(pa: Photo, pb: Photo, methods=("findme",),
+                  feature_params: features.FeatureParams = features.FeatureParams(),
+                  params: MotionParams = MotionParams(), clock=time.perf_counter) -> dict:
+    """Matches of two prepared photos and the motion by each method of ``methods``.
 
-    Returns {method: PairResult or the FindmeError raised}; errors of the features stage
+    Returns {method: PairResult or the FindmeError raised}; errors of the matching stage
     are raised (they concern every method)."""
-    t0 = clock()
-    fa, fb = features.detect(image_a, feature_params), features.detect(image_b, feature_params)
     t1 = clock()
-    m = features.match(fa, fb, feature_params)
+    m = features.match(pa.features, pb.features, feature_params)
     t2 = clock()
     out = {}
     for method in methods:
@@ -80,13 +160,40 @@ def motion_pair(image_a, image_b, cam_a: Camera, cam_b: Camera, scene_a, scene_b
 
         s = clock()
         try:
-            mo = estimate(m, cam_a, cam_b, h_a, h_b, lifter(scene_a, m.ua), lifter(scene_b, m.ub),
-                          method, params)
+            mo = estimate(m, pa.camera, pb.camera, pa.height, pb.height,
+                          lifter(pa.scene, m.ua), lifter(pb.scene, m.ub), method, params,
+                          layouts=(pa.layouts, pb.layouts),
+                          orientations=(pa.orientation, pb.orientation))
         except FindmeError as e:
             out[method] = e
             continue
         total = clock() - s
-        out[method] = PairResult(mo, len(m), (len(fa), len(fb)), {
-            "features": 1e3 * (t1 - t0), "matching": 1e3 * (t2 - t1),
-            "lift": 1e3 * spent[0], "motion": 1e3 * (total - spent[0])})
+        out[method] = PairResult(mo, len(m), (len(pa.features), len(pb.features)), {
+            "features": pa.timing_ms.get("features", 0.0) + pb.timing_ms.get("features", 0.0),
+            "layout": pa.timing_ms.get("layout", 0.0) + pb.timing_ms.get("layout", 0.0),
+            "matching": 1e3 * (t2 - t1), "lift": 1e3 * spent[0],
+            "motion": 1e3 * (total - spent[0])})
     return out
+
+
+def motion_pair(image_a, image_b, cam_a: Camera, cam_b: Camera, scene_a, scene_b,
+                h_a: float, h_b: float, methods=("findme",),
+                feature_params: features.FeatureParams = features.FeatureParams(),
+                params: MotionParams = MotionParams(), clock=time.perf_counter) -> dict:
+    """Features, matches and the motion by each method of ``methods``, from the images and
+    each photo's chosen scene (its layout is the only one; the orientations come from lines
+    detected here). ``motion_photos`` reuses prepared photos instead.
+
+    Returns {method: PairResult or the FindmeError raised}; errors of the features stage
+    are raised (they concern every method)."""
+    photos = []
+    for image, cam, scene, h in ((image_a, cam_a, scene_a, h_a), (image_b, cam_b, scene_b, h_b)):
+        hyps = [] if scene is None else [_Hyp(scene.polyline, scene.kinds)]
+        photos.append(prepare(image, cam, h, hyps, 1, None, 1, feature_params, clock))
+    return motion_photos(*photos, methods, feature_params, params, clock)
+
+
+@dataclass(frozen=True)
+class _Hyp:
+    polyline: object
+    kinds: object

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import cv2
 import numpy as np
 
@@ -50,7 +52,7 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     """Return a copy of ``polyline`` with WALL segments moved down to the wall base.
 
     Args:
-        image_lab: (H, W, 3) float32 Lab image.
+        image_lab: (H, W, 3) Lab image (``appearance.to_lab``: uint8; float32 works too).
         polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
         cache: optional dict reused across the hypotheses of one image.
         keys: optional cache key per segment, e.g. the id of the image line it lies on: the
@@ -76,8 +78,8 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
         if shift is None:  # too short to measure: its corners follow the neighbours
             continue
         d = b - a
-        n = np.array([-d[1], d[0]]) / max(np.hypot(*d), 1e-12)
-        if n @ down < 0:
+        n = np.array([-d[1], d[0]]) / max(math.hypot(d[0], d[1]), 1e-12)
+        if n[0] * down[0] + n[1] * down[1] < 0:
             n = -n
         lines[s] = (a + shift * n, d)   # point on the moved line, direction
     if not lines:
@@ -94,7 +96,7 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
             if x is not None and abs(x[0] - poly[k, 0]) <= 2.0 and lo <= x[0] <= hi:
                 out[k] = x
             else:
-                out[k, 1] = np.mean([_row_at(*ln, poly[k, 0]) for ln in (left, right)])
+                out[k, 1] = (_row_at(*left, poly[k, 0]) + _row_at(*right, poly[k, 0])) / 2
             continue
         ln = left or right
         if ln is not None:
@@ -107,62 +109,82 @@ def _row_at(q, d, u):
 
 
 def _intersect(p, d, q, e):
-    A = np.array([[d[0], -e[0]], [d[1], -e[1]]])
-    if abs(np.linalg.det(A)) < 1e-9:
+    """Intersection of the lines p + t d and q + s e (None if nearly parallel)."""
+    det = e[0] * d[1] - d[0] * e[1]
+    if abs(det) < 1e-9:
         return None
-    t = np.linalg.solve(A, q - p)
-    return p + t[0] * d
+    t = (e[0] * (q[1] - p[1]) - e[1] * (q[0] - p[0])) / det
+    return p + t * d
+
+
+def _median0(x: np.ndarray) -> np.ndarray:
+    """np.median(x, axis=0), by one partition (same values, less overhead)."""
+    n = x.shape[0]
+    k = n // 2
+    if n % 2:
+        return np.partition(x, k, axis=0)[k]
+    q = np.partition(x, (k - 1, k), axis=0)
+    return (q[k - 1] + q[k]) / 2
 
 
 def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
     """Pixels to move the segment a-b along its normal (0 = keep; None = too little of it
     in the image to tell)."""
     H, W = lab.shape[:2]
-    length = np.hypot(*(b - a))
-    n_cols = int(length // p.step_px)
+    d = b - a
+    n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
     if n_cols < 4:
         return None
     t = (np.arange(n_cols) + 0.5) / n_cols
-    base = a[None, :] + t[:, None] * (b - a)[None, :]
+    base = a[None, :] + t[:, None] * d[None, :]
     inside = (base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0) & (base[:, 1] <= H - 1)
     base = base[inside]
     if len(base) < 4:
         return None
-    dep = _depression(camera, base)
-    dep = np.maximum(dep, 1.0)
-    s = np.arange(-0.02, p.floor_band[1] + 1e-9, p.s_step)
+    dep = np.maximum(_depression(camera, base), 1.0)
+    s = _offsets(p)
     pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
-    ok = ((pts[..., 0] >= 0) & (pts[..., 0] <= W - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= H - 1))
-    cols = ok.all(1)
-    if cols.sum() < 4:
+    # a column of samples is a straight run: inside the image iff both its ends are
+    ends = pts[:, [0, -1]]
+    cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
+            & (ends[..., 1] <= H - 1)).all(1)
+    n_in = int(cols.sum())
+    if n_in < 4:
         return None
     P = pts[cols].reshape(-1, 2).astype(np.float32)
     prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
-    prof = prof.reshape(cols.sum(), len(s), 3)
-    prof = np.median(prof, axis=0) if p.robust else prof.mean(0)    # (S, 3) average profile
+    prof = prof.reshape(n_in, len(s), 3).astype(np.float32)
+    prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
-    floor = np.median(prof[fb], axis=0)
-    dist = np.linalg.norm(prof - floor, axis=1)
-    far = dist > p.settle_tol
+    floor = _median0(prof[fb])
+    diff = prof - floor
+    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
     win = max(1, int(round(p.settle_len / p.s_step)))
     # first offset >= 0 from which the profile stays at the floor colour for `win` samples
     start = int(np.searchsorted(s, 0.0))
-    settle = None
-    for k in range(start, len(s) - win):
-        if s[k] > p.max_rel:
-            break
-        if not far[k:k + win].any():
-            settle = k
-            break
+    cf = np.concatenate([[0], np.cumsum(far)])
+    ks = np.arange(start, len(s) - win)
+    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
+    settle = int(ks[hit[0]]) if len(hit) else None
     if settle is None or settle == start:
         return 0.0
     # the colour edge just before settling: largest profile gradient between the top edge
     # (skipping its own blur, 2 samples) and the settling point
-    g = np.linalg.norm(np.gradient(prof, axis=0), axis=1)
+    grad = np.empty_like(prof)   # np.gradient(prof, axis=0)
+    grad[1:-1] = (prof[2:] - prof[:-2]) / 2.0
+    grad[0], grad[-1] = prof[1] - prof[0], prof[-1] - prof[-2]
+    g = np.sqrt((grad * grad).sum(1))
     lo = min(start + 3, settle)
     k = lo + int(np.argmax(g[lo:settle + 1]))
-    band = np.median(prof[start + 1:k + 1], axis=0) if k > start else prof[start]
-    if (np.linalg.norm(band[1:] - floor[1:]) < p.shadow_chroma and band[0] < floor[0]):
+    band = _median0(prof[start + 1:k + 1]) if k > start else prof[start]
+    if (math.hypot(band[1] - floor[1], band[2] - floor[2]) < p.shadow_chroma
+            and band[0] < floor[0]):
         return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
-    shift = float(s[k] * np.median(dep[cols]))
+    shift = float(s[k] * _median0(dep[cols]))
     return shift if shift >= p.min_shift_px else 0.0
+
+
+def _offsets(p: SnapParams) -> np.ndarray:
+    """Profile offsets s (relative to the depression), from just above the line to the
+    bottom of the floor band."""
+    return np.arange(-0.02, p.floor_band[1] + 1e-9, p.s_step)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from .camera import Camera
@@ -40,6 +41,16 @@ REASONS = {
     _NOT_FINITE: "the pixel is not finite",
 }
 _SURFACES = {1: "floor", 2: "wall"}
+#: 1-sigma of a chosen boundary's position on real photos, pixels of the ~640 px working
+#: size (the hypotheses' resolution): fitted on the dev split so that 68 % of wall and
+#: non-floor points lie within their 1-sigma (tools/calibrate_sigma.py).
+BOUNDARY_SIGMA_WORK_PX = 34.0
+WORK_SIZE_PX = 640
+
+
+def boundary_sigma_px(width: int, height: int) -> float:
+    """``BOUNDARY_SIGMA_WORK_PX`` in pixels of a ``width`` x ``height`` photo."""
+    return BOUNDARY_SIGMA_WORK_PX * max(width, height) / WORK_SIZE_PX
 
 
 @dataclass(frozen=True)
@@ -52,8 +63,12 @@ class Located:
         xyz: (3,) camera-frame point in metres, None when there is no answer.
         sigma_m: 1-sigma radius of the point in metres: the root sum of squares of
             ``sigma_parts`` ("boundary": the boundary off by one pixel, "height": the camera
-            height off by its sigma, "pixel": the tap off by one pixel).
+            height off by its sigma, "pixel": the tap off by one pixel, "gravity": gravity's
+            tilt off by its covariance).
         error: why there is no answer, else None.
+        gravity_jac: (2, 3) camera-frame displacement of the point (metres) for a 1-sigma
+            tilt of gravity along each principal axis of its covariance (every point of a
+            photo moves together: ``distances`` uses it), None when gravity is exact.
     """
 
     pixel: tuple[float, float]
@@ -62,6 +77,7 @@ class Located:
     sigma_m: float | None = None
     sigma_parts: dict | None = None
     error: str | None = None
+    gravity_jac: np.ndarray | None = None
 
 
 class Scene:
@@ -74,10 +90,13 @@ class Scene:
         kinds: (M - 1,) SegKind per segment (default: all WALL).
         height_sigma: 1-sigma error of ``height`` in metres.
         boundary_sigma_px: boundary error used for the uncertainty, pixels.
+        gravity_cov: (2, 2) covariance (rad^2) of gravity's tilt about the level x (pitch)
+            and z (roll) axes (``provenance.Provenance.gravity_cov``); None = exact.
     """
 
     def __init__(self, camera: Camera, height: float, polyline, kinds=None,
-                 height_sigma: float = 0.03, boundary_sigma_px: float = 1.0):
+                 height_sigma: float = 0.03, boundary_sigma_px: float = 1.0,
+                 gravity_cov=None):
         if not np.isfinite(height) or height <= 0:
             raise GeometryError(f"camera height must be a positive number of metres, got {height!r}")
         poly = np.asarray(polyline, float).reshape(-1, 2)
@@ -88,13 +107,20 @@ class Scene:
             raise HypothesisError(f"{len(kinds)} segment kinds for {len(poly)} vertices")
         self.camera, self.height, self.polyline, self.kinds = camera, float(height), poly, kinds
         self.height_sigma, self.boundary_sigma_px = float(height_sigma), float(boundary_sigma_px)
+        self.gravity_cov = (np.zeros((2, 2)) if gravity_cov is None
+                            else np.asarray(gravity_cov, float).reshape(2, 2))
+        if not np.all(np.isfinite(self.gravity_cov)):
+            raise GeometryError(f"gravity_cov must be finite, got {self.gravity_cov.tolist()}")
         self._pieces = self._build(poly)
-        shifted = poly + np.array([0.0, boundary_sigma_px])
-        self._pieces_shifted = self._build(shifted)
+        # the boundary part is linearised: the scene under the boundary moved down by at
+        # most one pixel, the displacement scaled up to ``boundary_sigma_px``
+        self._shift_px = min(self.boundary_sigma_px, 1.0)
+        self._pieces_shifted = self._build(poly + np.array([0.0, self._shift_px]))
 
-    def _build(self, poly):
+    def _build(self, poly, cam: Camera | None = None):
         """Pieces: (az0, az1, kind, normal (2,), offset) with n . (x, z) = offset on the wall."""
-        cam, R = self.camera, self.camera.R_level_from_cam
+        cam = self.camera if cam is None else cam
+        R = cam.R_level_from_cam
         r = cam.rays_cam(poly) @ R.T
         az = np.arctan2(r[:, 0], r[:, 2])
         pieces = []
@@ -163,9 +189,14 @@ class Scene:
             points: (N, 3) metres (NaN where there is no answer),
             surface: (N,) 1 floor, 2 wall, 0 none,
             sigma: (N,) 1-sigma radius (m; inf where no answer),
-            parts: dict of (N,) sigma components "height", "boundary", "pixel",
+            parts: dict of (N,) sigma components "height", "boundary", "pixel", "gravity",
             reason: (N,) failure reason code (0 = answered; see ``REASONS``).
         """
+        return self._locate_all(pixels)[:5]
+
+    def _locate_all(self, pixels):
+        """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
+        (``_gravity_jac``)."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         finite = np.isfinite(px).all(1)
@@ -189,26 +220,74 @@ class Scene:
             return np.where(np.isfinite(d), d, np.inf)
 
         parts = {"height": np.linalg.norm(P, axis=1) * self.height_sigma / self.height,
-                 "boundary": moved(self._pieces_shifted, rays),
+                 "boundary": moved(self._pieces_shifted, rays) * (
+                     self.boundary_sigma_px / self._shift_px if self._shift_px > 0 else 0.0),
                  "pixel": np.hypot(moved(self._pieces, cam.rays_level(pxs + (1.0, 0.0))),
                                    moved(self._pieces, cam.rays_level(pxs + (0.0, 1.0))))}
+        jac = self._gravity_jac(pxs, P, surface)
+        parts["gravity"] = np.sqrt((jac ** 2).sum((1, 2)))
         sigma = np.sqrt(sum(x * x for x in parts.values()))
         sigma = np.where(ok, sigma, np.inf)
-        return P, surface, sigma, parts, reason
+        return P, surface, sigma, parts, reason, jac
+
+    #: tilt step of the numerical derivative in ``_gravity_jac``, radians
+    _TILT_STEP = 1e-3
+
+    def _gravity_jac(self, px, P, surface) -> np.ndarray:
+        """(N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
+        along each principal axis of ``gravity_cov`` (linearised: central differences of
+        the scene rebuilt under gravity tilted by +-``_TILT_STEP``; the point keeps its
+        surface). Zero when gravity is exact."""
+        n = len(px)
+        out = np.zeros((n, 2, 3))
+        evals, evecs = np.linalg.eigh(self.gravity_cov)
+        if n == 0 or not np.any(evals > 0):
+            return out
+        cam = self.camera
+        R = cam.R_level_from_cam
+        x_l, z_l = R[0], R[2]
+        P_cam = P @ R
+        for k in range(2):
+            s = float(np.sqrt(max(evals[k], 0.0)))
+            if s == 0.0:
+                continue
+            e_p, e_r = evecs[:, k]
+            axis = e_p * x_l - e_r * z_l            # dg = axis x g = e_p z_l + e_r x_l
+            moved = []
+            for sign in (1.0, -1.0):
+                w = sign * self._TILT_STEP * axis
+                Rw, _ = cv2.Rodrigues(w.reshape(3, 1))
+                c2 = cam.with_gravity(Rw @ cam.gravity)
+                try:
+                    pieces = self._build(self.polyline, c2)
+                except (HypothesisError, GeometryError):
+                    moved.append(np.full((n, 3), np.nan))
+                    continue
+                rays = c2.rays_level(px)
+                t, s2, _ = self._solve(pieces, rays)
+                t = np.where(surface == 1, np.where(rays[:, 1] > 0,
+                                                    self.height / np.maximum(rays[:, 1], 1e-300),
+                                                    np.nan), t)
+                moved.append((t[:, None] * rays) @ c2.R_level_from_cam)
+            d = (moved[0] - moved[1]) * (s / (2 * self._TILT_STEP))
+            out[:, k] = np.where(np.isfinite(d), d, np.inf)
+        out[~np.isfinite(P_cam).all(1)] = 0.0
+        return out
 
     def locate(self, pixels) -> list[Located]:
         """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
         point (``Located.error``), not raised."""
         px = np.asarray(pixels, float).reshape(-1, 2)
-        P, surface, sigma, parts, reason = self.locate_level(px)
+        P, surface, sigma, parts, reason, jacs = self._locate_all(px)
         R = self.camera.R_level_from_cam
         out = []
         for i, (u, v) in enumerate(px):
             if reason[i]:
                 out.append(Located((u, v), None, None, error=self._reason_text(reason[i], u, v)))
                 continue
+            jac = jacs[i] if np.any(self.gravity_cov) else None
             out.append(Located((u, v), _SURFACES[surface[i]], R.T @ P[i], float(sigma[i]),
-                               {k: float(x[i]) for k, x in parts.items()}))
+                               {k: float(x[i]) for k, x in parts.items()}, gravity_jac=jac))
         return out
 
     def _reason_text(self, code: int, u: float, v: float) -> str:
@@ -235,7 +314,9 @@ def distances(points: list[Located], height: float, height_sigma: float):
     """Distances between consecutive located points (metres) and their 1-sigma.
 
     Height errors scale every point alike, so that part of a distance's sigma is
-    d * height_sigma / height; boundary and pixel parts are taken as independent.
+    d * height_sigma / height; a gravity tilt moves every point of the photo together, so
+    its part is the change of the distance along each tilt axis (``Located.gravity_jac``);
+    boundary and pixel parts are taken as independent.
 
     Returns:
         list of (distance | None, sigma | None, error | None), len(points) - 1 entries.
@@ -246,7 +327,10 @@ def distances(points: list[Located], height: float, height_sigma: float):
             out.append((None, None, "an end point has no 3D position"))
             continue
         d = float(np.linalg.norm(b.xyz - a.xyz))
-        s = np.sqrt((d * height_sigma / height) ** 2
+        grav = 0.0
+        if a.gravity_jac is not None and b.gravity_jac is not None and d > 0:
+            grav = float(np.sum(((b.gravity_jac - a.gravity_jac) @ ((b.xyz - a.xyz) / d)) ** 2))
+        s = np.sqrt((d * height_sigma / height) ** 2 + grav
                     + a.sigma_parts["boundary"] ** 2 + b.sigma_parts["boundary"] ** 2
                     + a.sigma_parts["pixel"] ** 2 + b.sigma_parts["pixel"] ** 2)
         out.append((d, float(s), None))

@@ -46,7 +46,7 @@ class SegKind(IntEnum):
 
 
 #: Additive features: summed along a path from cumulative per-column tables.
-ADDITIVE = ("support", "length", "outside", "top", "bottom", "region")
+ADDITIVE = ("support", "length", "outside", "top", "bottom", "region", "far")
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,7 @@ class SearchParams:
     step_min_jump_px: float = 15.0
     min_vertical_px: float = 25.0
     horizon_margin: float = 0.01
+    far_deg: float = 6.0   # a boundary seen less than this below the horizon is implausibly far
 
 
 @dataclass(frozen=True)
@@ -73,33 +74,66 @@ def track_rows(table: SupportTable, height: int) -> np.ndarray:
 
 
 def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
-                 region: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 region: np.ndarray | None = None, valid: np.ndarray | None = None,
+                 front: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cumulative additive features of every track and per-column validity.
 
     Args:
         table: support of the N candidate lines.
         region: optional (N + 2, W) colour reward per column of the floor region each track
             implies (``appearance.FloorLikelihood.below`` of the track rows).
+        valid: the validity returned by an earlier call on the same table (not recomputed).
+        front: (N,) bool, the lines that run across the view (``lines.LineKind.FRONT``):
+            only those count as far (default all). A wall facing the camera stands at one
+            distance along its base, so a front line just below the horizon means a wall
+            implausibly far away (the edge of a counter top or a window sill seen level);
+            a receding line's far end approaches the horizon in any room or street.
     Returns:
         F: (len(ADDITIVE), N + 2, W + 1) cumulative sums over column boundaries, in pixels
             (support and length: arc length; outside / top / bottom: columns; region: the
-            per-column reward).
+            per-column reward; far: ``farness`` of a line's floor point in each column).
         valid: (N + 2, W) bool, the track is a possible floor boundary in that column.
     """
     W = camera.width
-    rows = track_rows(table, camera.height)
-    u = np.broadcast_to(np.arange(W, dtype=float), rows.shape)
-    valid = camera.below_horizon(np.column_stack([u.ravel(), rows.ravel()]),
-                                 p.horizon_margin).reshape(rows.shape)
-    valid[-1] = True  # "no floor here" is always a possible answer
+    if valid is None:
+        rows = track_rows(table, camera.height)
+        u = np.broadcast_to(np.arange(W, dtype=float), rows.shape)
+        valid = camera.below_horizon(np.column_stack([u.ravel(), rows.ravel()]),
+                                     p.horizon_margin).reshape(rows.shape)
+        valid[-1] = True  # "no floor here" is always a possible answer
     n = len(table.S)
     F = np.zeros((len(ADDITIVE), n + 2, W + 1))
     F[0, :n], F[1, :n], F[2, :n] = table.S, table.L, table.O
     cols = np.arange(W + 1, dtype=float)
     F[3, n], F[4, n + 1] = cols, cols
+    far = farness(table.v, camera, p.far_deg)
+    if front is not None:
+        far[~np.asarray(front, bool)] = 0.0
+    F[6, :n, 1:] = np.cumsum(far, axis=1)
     if region is not None:
         F[5, :, 1:] = np.cumsum(region, axis=1)
     return F, valid
+
+
+def with_region(F: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """A copy of the tables ``F`` (``track_tables``) with the colour reward (N + 2, W) of
+    each track's floor region."""
+    out = F.copy()
+    out[5, :, 1:] = np.cumsum(region, axis=1)
+    return out
+
+
+def farness(rows: np.ndarray, camera: Camera, far_deg: float) -> np.ndarray:
+    """(N, W) in [0, 1] for line rows (N, W) at columns 0..W-1: how implausibly far the
+    floor point of each pixel is, ``clip(1 - sin(d) / sin(far_deg), 0, 1)`` for its
+    depression d below the horizon (a wall at distance D from a camera at height h has its
+    base atan(h / D) below the horizon: 6 deg is ~13 m from 1.4 m). Scale-free: no camera
+    height needed. 1 at and above the horizon."""
+    u = np.arange(rows.shape[1], dtype=float)[None, :]
+    x, y = (u - camera.cx) / camera.fx, (rows - camera.cy) / camera.fy
+    R = camera.R_level_from_cam
+    s = (R[1, 0] * x + R[1, 1] * y + R[1, 2]) / np.sqrt(x * x + y * y + 1.0)  # sin(depression)
+    return np.clip(1.0 - s / np.sin(np.radians(far_deg)), 0.0, 1.0)
 
 
 def rewards(F: np.ndarray, valid: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -187,149 +221,67 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
     """
     n_tracks, W1 = A.shape
     W = W1 - 1
-    Al = A.tolist()
     left = valid[:, 0].tolist()
     right = valid[:, -1].tolist()
-    src, dst, col = ev.src.tolist(), ev.dst.tolist(), ev.col.tolist()
-    cost = np.where(ev.step, step_cost, corner_cost).tolist()
-    order = sorted(range(len(src)), key=col.__getitem__)
+    order = np.argsort(ev.col, kind="stable")
+    src, dst = ev.src.tolist(), ev.dst.tolist()
+    # per event, in column order: reward tables at its column before / after it, its cost
+    Ai, Aj = A[ev.src, ev.col], A[ev.dst, ev.col]
+    cost = np.where(ev.step, step_cost, corner_cost)
+    seq = list(zip(order.tolist(), ev.src[order].tolist(), ev.dst[order].tolist(),
+                   Ai[order].tolist(), Aj[order].tolist(), cost[order].tolist()))
     # forward: potential F[t] so that the best prefix value on t at column k is F[t] + A[t][k]
-    F = [(-Al[t][0] if left[t] else NEG) for t in range(n_tracks)]
+    F = np.where(valid[:, 0], -A[:, 0], NEG).tolist()
     ptr = [-1] * n_tracks
     fval, pred = [NEG] * len(src), [-1] * len(src)
-    for e in order:
-        i, j, k = src[e], dst[e], col[e]
-        if F[i] <= NEG:
+    for e, i, j, ai, aj, c in seq:
+        fi = F[i]
+        if fi <= NEG:
             continue
-        val = F[i] + Al[i][k] - cost[e]
+        val = fi + ai - c
         fval[e], pred[e] = val, ptr[i]
-        if val - Al[j][k] > F[j]:
-            F[j], ptr[j] = val - Al[j][k], e
+        if val - aj > F[j]:
+            F[j], ptr[j] = val - aj, e
     # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
-    B = [(Al[t][W] if right[t] else NEG) for t in range(n_tracks)]
+    B = np.where(valid[:, -1], A[:, W], NEG).tolist()
     ptrb = [-1] * n_tracks
     sval, succ = [NEG] * len(src), [-1] * len(src)
-    for e in reversed(order):
-        i, j, k = src[e], dst[e], col[e]
-        if B[j] <= NEG:
+    for e, i, j, ai, aj, c in reversed(seq):
+        bj = B[j]
+        if bj <= NEG:
             continue
-        suf = B[j] - Al[j][k]
+        suf = bj - aj
         sval[e], succ[e] = suf, ptrb[j]
-        if suf - cost[e] + Al[i][k] > B[i]:
-            B[i], ptrb[i] = suf - cost[e] + Al[i][k], e
-    cands = [(Al[t][W] - Al[t][0], t, -1) for t in range(n_tracks) if left[t] and right[t]]
-    cands += [(fval[e] + sval[e], src[e], e) for e in range(len(src))
-              if fval[e] > NEG and sval[e] > NEG]
-    cands.sort(key=lambda c: -c[0])
+        if suf - c + ai > B[i]:
+            B[i], ptrb[i] = suf - c + ai, e
+    # candidates: single tracks spanning the image, then the best path through each event
+    single = np.nonzero(valid[:, 0] & valid[:, -1])[0]
+    fv, sv = np.array(fval), np.array(sval)
+    through = np.nonzero((fv > NEG) & (sv > NEG))[0]
+    total = np.concatenate([A[single, W] - A[single, 0], fv[through] + sv[through]])
+    which = np.concatenate([-1 - single, through])   # < 0: a single track
+    keep = total > -FORBIDDEN / 2
+    total, which = total[keep], which[keep]
     out, seen = [], set()
-    for total, start, e in cands:
-        if total <= -FORBIDDEN / 2 or len(out) >= limit:
+    for c in np.argsort(-total, kind="stable").tolist():
+        if len(out) >= limit:
             break
+        e = int(which[c])
         if e < 0:
-            out.append((total, start, ()))
+            out.append((float(total[c]), -1 - e, ()))
             continue
-        chain = [e]
+        chain_ = [e]
         p = pred[e]
         while p >= 0:
-            chain.append(p)
+            chain_.append(p)
             p = pred[p]
-        chain.reverse()
+        chain_.reverse()
         q = succ[e]
         while q >= 0:
-            chain.append(q)
+            chain_.append(q)
             q = succ[q]
-        key = tuple(chain)
+        key = tuple(chain_)
         if key not in seen:
             seen.add(key)
-            out.append((total, src[chain[0]], key))
-    return out
-
-
-def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarray,
-                  width: int, height: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """Vertices (M, 2), segment kinds (M - 1,) and the track of each segment (-1 for a step).
-
-    Corners are exact line intersections; a step is drawn as a near-vertical segment 0.5 px
-    wide at the foot column of its vertical edge; TOP is the row -0.5, BOTTOM the row H - 0.5.
-    """
-    n = len(coef)
-    seg_kind = {n: SegKind.OPEN, n + 1: SegKind.NONE}
-
-    def row(t, u):
-        if t >= n:
-            return -0.5 if t == n else height - 0.5
-        return -(coef[t, 0] * u + coef[t, 2]) / coef[t, 1]
-
-    track = start
-    pts = [(0.0, row(track, 0.0))]
-    kinds: list[int] = []
-    tracks: list[int] = []
-    for e in chain:
-        d = int(ev.dst[e])
-        u = float(ev.u[e])
-        here = seg_kind.get(track, SegKind.WALL)
-        if ev.step[e]:
-            pts += [(u - 0.25, row(track, u)), (u + 0.25, row(d, u))]
-            kinds += [here, SegKind.STEP]
-            tracks += [track, -1]
-        else:
-            pts.append((u, row(track, u) if d >= n else row(d, u)))
-            kinds.append(here)
-            tracks.append(track)
-        track = d
-    pts.append((width - 1.0, row(track, width - 1.0)))
-    kinds.append(seg_kind.get(track, SegKind.WALL))
-    tracks.append(track)
-    pts = np.array(pts)
-    # events in one column are ordered by column boundary, not by their exact u
-    pts[:, 0] = np.maximum.accumulate(np.clip(pts[:, 0], 0.0, width - 1.0))
-    kinds = np.array(kinds, dtype=int)
-    # two events at one point leave a zero-length segment: drop it
-    keep = np.ones(len(kinds), bool)
-    keep[np.all(np.abs(np.diff(pts, axis=0)) < 1e-9, axis=1)] = False
-    if not keep.all() and keep.any():
-        pts = np.vstack([pts[:1], pts[1:][keep]])
-        kinds, tracks = kinds[keep], [t for t, k in zip(tracks, keep) if k]
-    return pts, kinds, tracks
-
-
-def path_pieces(paths, ev: Events, width: int):
-    """Flatten paths into pieces.
-
-    Args:
-        paths: sequence of (score, start track, event chain).
-    Returns:
-        (piece_path, piece_track, k0, k1) arrays over all pieces (column boundaries
-        [k0, k1)), and (K, 2) counts of corners / crossings and of steps per path.
-    """
-    col, dst, step = ev.col.tolist(), ev.dst.tolist(), ev.step.tolist()
-    pp, pt, a, b = [], [], [], []
-    counts = np.zeros((len(paths), 2))
-    for i, (_, track, chain) in enumerate(paths):
-        k = 0
-        for e in chain:
-            pp.append(i), pt.append(track), a.append(k), b.append(col[e])
-            counts[i, int(step[e])] += 1
-            track, k = dst[e], col[e]
-        pp.append(i), pt.append(track), a.append(k), b.append(width)
-    return np.array(pp), np.array(pt), np.array(a), np.array(b), counts
-
-
-def path_features(pieces, F: np.ndarray, n_paths: int) -> np.ndarray:
-    """(K, len(ADDITIVE) + 2) features of K paths: the additive sums (``track_tables``) over
-    their pieces, then the numbers of corners / crossings and of occluding steps."""
-    pp, pt, a, b, counts = pieces
-    d = F[:, pt, b] - F[:, pt, a]                       # (len(ADDITIVE), pieces)
-    out = np.zeros((n_paths, len(ADDITIVE)))
-    np.add.at(out, pp, d.T)
-    return np.column_stack([out, counts])
-
-
-def path_rows(pieces, rows: np.ndarray, n_paths: int) -> np.ndarray:
-    """(K, W) boundary row of each path at every column, from the track rows (N + 2, W)."""
-    pp, pt, a, b, _ = pieces
-    W = rows.shape[1]
-    out = np.empty((n_paths, W))
-    for i, t, k0, k1 in zip(pp.tolist(), pt.tolist(), a.tolist(), b.tolist()):
-        out[i, k0:k1] = rows[t, k0:k1]
+            out.append((float(total[c]), src[chain_[0]], key))
     return out

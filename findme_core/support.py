@@ -60,18 +60,29 @@ class EdgeField:
         image: (H, W, 3) uint8 BGR.
         color: optional (H, W, 3) float32 image to compare colours in (e.g. Lab; default
             BGR); ``tau_c`` is in its units.
+        top_row: derivatives are computed from this row down (e.g. the rows below the
+            horizon, where floor lines are); above it they are 0 (no edge).
     """
 
     def __init__(self, image: np.ndarray, params: SupportParams = SupportParams(),
-                 color: np.ndarray | None = None):
+                 color: np.ndarray | None = None, top_row: int = 0):
         img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
         self.params = params
         self.height, self.width = img.shape[:2]
         self.color = img.astype(np.float32) if color is None else color
-        gray = cv2.GaussianBlur(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32), (0, 0),
-                                params.blur_sigma)
-        self.gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-        self.gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+        # the blur and Sobel reach ~4 px: start a few rows higher so that rows >= top_row
+        # are exactly as on the whole image
+        top = int(np.clip(top_row - 8, 0, self.height - 1)) if top_row > 0 else 0
+        gray = cv2.GaussianBlur(cv2.cvtColor(img[top:], cv2.COLOR_BGR2GRAY).astype(np.float32),
+                                (0, 0), params.blur_sigma)
+        self.gx = np.zeros((self.height, self.width), np.float32)
+        self.gy = np.zeros((self.height, self.width), np.float32)
+        # scale 1/8: the Sobel kernel's weight, exact (a power of two)
+        cv2.Sobel(gray, cv2.CV_32F, 1, 0, dst=self.gx[top:], ksize=3, scale=0.125)
+        cv2.Sobel(gray, cv2.CV_32F, 0, 1, dst=self.gy[top:], ksize=3, scale=0.125)
+        if top:
+            self.gx[top:top_row] = 0.0
+            self.gy[top:top_row] = 0.0
 
     def sample(self, arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
@@ -88,18 +99,22 @@ class EdgeField:
     def evidence(self, pts: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(M,) evidence in [0, 1] of (M, 2) points with (M, 2) unit normals (floor side)."""
         p = self.params
-        g = np.column_stack([self.sample(self.gx, pts), self.sample(self.gy, pts)])
-        gn = np.abs((g * normals).sum(1))
-        gm = np.linalg.norm(g, axis=1)
+        # one channel at a time: OpenCV remaps one float channel with exact bilinear
+        # weights, several channels with weights quantised to 1/32 pixel
+        gx, gy = self.sample(self.gx, pts), self.sample(self.gy, pts)
+        gn = np.abs(gx * normals[:, 0] + gy * normals[:, 1])
+        gm = np.sqrt(gx * gx + gy * gy)
         aligned = gn >= np.cos(np.radians(p.max_angle_deg)) * gm
         edge = np.where(aligned, np.clip(gn / p.tau, 0.0, 1.0), 0.0)
         if p.w_floor <= 0:
             return edge
-        c1 = self.sample(self.color, pts + p.near_px * normals)
-        c2 = self.sample(self.color, pts + p.far_px * normals)
-        floor = 1.0 - np.clip(np.linalg.norm(c1 - c2, axis=1) / p.tau_c, 0.0, 1.0)
-        # where the far sample leaves the image the continuity is unknown: neutral
+        m = len(pts)
         far = pts + p.far_px * normals
+        c = self.sample(self.color, np.concatenate([pts + p.near_px * normals, far]))
+        c = c.astype(np.float32)
+        d = c[:m] - c[m:]
+        floor = 1.0 - np.clip(np.sqrt((d * d).sum(1)) / p.tau_c, 0.0, 1.0)
+        # where the far sample leaves the image the continuity is unknown: neutral
         inside = (far[:, 1] <= self.height - 1) & (far[:, 0] >= 0) & (far[:, 0] <= self.width - 1)
         floor = np.where(inside, floor, 1.0)
         return edge * (p.w_floor * floor + 1.0 - p.w_floor)
@@ -150,24 +165,18 @@ def tabulate(field: EdgeField, coef: np.ndarray, substeps: int = 2) -> SupportTa
     O = np.zeros((n, W + 1))
     O[:, 1:] = np.cumsum((v < -0.5) | (v > H - 0.5), axis=1)
     normals = coef[:, :2]  # b >= 0: points to larger v (down); floor side for floor lines
-    pts_all, nrm_all, line_idx, col_idx, w_all = [], [], [], [], []
-    for i in range(n):
-        u = (np.arange(W * k[i]) + 0.5) / k[i] - 0.5
-        vv = slope[i] * u - coef[i, 2] / coef[i, 1]
-        ins = (vv >= -0.5) & (vv <= H - 0.5)
-        if not ins.any():
-            continue
-        u, vv = u[ins], vv[ins]
-        pts_all.append(np.column_stack([u, vv]))
-        nrm_all.append(np.broadcast_to(normals[i], (len(u), 2)))
-        line_idx.append(np.full(len(u), i))
-        col_idx.append(np.clip(np.round(u), 0, W - 1).astype(int))
-        w_all.append(np.full(len(u), ds_col[i] / k[i]))
-    if pts_all:
-        pts = np.concatenate(pts_all)
-        e = field.evidence(pts, np.concatenate(nrm_all))
-        li, ci, w = np.concatenate(line_idx), np.concatenate(col_idx), np.concatenate(w_all)
-        flat = li * W + ci
+    # every line's samples at once: line i has W * k[i] samples at u = (j + 0.5) / k[i] - 0.5
+    counts = W * k
+    li = np.repeat(np.arange(n), counts)
+    j = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    u = (j + 0.5) / k[li] - 0.5
+    vv = slope[li] * u - (coef[:, 2] / coef[:, 1])[li]
+    ins = (vv >= -0.5) & (vv <= H - 0.5)
+    if ins.any():
+        li, u, vv = li[ins], u[ins], vv[ins]
+        e = field.evidence(np.column_stack([u, vv]), normals[li])
+        w = (ds_col / k)[li]
+        flat = li * W + np.clip(np.round(u), 0, W - 1).astype(int)
         sup = np.bincount(flat, weights=e * w, minlength=n * W).reshape(n, W)
         length = np.bincount(flat, weights=w, minlength=n * W).reshape(n, W)
         S[:, 1:] = np.cumsum(sup, axis=1)

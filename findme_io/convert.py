@@ -6,15 +6,18 @@ in ``Frame.hfov_deg`` (a user-facing lens setting) and on the command line.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
 import schemas
-from .imageio import decode_image
-from findme_core.camera import DEFAULT_HFOV_DEG, Camera
+from .camera_source import lens_camera, with_gravity
+from .imageio import decode_photo, probe
+from findme_core.camera import Camera
 from findme_core.errors import CameraError, ImageError, InputError
 from findme_core.hypotheses import Hypothesis, HypothesisSet
+from findme_core.provenance import Provenance, tilt_cov
 from findme_core.scene import Located, distances
 
 _FORMATS = {b"\xff\xd8\xff": "jpeg", b"\x89PNG": "png", b"RIFF": "webp"}
@@ -29,7 +32,8 @@ def image_format(data: bytes) -> str:
 
 def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
                hfov_deg: float | None = None, gravity=None, camera_height_m=None,
-               camera_height_sigma_m=None, device: str = "", time_ns: int | None = None):
+               camera_height_sigma_m=None, device: str = "", time_ns: int | None = None,
+               gravity_sigma_rad: float | None = None):
     """A Frame message; ``intrinsics`` is (fx, fy, cx, cy, width, height) or None."""
     t = time.time_ns() if time_ns is None else int(time_ns)
     f = schemas.Frame(session=session, index=int(index), capture_time_ns=t, device=device)
@@ -45,6 +49,8 @@ def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
         f.hfov_deg = float(hfov_deg)
     if gravity is not None:
         f.gravity.CopyFrom(schemas.vec3_to_msg(gravity))
+        if gravity_sigma_rad is not None:
+            f.gravity_sigma_rad = float(gravity_sigma_rad)
     if camera_height_m is not None:
         f.camera_height_m = float(camera_height_m)
     if camera_height_sigma_m is not None:
@@ -52,9 +58,9 @@ def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
     return f
 
 
-def frame_camera(frame, width: int, height: int) -> Camera:
-    """The Camera of a Frame whose image is ``width`` x ``height``."""
-    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+def _frame_lens(frame, width: int, height: int, exif=None) -> tuple[Camera, str, tuple]:
+    """(level Camera, lens source, notes): the frame's lens, else the photo's EXIF focal
+    length, else the default (``camera_source.lens_camera``)."""
     try:
         lens = frame.WhichOneof("lens")
         if lens == "intrinsics":
@@ -62,24 +68,64 @@ def frame_camera(frame, width: int, height: int) -> Camera:
             if (k.width, k.height) != (width, height):
                 raise InputError(f"frame {frame.index}: intrinsics are for {k.width}x{k.height} "
                                  f"but the image is {width}x{height}")
-            return Camera(k.fx, k.fy, k.cx, k.cy, width, height, g)
-        hfov = frame.hfov_deg if lens == "hfov_deg" else DEFAULT_HFOV_DEG
-        return Camera.from_hfov(hfov, width, height, g)
+            return lens_camera(width, height, (k.fx, k.fy, k.cx, k.cy))
+        if lens == "hfov_deg":
+            return lens_camera(width, height, hfov_deg=frame.hfov_deg)
+        if exif is None:
+            exif = probe(frame.image.data)[2]
+        return lens_camera(width, height, exif=exif)
     except CameraError as e:
         raise CameraError(f"frame {frame.index}: {e}") from None
 
 
+def _frame_gravity_sigma(frame) -> float | None:
+    return frame.gravity_sigma_rad if frame.HasField("gravity_sigma_rad") else None
+
+
+def frame_camera(frame, width: int, height: int) -> Camera:
+    """The Camera of a Frame whose image is ``width`` x ``height``: its lens (else EXIF,
+    else the default) and its gravity (level when it gives none; the hypotheses service
+    estimates it from the image then, see ``frame_photo_camera``)."""
+    cam, _, _ = _frame_lens(frame, width, height)
+    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+    try:
+        return cam.with_gravity(g)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+
+
+def frame_photo_camera(frame, estimate: bool = True) -> tuple[np.ndarray, Camera, Provenance]:
+    """(BGR image, Camera, Provenance) of a Frame: the lens as ``frame_camera``; gravity the
+    frame's, else estimated from the image (``estimate``), else level."""
+    photo = decode_photo(frame.image.data, f"frame {frame.index}")
+    image = photo.image
+    cam, source, notes = _frame_lens(frame, image.shape[1], image.shape[0], photo.exif)
+    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+    try:
+        cam, prov = with_gravity(cam, image, g, _frame_gravity_sigma(frame), estimate, source,
+                                 notes)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+    return image, cam, prov
+
+
 def frame_inputs(frame) -> tuple[np.ndarray, Camera]:
-    """(BGR image, Camera) of a Frame."""
-    image = decode_image(frame.image.data, f"frame {frame.index}")
-    return image, frame_camera(frame, image.shape[1], image.shape[0])
+    """(BGR image, Camera) of a Frame, gravity estimated when the frame gives none."""
+    image, cam, _ = frame_photo_camera(frame)
+    return image, cam
 
 
-def camera_msg(cam: Camera):
-    return schemas.Camera(
+def camera_msg(cam: Camera, prov: Provenance | None = None):
+    """A Camera message; with the provenance: lens and gravity sources and gravity sigma."""
+    m = schemas.Camera(
         intrinsics=schemas.Intrinsics(fx=cam.fx, fy=cam.fy, cx=cam.cx, cy=cam.cy,
                                       width=cam.width, height=cam.height),
         gravity=schemas.vec3_to_msg(cam.gravity))
+    if prov is not None:
+        m.lens_source, m.gravity_source = prov.camera, prov.gravity
+        m.gravity_sigma_rad = prov.gravity_sigma
+        m.gravity_cov_rad2.extend(float(x) for x in prov.gravity_cov.ravel())
+    return m
 
 
 def msg_camera(msg) -> Camera:
@@ -88,10 +134,33 @@ def msg_camera(msg) -> Camera:
     return Camera(k.fx, k.fy, k.cx, k.cy, k.width, k.height, g)
 
 
-def hypothesis_set_msg(session: str, index: int, hs: HypothesisSet, method: str):
+def msg_provenance(msg) -> Provenance | None:
+    """The Provenance a Camera message carries, None when it says nothing (older senders)."""
+    if not msg.gravity_source:
+        return None
+    cov = (np.asarray(msg.gravity_cov_rad2, float).reshape(2, 2) if len(msg.gravity_cov_rad2) == 4
+           else tilt_cov(msg.gravity_sigma_rad))
+    return Provenance(msg.lens_source or "input", msg.gravity_source, cov)
+
+
+def provenance_text(msg) -> str:
+    """One line saying where a Camera message's lens and gravity came from."""
+    k = msg.intrinsics
+    hfov = math.degrees(2 * math.atan(k.width / (2 * k.fx))) if k.fx > 0 else float("nan")
+    lens = {"input": "given", "exif": "from EXIF", "default": "assumed"}.get(msg.lens_source, "?")
+    grav = {"input": "given", "image": "from the image", "level": "LEVEL ASSUMED"}.get(
+        msg.gravity_source, "?")
+    return (f"camera {hfov:.1f} deg ({lens}); gravity {grav} "
+            f"(± {math.degrees(msg.gravity_sigma_rad):.1f} deg)")
+
+
+def hypothesis_set_msg(session: str, index: int, hs: HypothesisSet, method: str,
+                       camera: Camera | None = None, provenance: Provenance | None = None):
     m = schemas.HypothesisSet(session=session, index=index, width=hs.width, height=hs.height,
                               reason=hs.reason or "", method=method,
                               timing_ms={k: float(v) for k, v in hs.timing_ms.items()})
+    if camera is not None:
+        m.camera.CopyFrom(camera_msg(camera, provenance))
     if not hs.hypotheses and not m.reason:
         m.reason = "no hypotheses"
     for i, h in enumerate(hs.hypotheses):

@@ -72,6 +72,21 @@ from .v1.measure_pb2 import (
     Surface,
 )
 from .v1.motion_pb2 import Motion, Pose, Trajectory
+from .v1.plan_pb2 import (
+    PLAN_PHOTO_STATUS_LEFT_OUT,
+    PLAN_PHOTO_STATUS_NOT_PLACED,
+    PLAN_PHOTO_STATUS_PLACED,
+    WALL_KIND_MISSING,
+    WALL_KIND_OPENING,
+    WALL_KIND_WALL,
+    Plan,
+    PlanOpening,
+    PlanPhoto,
+    PlanPhotoStatus,
+    PlanPoint,
+    PlanWall,
+    WallKind,
+)
 from .v1.scene_pb2 import Scene
 from .v1.selection_pb2 import SELECTED_BY_AUTO, SELECTED_BY_USER, SelectedBy, Selection
 from .v1.status_pb2 import Error, ErrorCode, ServiceStatus
@@ -92,4 +107,7 @@ __all__ = [
     "SELECTED_BY_AUTO", "Scene", "MeasureRequest", "MeasureReply", "MeasuredPoint",
     "Distance", "Surface", "SURFACE_NONE", "SURFACE_FLOOR", "SURFACE_WALL",
     "Motion", "Pose", "Trajectory", "Error", "ErrorCode", "ServiceStatus",
+    "Plan", "PlanPoint", "PlanWall", "PlanOpening", "PlanPhoto", "WallKind", "PlanPhotoStatus",
+    "WALL_KIND_WALL", "WALL_KIND_OPENING", "WALL_KIND_MISSING", "PLAN_PHOTO_STATUS_PLACED",
+    "PLAN_PHOTO_STATUS_NOT_PLACED", "PLAN_PHOTO_STATUS_LEFT_OUT",
 ]

@@ -10,7 +10,7 @@ from findme_core.errors import SchemaError
 
 from ._validate import VALIDATORS
 from .v1 import common_pb2, frame_pb2, hypotheses_pb2, measure_pb2, motion_pb2, scene_pb2
-from .v1 import selection_pb2, status_pb2
+from .v1 import plan_pb2, selection_pb2, status_pb2
 
 M = TypeVar("M", bound=Message)
 
@@ -41,6 +41,7 @@ MESSAGE_TYPES: dict[str, type[Message]] = {
         motion_pb2.Motion,
         motion_pb2.Pose,
         motion_pb2.Trajectory,
+        plan_pb2.Plan,
         status_pb2.Error,
         status_pb2.ServiceStatus,
     )

@@ -17,7 +17,7 @@ from typing import Any
 from google.protobuf.message import Message
 
 from .v1 import common_pb2, frame_pb2, hypotheses_pb2, measure_pb2, motion_pb2, scene_pb2
-from .v1 import selection_pb2, status_pb2
+from .v1 import plan_pb2, selection_pb2, status_pb2
 
 #: A session id: safe as one Zenoh key chunk and as a file name.
 SESSION_PATTERN = r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}"
@@ -114,6 +114,31 @@ def _height(p: Problems, msg: Message, field: str = "camera_height_m",
         _nonneg(p, sigma, getattr(msg, sigma))
 
 
+LENS_SOURCES = ("", "input", "exif", "default")
+GRAVITY_SOURCES = ("", "input", "image", "level")
+
+
+def _camera(p: Problems, name: str, c: common_pb2.Camera) -> None:
+    """A Camera message: intrinsics (required), gravity, sources and gravity sigma."""
+    if not c.HasField("intrinsics"):
+        p.append(f"{name}.intrinsics is missing")
+    else:
+        _intrinsics(p, f"{name}.intrinsics", c.intrinsics)
+    if c.HasField("gravity"):
+        _vec3(p, f"{name}.gravity", c.gravity, nonzero=True)
+    if c.lens_source not in LENS_SOURCES:
+        p.append(f"{name}.lens_source must be one of {LENS_SOURCES[1:]}, got {_short(c.lens_source)}")
+    if c.gravity_source not in GRAVITY_SOURCES:
+        p.append(f"{name}.gravity_source must be one of {GRAVITY_SOURCES[1:]}, "
+                 f"got {_short(c.gravity_source)}")
+    _nonneg(p, f"{name}.gravity_sigma_rad", c.gravity_sigma_rad)
+    if len(c.gravity_cov_rad2) not in (0, 4):
+        p.append(f"{name}.gravity_cov_rad2 must have 0 or 4 numbers, got {len(c.gravity_cov_rad2)}")
+    else:
+        for i, x in enumerate(c.gravity_cov_rad2):
+            _finite(p, f"{name}.gravity_cov_rad2[{i}]", x)
+
+
 def _frame(m: frame_pb2.Frame) -> Problems:
     p: Problems = []
     _session(p, m.session)
@@ -138,6 +163,8 @@ def _frame(m: frame_pb2.Frame) -> Problems:
         p.append(f"hfov_deg must be in (0, 180) degrees, got {m.hfov_deg!r}")
     if m.HasField("gravity"):
         _vec3(p, "gravity", m.gravity, nonzero=True)
+    if m.HasField("gravity_sigma_rad"):
+        _nonneg(p, "gravity_sigma_rad", m.gravity_sigma_rad)
     _height(p, m)
     return p
 
@@ -159,6 +186,8 @@ def _hypothesis_set(m: hypotheses_pb2.HypothesisSet) -> Problems:
         p.append("no hypotheses and no reason: an empty set must say why")
     for k, v in sorted(m.timing_ms.items()):
         _nonneg(p, f"timing_ms[{k!r}]", v)
+    if m.HasField("camera"):
+        _camera(p, "camera", m.camera)
     return p
 
 
@@ -177,12 +206,7 @@ def _scene(m: scene_pb2.Scene) -> Problems:
     _session(p, m.session)
     if m.rank < 1:
         p.append("rank must be >= 1, got 0")
-    if not m.camera.HasField("intrinsics"):
-        p.append("camera.intrinsics is missing")
-    else:
-        _intrinsics(p, "camera.intrinsics", m.camera.intrinsics)
-    if m.camera.HasField("gravity"):
-        _vec3(p, "camera.gravity", m.camera.gravity, nonzero=True)
+    _camera(p, "camera", m.camera)
     _positive(p, "camera_height_m", m.camera_height_m)
     _nonneg(p, "camera_height_sigma_m", m.camera_height_sigma_m)
     _polyline(p, "polyline", m.polyline)
@@ -299,6 +323,77 @@ def _trajectory(m: motion_pb2.Trajectory) -> Problems:
     return p
 
 
+_PLACED_FIELDS = ("x_m", "z_m", "yaw_rad")
+_PLACED_SIGMAS = ("sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "ambiguity")
+
+
+def _plan_point(p: Problems, name: str, q: plan_pb2.PlanPoint) -> None:
+    _finite(p, f"{name}.x_m", q.x_m)
+    _finite(p, f"{name}.z_m", q.z_m)
+
+
+def _plan_wall(p: Problems, name: str, w: plan_pb2.PlanWall) -> None:
+    _plan_point(p, f"{name}.a", w.a)
+    _plan_point(p, f"{name}.b", w.b)
+    _positive(p, f"{name}.length_m", w.length_m)
+    _nonneg(p, f"{name}.sigma_m", w.sigma_m)
+    _enum(p, f"{name}.kind", plan_pb2.WallKind, w.kind, allow_zero=False)
+    for i, o in enumerate(w.openings):
+        if not (math.isfinite(o.from_m) and math.isfinite(o.to_m)
+                and 0 <= o.from_m < o.to_m <= w.length_m + 1e-6):
+            p.append(f"{name}.openings[{i}] ({o.from_m!r} to {o.to_m!r} m) must lie within "
+                     f"0 <= from_m < to_m <= length_m ({w.length_m!r})")
+
+
+def _plan_photo(p: Problems, name: str, q: plan_pb2.PlanPhoto) -> None:
+    _enum(p, f"{name}.status", plan_pb2.PlanPhotoStatus, q.status, allow_zero=False)
+    present = [f for f in _PLACED_FIELDS + _PLACED_SIGMAS if q.HasField(f)]
+    if q.status == plan_pb2.PLAN_PHOTO_STATUS_PLACED:
+        missing = [f for f in _PLACED_FIELDS if not q.HasField(f)]
+        if missing:
+            p.append(f"{name} is PLACED but has no {', '.join(missing)}")
+        for f in present:
+            (_nonneg if f in _PLACED_SIGMAS else _finite)(p, f"{name}.{f}", getattr(q, f))
+    elif q.status in plan_pb2.PlanPhotoStatus.values() and q.status:
+        if present:
+            p.append(f"{name} is not placed, so must carry no numbers, has {', '.join(present)}")
+        if not q.reason.strip():
+            p.append(f"{name} is not placed and says no reason")
+
+
+def _plan(m: plan_pb2.Plan) -> Problems:
+    p: Problems = []
+    _session(p, m.session)
+    if m.reason:
+        if m.polygon or m.walls:
+            p.append("a plan with a reason (no outline yet) must carry no polygon or walls")
+    else:
+        if len(m.polygon) < 3:
+            p.append(f"polygon needs at least 3 vertices, got {len(m.polygon)} (or a reason)")
+        if len(m.walls) != len(m.polygon):
+            p.append(f"walls must be one per polygon edge: {len(m.polygon)} vertices, "
+                     f"{len(m.walls)} walls")
+    for i, q in enumerate(m.polygon):
+        _plan_point(p, f"polygon[{i}]", q)
+    for i, w in enumerate(m.walls):
+        _plan_wall(p, f"walls[{i}]", w)
+    missing = [i for i, w in enumerate(m.walls) if w.kind == plan_pb2.WALL_KIND_MISSING]
+    if m.walls and m.closed == bool(missing):
+        p.append(f"closed is {m.closed} but the missing walls are {missing}")
+    _nonneg(p, "area_m2", m.area_m2)
+    _positive(p, "camera_height_m", m.camera_height_m)
+    last = -1
+    for i, q in enumerate(m.poses):
+        if q.index <= last:
+            p.append(f"poses[{i}].index {q.index} out of order (after {last}): photos are "
+                     "sorted by index, each at most once")
+        last = q.index
+        _plan_photo(p, f"poses[{i}]", q)
+    for k, v in sorted(m.timing_ms.items()):
+        _nonneg(p, f"timing_ms[{k!r}]", v)
+    return p
+
+
 def _error(m: status_pb2.Error) -> Problems:
     p: Problems = []
     _session(p, m.session, allow_empty=True)
@@ -328,6 +423,7 @@ VALIDATORS: dict[str, Callable[[Any], Problems]] = {
         (motion_pb2.Motion, _motion),
         (motion_pb2.Pose, _pose),
         (motion_pb2.Trajectory, _trajectory),
+        (plan_pb2.Plan, _plan),
         (status_pb2.Error, _error),
         (status_pb2.ServiceStatus, _service_status),
     ]

@@ -1,10 +1,22 @@
-"""Make a private CA and a TLS certificate for the Zenoh router (phone + server deployment).
+"""Make a private CA and the TLS certificates of the phone + server deployment.
 
-    python tools/make_certs.py OUT_DIR [--host findme.example.org] [--host 10.0.0.5]
+    python tools/make_certs.py OUT_DIR [--host findme.example.org] [--host 192.168.1.20]
 
-Writes ca.pem (give it to every device: it is how they know the router is yours),
-router.pem and router.key (the router's certificate and private key). Uses the
-``cryptography`` package; equivalent openssl commands are in compose/README.md.
+Writes into OUT_DIR (git-ignored when it is certs/; never put it in an image):
+
+* ``ca.pem``  - the private CA (PEM): services and native clients check the router with it
+  (``--ca``, ``root_ca_certificate``); ``ca.crt`` - the same in DER, the file to install on
+  a phone so that its browser trusts the page (README: "The phone").
+* ``router.pem`` / ``router.key`` - the Zenoh router's certificate and key.
+* ``gateway.pem`` / ``gateway.key`` - the HTTPS certificate of the phone page's gateway.
+
+Each certificate names the host the compose file gives that service (``router``,
+``gateway``), ``localhost`` and ``127.0.0.1``, plus every ``--host`` (DNS names, and IP
+addresses as IP subjectAltNames): the names clients use to reach the server. Zenoh and
+browsers check the name they connected to against these. Valid 825 days with the
+serverAuth extended key usage (iOS refuses server certificates without it or valid longer).
+The CA's private key is not kept: to add a host, make a new set (and install the new CA).
+Uses the ``cryptography`` package; equivalent openssl commands are in compose/README.md.
 """
 
 from __future__ import annotations
@@ -17,52 +29,92 @@ from pathlib import Path
 from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import NameOID
+from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
+
+#: The services of compose/docker-compose.yml that serve TLS, by their compose host names.
+COMPOSE_TLS_HOSTS = ("router", "gateway")
+LOCAL = ("localhost", "127.0.0.1")
 
 
 def _name(cn: str) -> x509.Name:
     return x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, cn)])
 
 
-def make_certs(out: Path, hosts=("localhost", "127.0.0.1"), days: int = 825) -> dict:
+def _san(host: str) -> x509.GeneralName:
+    try:
+        return x509.IPAddress(ipaddress.ip_address(host))
+    except ValueError:
+        return x509.DNSName(host)
+
+
+def _write_key(path: Path, key) -> None:
+    path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
+                                       serialization.PrivateFormat.PKCS8,
+                                       serialization.NoEncryption()))
+    path.chmod(0o600)
+
+
+def make_certs(out: Path, hosts=(), leaves: dict | None = None, days: int = 825) -> dict:
+    """Write the CA and one certificate per leaf into ``out``; returns {name: path}.
+
+    Args:
+        hosts: extra host names / IP addresses every certificate names.
+        leaves: {file stem: [host, ...]} (default: ``router`` and ``gateway``, each naming
+            itself, localhost, 127.0.0.1 and ``hosts``).
+    """
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    if leaves is None:
+        leaves = {stem: [stem, *LOCAL, *hosts] for stem in COMPOSE_TLS_HOSTS}
     now = dt.datetime.now(dt.timezone.utc)
     ca_key = ec.generate_private_key(ec.SECP256R1())
+    ca_ski = x509.SubjectKeyIdentifier.from_public_key(ca_key.public_key())
     ca = (x509.CertificateBuilder().subject_name(_name("Find Me private CA"))
           .issuer_name(_name("Find Me private CA")).public_key(ca_key.public_key())
           .serial_number(x509.random_serial_number()).not_valid_before(now)
           .not_valid_after(now + dt.timedelta(days=days))
-          .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+          .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
+          .add_extension(x509.KeyUsage(digital_signature=False, content_commitment=False,
+                                       key_encipherment=False, data_encipherment=False,
+                                       key_agreement=False, key_cert_sign=True, crl_sign=True,
+                                       encipher_only=False, decipher_only=False), critical=True)
+          .add_extension(ca_ski, critical=False)
           .sign(ca_key, hashes.SHA256()))
-    key = ec.generate_private_key(ec.SECP256R1())
-    sans = []
-    for h in hosts:
-        try:
-            sans.append(x509.IPAddress(ipaddress.ip_address(h)))
-        except ValueError:
-            sans.append(x509.DNSName(h))
-    cert = (x509.CertificateBuilder().subject_name(_name(hosts[0])).issuer_name(ca.subject)
-            .public_key(key.public_key()).serial_number(x509.random_serial_number())
-            .not_valid_before(now).not_valid_after(now + dt.timedelta(days=days))
-            .add_extension(x509.SubjectAlternativeName(sans), critical=False)
-            .sign(ca_key, hashes.SHA256()))
-    paths = {"ca": out / "ca.pem", "cert": out / "router.pem", "key": out / "router.key"}
+    paths = {"ca": out / "ca.pem", "ca_der": out / "ca.crt"}
     paths["ca"].write_bytes(ca.public_bytes(serialization.Encoding.PEM))
-    paths["cert"].write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    paths["key"].write_bytes(key.private_bytes(serialization.Encoding.PEM,
-                                               serialization.PrivateFormat.PKCS8,
-                                               serialization.NoEncryption()))
-    paths["key"].chmod(0o600)
+    paths["ca_der"].write_bytes(ca.public_bytes(serialization.Encoding.DER))
+    for stem, names in leaves.items():
+        names = list(dict.fromkeys(names))      # in order, once each
+        key = ec.generate_private_key(ec.SECP256R1())
+        cert = (x509.CertificateBuilder().subject_name(_name(names[0])).issuer_name(ca.subject)
+                .public_key(key.public_key()).serial_number(x509.random_serial_number())
+                .not_valid_before(now).not_valid_after(now + dt.timedelta(days=days))
+                .add_extension(x509.SubjectAlternativeName([_san(h) for h in names]), critical=False)
+                .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+                .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH]),
+                               critical=False)
+                .add_extension(x509.SubjectKeyIdentifier.from_public_key(key.public_key()),
+                               critical=False)
+                .add_extension(x509.AuthorityKeyIdentifier.from_issuer_subject_key_identifier(ca_ski),
+                               critical=False)
+                .sign(ca_key, hashes.SHA256()))
+        paths[stem] = out / f"{stem}.pem"
+        paths[stem].write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+        paths[stem + "_key"] = out / f"{stem}.key"
+        _write_key(paths[stem + "_key"], key)
     return paths
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("out")
-    ap.add_argument("--host", action="append", help="router host name or IP (repeatable)")
+    ap.add_argument("out", help="folder to write the files into (e.g. certs)")
+    ap.add_argument("--host", action="append", default=[],
+                    help="a name or IP address clients use to reach the server (repeatable)")
     a = ap.parse_args(argv)
-    paths = make_certs(Path(a.out), tuple(a.host or ("localhost", "127.0.0.1")))
+    paths = make_certs(Path(a.out), tuple(a.host))
+    names = [*COMPOSE_TLS_HOSTS, *LOCAL, *a.host]
     print("\n".join(f"{k}: {v}" for k, v in paths.items()))
+    print(f"certificates name: {', '.join(dict.fromkeys(names))}")
 
 
 if __name__ == "__main__":

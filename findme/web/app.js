@@ -5,7 +5,7 @@
  *   text    {"type": "select", index, rank, camera_height_m}         another hypothesis
  *   text    {"type": "measure", id, index, pixels: [[u, v], ...]}    3D of tapped pixels
  * and gets JSON: hello, frame, refused, hypotheses, selection, scene, measure, motion, pose,
- * trajectory, error. Pixels follow the bus convention: (0, 0) is the centre of the
+ * trajectory, plan (drawn by plan.js), error. Pixels follow the bus convention: (0, 0) is the centre of the
  * top-left pixel.
  *
  * Gravity conversion (documented here and in the report):
@@ -29,6 +29,18 @@
  *   "Automatic" picks theta whose image-down axis is closest to gravity, as camera apps do
  *   when they decide a photo's orientation; the live camera uses the screen's angle
  *   (screen.orientation.angle), because its preview is upright for the screen.
+ *
+ * Where gravity comes from (shown under the photo, from the server's answer):
+ *   - the phone's sensors, when allowed: listening starts by itself where no permission is
+ *     asked (Android), or with "Turn on motion sensors" (iOS asks); a live-camera capture
+ *     sends the reading of that moment, and "Use phone tilt now" fills the fields;
+ *   - else the photo itself: the server estimates gravity from its vertical and horizontal
+ *     lines (a photo from the camera app or the gallery was taken at another moment than
+ *     any reading the page has, so the page does not guess);
+ *   - else "level" is assumed, and the page warns that distances may be far off.
+ * The lens: "From the photo" sends none, so the server reads the EXIF focal length (or, when
+ * the page had to re-encode the photo and so drop its EXIF, the page sends the EXIF
+ * 35 mm-equivalent focal length it read), else it assumes a typical phone camera.
  */
 'use strict';
 (function () {
@@ -170,28 +182,37 @@
         b[8] === 0x57 && b[9] === 0x45 && b[10] === 0x42 && b[11] === 0x50) return 'webp';
     return null;
   }
-  function exifOrientation(b) {  // JPEG EXIF tag 0x0112, 1 when absent
-    const dv = new DataView(b.buffer, b.byteOffset, b.byteLength);
-    let i = 2;
-    while (i + 4 <= b.length && b[i] === 0xff) {
-      const marker = b[i + 1], len = dv.getUint16(i + 2);
-      if (marker === 0xe1 && dv.getUint32(i + 4) === 0x45786966) {
-        const t = i + 10, le = dv.getUint16(t) === 0x4949;
-        if (t + 8 > b.length) return 1;
-        const ifd = t + dv.getUint32(t + 4, le);
-        if (ifd + 2 > b.length) return 1;
-        const n = dv.getUint16(ifd, le);
-        for (let k = 0; k < n; k++) {
-          const e = ifd + 2 + 12 * k;
-          if (e + 12 > b.length) return 1;
-          if (dv.getUint16(e, le) === 0x0112) return dv.getUint16(e + 8, le);
+  function exifFacts(b) {  // JPEG EXIF: orientation (0x0112, 1 when absent) and the
+    // 35 mm-equivalent focal length (Exif IFD 0x8769 -> 0xA405, null when absent)
+    const out = {orientation: 1, focal35: null};
+    try {
+      const dv = new DataView(b.buffer, b.byteOffset, b.byteLength);
+      let i = 2;
+      while (i + 4 <= b.length && b[i] === 0xff) {
+        const marker = b[i + 1], len = dv.getUint16(i + 2);
+        if (marker === 0xe1 && dv.getUint32(i + 4) === 0x45786966) {
+          const t = i + 10, le = dv.getUint16(t) === 0x4949;
+          const entries = (off) => {
+            const n = dv.getUint16(off, le), list = [];
+            for (let k = 0; k < n; k++) list.push(off + 2 + 12 * k);
+            return list;
+          };
+          for (const e of entries(t + dv.getUint32(t + 4, le))) {
+            const tag = dv.getUint16(e, le);
+            if (tag === 0x0112) out.orientation = dv.getUint16(e + 8, le);
+            if (tag === 0x8769) {
+              for (const f of entries(t + dv.getUint32(e + 8, le))) {
+                if (dv.getUint16(f, le) === 0xa405) out.focal35 = dv.getUint16(f + 8, le) || null;
+              }
+            }
+          }
+          return out;
         }
-        return 1;
+        if (marker === 0xda) return out;
+        i += 2 + len;
       }
-      if (marker === 0xda) return 1;
-      i += 2 + len;
-    }
-    return 1;
+    } catch (e) { /* a broken EXIF block: what was read so far */ }
+    return out;
   }
   async function reencode(blob) {  // upright JPEG through a canvas (EXIF rotation, HEIC, ...)
     const bmp = await createImageBitmap(blob, {imageOrientation: 'from-image'});
@@ -216,8 +237,11 @@
     if (!Number.isFinite(x)) throw new Error(`${id} must be a number`);
     return x;
   }
-  function lensFromForm(dims) {
+  function lensFromForm(dims, exifFocal35) {
     const kind = $('lens').value;
+    if (kind === 'auto') {   // the server reads EXIF; unless the page re-encoded (EXIF gone)
+      return exifFocal35 ? {kind: 'focal35', focal35_mm: exifFocal35} : {kind: 'default'};
+    }
     if (kind === 'typical') return {kind: 'focal35', focal35_mm: 26};
     if (kind === 'focal35') {
       const f = num('focal35');
@@ -249,7 +273,7 @@
     return h;
   }
 
-  async function upload(file) {
+  async function upload(file, sensorGravity = null) {
     if (!file) return;
     if (!state.session) { notify('Not connected to the server yet.', 'error', 'CLOSED'); return; }
     if (state.photos.length >= state.limits.max_photos) {
@@ -268,17 +292,23 @@
       let blob = file;
       let bytes = new Uint8Array(await file.arrayBuffer());
       const fmt = sniff(bytes);
-      if (!fmt || (fmt === 'jpeg' && exifOrientation(bytes) > 1)) {
+      const exif = fmt === 'jpeg' ? exifFacts(bytes) : {orientation: 1, focal35: null};
+      let reencoded = false;
+      if (!fmt || (fmt === 'jpeg' && exif.orientation > 1)) {
         // the browser can show it upright (EXIF rotation) or decode it (HEIC on Safari): send
         // the pixels as shown; if it cannot decode it either, the server says what is wrong
         try {
           const up = await reencode(file);
-          if (up) { blob = up; bytes = new Uint8Array(await up.arrayBuffer()); }
+          if (up) { blob = up; bytes = new Uint8Array(await up.arrayBuffer()); reencoded = true; }
         } catch (e) { /* not decodable here: the server judges */ }
       }
       const url = URL.createObjectURL(blob);
       const dims = await imageSize(url).catch(() => null);
-      header = {type: 'frame', id, lens: lensFromForm(dims), gravity: gravityFromForm(),
+      const typed = gravityFromForm();
+      const gravity = sensorGravity || typed;
+      const filled = state.sensors.filled &&
+        ['gx', 'gy', 'gz'].every((id, i) => $(id).value === state.sensors.filled[i]);
+      header = {type: 'frame', id, lens: lensFromForm(dims, reencoded ? exif.focal35 : null), gravity,
                 camera_height_m: heightFromForm(), device: $('device').value.trim(),
                 capture_time_ms: file.lastModified || Date.now()};
       const head = new TextEncoder().encode(JSON.stringify(header));
@@ -286,7 +316,9 @@
       new DataView(buf.buffer).setUint32(0, head.length);
       buf.set(head, 4);
       buf.set(bytes, 4 + head.length);
-      state.pending.set(id, {url, name: file.name});
+      state.pending.set(id, {url, name: file.name, gravity,
+                             gravitySource: sensorGravity || (typed && filled) ? 'sensors'
+                                            : typed ? 'typed' : null});
       if (!send(buf.buffer)) { state.pending.delete(id); clearBusy('upload'); }
     } catch (e) {
       clearBusy('upload');
@@ -315,7 +347,9 @@
       const p = {index: m.index, url: pend ? pend.url : '', name: pend ? pend.name : '',
                  width: m.width, height: m.height, hyps: null, reason: '', rank: 0, by: '',
                  sceneRank: 0, metric: false, height_m: m.camera_height_m, points: [],
-                 reply: null, measureId: 0};
+                 reply: null, measureId: 0, camera: null,
+                 sentGravity: pend ? pend.gravity : null,
+                 gravitySent: pend ? pend.gravitySource : null, serverGravity: m.gravity};
       state.photos.push(p);
       setBusy('upload', 'Finding the floor boundary…');
       show(p.index);
@@ -333,7 +367,13 @@
       if (!p) return;
       p.hyps = m.hypotheses;
       p.reason = m.reason;
+      p.camera = m.camera || null;
       clearBusy('upload');
+      if (p.camera && p.camera.gravity_source === 'level') {
+        notify(`Photo ${m.index + 1}: the photo does not show which way is down, so the camera ` +
+               'is taken as level and distances may be far off. Use the live camera with the ' +
+               'motion sensors on, or type the phone\'s tilt.', 'warn', 'LEVEL');
+      }
       if (!m.hypotheses.length) {
         notify(`No floor boundary found in photo ${m.index + 1}: ${m.reason}`, 'warn', 'NO_HYPOTHESES');
       } else {
@@ -379,6 +419,7 @@
     },
     pose(m) { state.poses.set(m.index, m); renderMotion(); },
     trajectory(m) { state.trajectory = m.poses; renderMotion(); },
+    plan(m) { state.plan = m; if (window.FindMePlan) FindMePlan.render(m, state.units); },  // plan.js
     error(m) {
       const hint = ERROR_HINTS[m.code] ? ' ' + ERROR_HINTS[m.code] : '';
       const box = notify(`Server: ${m.message}.${hint}`, 'error', m.code);
@@ -511,7 +552,24 @@
       }
     }
     $('photo-status').textContent = status;
+    renderSources(p);
     renderPoints(p);
+  }
+  function renderSources(p) {   // where the lens and gravity of this photo came from
+    const e = $('sources'), c = p.camera;
+    if (!c) { e.textContent = ''; e.dataset.gravitySource = ''; e.dataset.lensSource = ''; return; }
+    const lens = {input: 'as set', exif: "from the photo's EXIF", default: 'a typical phone assumed'}[c.lens_source] || '';
+    const g = c.gravity_source === 'input'
+      ? (p.gravitySent === 'sensors' ? "from the phone's motion sensors" : 'as typed')
+      : c.gravity_source === 'image' ? `estimated from the photo's lines (± ${c.gravity_sigma_deg.toFixed(1)}°)`
+      : `NOT KNOWN: level assumed (± ${c.gravity_sigma_deg.toFixed(0)}°)`;
+    const pitch = Math.asin(Math.max(-1, Math.min(1, c.gravity[2]))) * DEG;
+    e.textContent = `Lens ${c.hfov_deg ? c.hfov_deg.toFixed(0) + '° wide' : ''}, ${lens}. ` +
+                    `Tilt ${pitch.toFixed(1)}° down, ${g}.`;
+    e.dataset.gravitySource = c.gravity_source === 'input' && p.gravitySent === 'sensors' ? 'sensors'
+                            : c.gravity_source || '';
+    e.dataset.lensSource = c.lens_source || '';
+    e.classList.toggle('warn', c.gravity_source === 'level');
   }
   function drawPolyline(svg, h, color, selected) {
     const g = el('svg:g', {class: selected ? 'hyp selected' : 'hyp', 'data-rank': h.rank});
@@ -693,7 +751,11 @@
     const g = currentGravity();
     return g ? autoRotation(g) : 0;
   }
-  async function startSensors() {
+  function sensorsNeedAsking() {
+    return [window.DeviceOrientationEvent, window.DeviceMotionEvent]
+      .some((cls) => cls && typeof cls.requestPermission === 'function');
+  }
+  async function startSensors(quiet = false) {
     if (!window.isSecureContext) {
       notify('Motion sensors need a secure page (HTTPS or localhost); type gravity in instead.', 'warn', 'INSECURE');
       return;
@@ -719,15 +781,18 @@
       if (a && a.x !== null) pushSample(deviceGravityFromMotion(a.x, a.y, a.z), 'motion');
     });
     $('sensors-btn').textContent = 'Motion sensors on';
-    setTimeout(() => {
-      if (!state.sensors.samples.length) notify('This device reports no motion sensors; type gravity in instead.', 'warn', 'SENSORS');
-    }, 2000);
+    if (!quiet) {
+      setTimeout(() => {
+        if (!state.sensors.samples.length) notify('This device reports no motion sensors; type gravity in instead.', 'warn', 'SENSORS');
+      }, 2000);
+    }
   }
   function fillGravity(live) {
     const g = currentGravity();
     if (!g) { notify('No phone tilt yet: turn on the motion sensors.', 'warn', 'SENSORS'); return false; }
     const c = deviceToCamera(g, rotation(live));
     ['gx', 'gy', 'gz'].forEach((id, i) => { $(id).value = c[i].toFixed(4); });
+    state.sensors.filled = ['gx', 'gy', 'gz'].map((id) => $(id).value);   // from the sensors
     return true;
   }
   async function startLive() {
@@ -752,9 +817,10 @@
     const c = document.createElement('canvas');
     c.width = v.videoWidth; c.height = v.videoHeight;
     c.getContext('2d').drawImage(v, 0, 0);
-    if (state.sensors.samples.length) fillGravity(true);
-    c.toBlob((b) => upload(new File([b], 'live.jpg', {type: 'image/jpeg', lastModified: Date.now()})),
-             'image/jpeg', 0.92);
+    const g = currentGravity();
+    const sensed = g ? deviceToCamera(g, rotation(true)) : null;
+    c.toBlob((b) => upload(new File([b], 'live.jpg', {type: 'image/jpeg', lastModified: Date.now()}),
+                           sensed), 'image/jpeg', 0.92);
   }
 
   // ------------------------------------------------------------------ wiring
@@ -783,6 +849,7 @@
       $('units-btn').textContent = state.units === 'm' ? 'Show feet' : 'Show metres';
       $('units-btn').setAttribute('aria-pressed', String(state.units === 'ft'));
       render(); renderMotion();
+      if (state.plan && window.FindMePlan) FindMePlan.render(state.plan, state.units);
     });
     $('height').addEventListener('change', () => {  // a new height re-builds the scene
       const p = photoAt(state.current);
@@ -790,7 +857,7 @@
       try { h = heightFromForm(); } catch (e) { notify(e.message, 'error', 'FORM'); return; }
       if (p && p.hyps && p.rank && h !== null && Math.abs(h - (p.height_m || 0)) > 1e-9) selectRank(p.rank);
     });
-    $('sensors-btn').addEventListener('click', startSensors);
+    $('sensors-btn').addEventListener('click', () => startSensors(false));
     $('tilt-btn').addEventListener('click', () => fillGravity(false));
     $('gravity-clear-btn').addEventListener('click', () => ['gx', 'gy', 'gz'].forEach((id) => { $(id).value = ''; }));
     $('new-session-btn').addEventListener('click', () => location.reload());
@@ -800,12 +867,14 @@
       $('shutter-btn').addEventListener('click', shutter);
       $('live-close-btn').addEventListener('click', stopLive);
     }
+    if (window.isSecureContext && !sensorsNeedAsking() &&
+        (window.DeviceOrientationEvent || window.DeviceMotionEvent)) startSensors(true);
     connect();
   }
 
   // for tests and the curious: the pure conversions and the state
   window.FindMe = {deviceGravityFromOrientation, deviceGravityFromMotion, deviceToCamera,
-                   autoRotation, state, send, handle};
+                   autoRotation, currentGravity, rotation, state, send, handle};
   if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', init);
   else init();
 })();

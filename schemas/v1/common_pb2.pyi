@@ -59,12 +59,20 @@ class Intrinsics(_message.Message):
     def __init__(self, fx: _Optional[float] = ..., fy: _Optional[float] = ..., cx: _Optional[float] = ..., cy: _Optional[float] = ..., width: _Optional[int] = ..., height: _Optional[int] = ...) -> None: ...
 
 class Camera(_message.Message):
-    __slots__ = ("intrinsics", "gravity")
+    __slots__ = ("intrinsics", "gravity", "lens_source", "gravity_source", "gravity_sigma_rad", "gravity_cov_rad2")
     INTRINSICS_FIELD_NUMBER: _ClassVar[int]
     GRAVITY_FIELD_NUMBER: _ClassVar[int]
+    LENS_SOURCE_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_SOURCE_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_SIGMA_RAD_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_COV_RAD2_FIELD_NUMBER: _ClassVar[int]
     intrinsics: Intrinsics
     gravity: Vec3
-    def __init__(self, intrinsics: _Optional[_Union[Intrinsics, _Mapping]] = ..., gravity: _Optional[_Union[Vec3, _Mapping]] = ...) -> None: ...
+    lens_source: str
+    gravity_source: str
+    gravity_sigma_rad: float
+    gravity_cov_rad2: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, intrinsics: _Optional[_Union[Intrinsics, _Mapping]] = ..., gravity: _Optional[_Union[Vec3, _Mapping]] = ..., lens_source: _Optional[str] = ..., gravity_source: _Optional[str] = ..., gravity_sigma_rad: _Optional[float] = ..., gravity_cov_rad2: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class Polyline(_message.Message):
     __slots__ = ("points", "kinds")

@@ -20,7 +20,7 @@ class Hypothesis(_message.Message):
     def __init__(self, rank: _Optional[int] = ..., score: _Optional[float] = ..., support: _Optional[float] = ..., polyline: _Optional[_Union[_common_pb2.Polyline, _Mapping]] = ...) -> None: ...
 
 class HypothesisSet(_message.Message):
-    __slots__ = ("schema", "session", "index", "width", "height", "hypotheses", "reason", "timing_ms", "method")
+    __slots__ = ("schema", "session", "index", "width", "height", "hypotheses", "reason", "timing_ms", "method", "camera")
     class TimingMsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -37,6 +37,7 @@ class HypothesisSet(_message.Message):
     REASON_FIELD_NUMBER: _ClassVar[int]
     TIMING_MS_FIELD_NUMBER: _ClassVar[int]
     METHOD_FIELD_NUMBER: _ClassVar[int]
+    CAMERA_FIELD_NUMBER: _ClassVar[int]
     schema: str
     session: str
     index: int
@@ -46,4 +47,5 @@ class HypothesisSet(_message.Message):
     reason: str
     timing_ms: _containers.ScalarMap[str, float]
     method: str
-    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., hypotheses: _Optional[_Iterable[_Union[Hypothesis, _Mapping]]] = ..., reason: _Optional[str] = ..., timing_ms: _Optional[_Mapping[str, float]] = ..., method: _Optional[str] = ...) -> None: ...
+    camera: _common_pb2.Camera
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., hypotheses: _Optional[_Iterable[_Union[Hypothesis, _Mapping]]] = ..., reason: _Optional[str] = ..., timing_ms: _Optional[_Mapping[str, float]] = ..., method: _Optional[str] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ...) -> None: ...

@@ -8,6 +8,15 @@ to an image (``photo.jpg`` -> ``photo.json``) with ``intrinsics {fx, fy, cx, cy,
 height}``, ``gravity_cam`` and ``camera_height_m`` (the bundled examples' and the
 evaluation set's format; nothing else in it is read). Frames stay in the service's cache so
 a service that starts later can fetch them.
+
+A frame's ``capture_time_ns`` is when the photo was taken (findme_io/capture_time.py): the
+EXIF ``DateTimeOriginal`` of a photo, else the file's modification time (what a camera or a
+copy that keeps times leaves; never the time the file was read); a video's creation time
+(MP4/QuickTime ``mvhd``, else its modification time minus its duration) plus the frame's
+position; a camera's frame the clock when it was grabbed.
+
+A file that cannot be read (missing, not an image, too large, a broken sidecar) does not
+stop the others: with an ``errors`` list, ``sources`` reports it there and goes on.
 """
 
 from __future__ import annotations
@@ -21,14 +30,15 @@ from pathlib import Path
 
 import cv2
 
-from findme_io.imageio import MAX_BYTES, encode_jpeg, read_image
-from findme_core.errors import ImageError, InputError
+from findme_io.capture_time import exif_time_ns, video_start_ns
+from findme_io.imageio import MAX_BYTES, encode_jpeg, for_bus, read_image
+from findme_core.errors import FindmeError, ImageError, InputError
 
 from ..runtime import bus
 from findme_io.convert import make_frame
 from ..runtime.handler import Handler
 
-IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff"}
+IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".webp", ".tif", ".tiff", ".heic", ".heif", ".avif"}
 VIDEO_EXT = {".mp4", ".avi", ".mov", ".mkv", ".webm"}
 
 
@@ -68,33 +78,66 @@ def _encoded(path: Path) -> bytes:
     return data
 
 
-def sources(paths, every: int = 1) -> Iterator[tuple[str, bytes, dict]]:
-    """(name, encoded image, sidecar) for every photo of image files, folders (sorted),
-    video files (every ``every``-th frame) and camera devices (``camera:N``)."""
+def _photo(path: Path, name: str) -> tuple[str, bytes, dict]:
+    original = _encoded(path)
+    data, lens = for_bus(original, str(path))   # HEIC/AVIF/BMP/TIFF: upright JPEG + EXIF lens
+    side = {**lens, **_sidecar(path)}
+    side["capture_time_ns"] = exif_time_ns(original) or path.stat().st_mtime_ns
+    return name, data, side
+
+
+def sources(paths, every: int = 1, errors: list | None = None) -> Iterator[tuple[str, bytes, dict]]:
+    """(name, encoded image, sidecar + ``capture_time_ns``) for every photo of image files,
+    folders (sorted), video files (every ``every``-th frame) and camera devices
+    (``camera:N``).
+
+    errors: None = the first bad file raises its FindmeError; a list = each bad file or
+        folder is appended as (path, FindmeError) and the rest is still read.
+    """
     for p in paths:
-        p = str(p)
-        if p.startswith("camera:"):
-            yield from _video(p, int(p.split(":", 1)[1] or 0), every)
-            continue
-        path = Path(p)
-        if path.is_dir():
-            files = sorted(q for q in path.iterdir() if q.suffix.lower() in IMAGE_EXT)
-            if not files:
-                raise InputError(f"{path}: no images in this folder")
-            for q in files:
-                yield q.name, _encoded(q), _sidecar(q)
-        elif path.suffix.lower() in VIDEO_EXT:
-            yield from _video(str(path), str(path), every)
-        elif path.exists():
-            yield path.name, _encoded(path), _sidecar(path)
-        else:
-            raise InputError(f"{path}: no such file, folder or camera")
+        try:
+            yield from _one_source(str(p), every, errors)
+        except FindmeError as e:
+            if errors is None:
+                raise
+            errors.append((str(p), e))
+
+
+def _one_source(p: str, every: int, errors: list | None):
+    if p.startswith("camera:"):
+        yield from _video(p, int(p.split(":", 1)[1] or 0), every)
+        return
+    path = Path(p)
+    if path.is_dir():
+        files = sorted(q for q in path.iterdir() if q.suffix.lower() in IMAGE_EXT)
+        if not files:
+            raise InputError(f"{path}: no images in this folder")
+        for q in files:
+            try:
+                yield _photo(q, q.name)
+            except FindmeError as e:
+                if errors is None:
+                    raise
+                errors.append((str(q), e))
+    elif path.suffix.lower() in VIDEO_EXT and path.exists():
+        yield from _video(str(path), str(path), every)
+    elif path.exists():
+        yield _photo(path, path.name)
+    else:
+        raise InputError(f"{path}: no such file, folder or camera")
 
 
 def _video(name: str, source, every: int):
     cap = cv2.VideoCapture(source)
     if not cap.isOpened():
         raise InputError(f"{name}: cannot open the video or camera")
+    start = None
+    if isinstance(source, str):   # a file: its creation time + the frame's position
+        start = video_start_ns(source)
+        if start is None:
+            fps, count = cap.get(cv2.CAP_PROP_FPS), cap.get(cv2.CAP_PROP_FRAME_COUNT)
+            length = count / fps if fps > 0 and count > 0 else 0.0
+            start = Path(source).stat().st_mtime_ns - int(length * 1e9)
     try:
         i = 0
         while True:
@@ -102,7 +145,10 @@ def _video(name: str, source, every: int):
             if not ok:
                 break
             if i % max(1, every) == 0:
-                yield f"{os.path.basename(str(name))}#{i}", encode_jpeg(img, 90), {}
+                t = (time.time_ns() if start is None else
+                     start + int(cap.get(cv2.CAP_PROP_POS_MSEC) * 1e6))
+                yield (f"{os.path.basename(str(name))}#{i}", encode_jpeg(img, 90),
+                       {"capture_time_ns": t})
             i += 1
     finally:
         cap.release()
@@ -121,7 +167,8 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
                          hfov_deg=None if intr else lens.hfov_deg,
                          gravity=side.get("gravity_cam", lens.gravity),
                          camera_height_m=side.get("camera_height_m", lens.camera_height_m),
-                         device=f"file:{name}", time_ns=time.time_ns())
+                         device=f"file:{name}",
+                         time_ns=side.get("capture_time_ns") or time.time_ns())
 
 
 def publish_frames(service, session: str, srcs, lens: Lens = Lens(), window: int = 8) -> int:

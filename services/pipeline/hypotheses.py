@@ -18,7 +18,7 @@ from findme_core.errors import InputError
 from findme_core.methods import hypothesize
 
 from ..runtime import bus
-from findme_io.convert import frame_inputs, hypothesis_set_msg
+from findme_io.convert import frame_photo_camera, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output
 
 
@@ -46,11 +46,11 @@ class HypothesesHandler(Handler):
     def on_message(self, key, frame):
         t0 = time.perf_counter()
         k = check_frame_key(key, frame)
-        image, cam = frame_inputs(frame)
+        image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
         t1 = time.perf_counter()
         hs = hypothesize(image, cam, self.method, self.max_n, clock=time.perf_counter)
         self.done += 1
-        msg = hypothesis_set_msg(k.session, frame.index, hs, f"{self.method}/findme.v1")
+        msg = hypothesis_set_msg(k.session, frame.index, hs, f"{self.method}/findme.v1", cam, prov)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)
         return [Output(bus.key(k.session, "hypotheses", frame.index), msg)]

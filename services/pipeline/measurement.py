@@ -19,10 +19,12 @@ from collections import OrderedDict
 import schemas
 from findme_io.imageio import image_size
 from findme_core.errors import HypothesisError
-from findme_core.scene import Scene
+from findme_core.provenance import Provenance
+from findme_core.scene import Scene, boundary_sigma_px
 
 from ..runtime import bus
-from findme_io.convert import camera_msg, frame_camera, measure_reply_msg, msg_hypotheses
+from findme_io.convert import (camera_msg, frame_camera, measure_reply_msg, msg_camera,
+                               msg_hypotheses, msg_provenance)
 from ..runtime.handler import Handler, Input, Output, UnknownSession
 from ..runtime.sessions import SessionTable
 
@@ -139,16 +141,24 @@ class MeasurementHandler(Handler):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
         cam, height, sigma = st.frames[n]
+        hset = st.hsets[n]
+        prov = msg_provenance(hset.camera) if hset.HasField("camera") else None
+        if prov is not None:   # the camera the hypotheses were built with (estimated gravity)
+            cam = msg_camera(hset.camera)
+        else:
+            prov = Provenance()
         if sel.HasField("camera_height_m"):
             height = sel.camera_height_m
             sigma = sel.camera_height_sigma_m if sel.HasField("camera_height_sigma_m") else sigma
         metric = height is not None
         h = hyps[sel.rank - 1]
         scene = Scene(cam, height if metric else 1.0, h.polyline, h.kinds,
-                      height_sigma=sigma if metric else 0.0)
+                      height_sigma=sigma if metric else 0.0, gravity_cov=prov.gravity_cov,
+                      boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
         st.put(st.scenes, n, (scene, sel.rank, metric))
         self.built += 1
-        msg = schemas.Scene(session=session, index=n, rank=sel.rank, camera=camera_msg(cam),
+        msg = schemas.Scene(session=session, index=n, rank=sel.rank,
+                            camera=camera_msg(cam, prov),
                             camera_height_m=scene.height, camera_height_sigma_m=scene.height_sigma,
                             metric=metric, polyline=schemas.polyline_to_msg(h.polyline, h.kinds),
                             time_ns=time.time_ns())

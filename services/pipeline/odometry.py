@@ -34,7 +34,7 @@ from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_pair
 from findme_core.scene import Scene
 from findme_core.trajectory import PlanarPose, compose
-from findme_io.convert import frame_camera, msg_hypotheses
+from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from findme_io.imageio import decode_image
 
 from ..runtime import bus
@@ -266,7 +266,9 @@ class OdometryHandler(Handler):
         if p.selection is None:
             p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
         image = decode_image(f.image.data, f"frame {n}")
-        cam = frame_camera(f, image.shape[1], image.shape[0])
+        hset = p.hset   # the camera the hypotheses were built with (estimated gravity)
+        cam = (msg_camera(hset.camera) if hset.HasField("camera")
+               else frame_camera(f, image.shape[1], image.shape[0]))
         sel = p.selection
         h = (sel.camera_height_m if sel.HasField("camera_height_m") else
              f.camera_height_m if f.HasField("camera_height_m") else 1.0)

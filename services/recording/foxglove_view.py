@@ -7,7 +7,8 @@ Pure: a bus message in, (topic, message class, serialised message) out, on the t
 ``image`` field), ``calibration`` (foxglove.CameraCalibration), ``hypotheses``
 (foxglove.ImageAnnotations: numbered line strips), ``boundary`` (the chosen boundary),
 ``measured`` (tapped pixels), ``pose`` (foxglove.PoseInFrame), ``trajectory``
-(foxglove.PosesInFrame) and ``tf`` (foxglove.FrameTransform).
+(foxglove.PosesInFrame), ``tf`` (foxglove.FrameTransform) and ``plan`` (foxglove.SceneUpdate:
+``foxglove_plan``).
 
 Frames: ``tf`` carries level frame of photo 0 -> level frame of photo n (from the poses)
 and level frame n -> camera n (from gravity: ``R_level_from_cam``, p_level = R p_cam);
@@ -266,6 +267,10 @@ class FoxgloveView:
         tf = schemas.pose_to_frame_transform(pose, self.session)
         return [(view_topic(self.session, "pose"), PoseInFrame, p.SerializeToString()),
                 (view_topic(self.session, "tf"), FrameTransform, tf.SerializeToString())]
+
+    def _plan(self, plan, t):
+        from .foxglove_plan import plan_view
+        return plan_view(self.session, plan, t)
 
     def _trajectory(self, tr, t):
         # A trajectory grows with the session and is republished often: encode each pose

@@ -3,7 +3,7 @@ the rule that gives a recorded message its bus key back.
 
 * **Bus channels**, one per key *kind*: topic ``findme/<session>/<kind>`` (``frame``,
   ``hypotheses``, ``selection``, ``scene``, ``motion``, ``pose``, ``trajectory``, ``error``,
-  ``measured``), protobuf encoding, the message's own schema (a FileDescriptorSet, so any
+  ``measured``, ``plan``), protobuf encoding, the message's own schema (a FileDescriptorSet, so any
   MCAP reader decodes it without our code), the payload bytes exactly as they were on the bus.
   The rest of the key follows from the payload (``frame/<n>`` is ``Frame.index``,
   ``motion/<a>/<b>`` is ``Motion.index_a/index_b``, ...: ``key_of``, from ``KEY_RULES``);
@@ -43,6 +43,7 @@ KEY_RULES: dict[str, tuple[str, tuple[str, ...]]] = {
     "findme.v1.Motion": ("motion", ("index_a", "index_b")),
     "findme.v1.Pose": ("pose", ("index",)),
     "findme.v1.Trajectory": ("trajectory", ()),
+    "findme.v1.Plan": ("plan", ()),
     "findme.v1.Error": ("error", ()),
     # a MeasureReply published for the record by whoever asked (findme run does)
     "findme.v1.MeasureReply": ("measured", ("index",)),

@@ -1,8 +1,8 @@
 """The Zenoh bus: configuration, keys, and reliable, size-checked publishing.
 
 Keys (DESIGN.md): ``findme/<session>/frame/<n>``, ``hypotheses/<n>``, ``selection/<n>``,
-``scene/<n>``, ``motion/<a>/<b>``, ``pose/<n>``, ``trajectory``, ``measure`` (queryable),
-``error``; services announce themselves with liveliness tokens
+``scene/<n>``, ``motion/<a>/<b>``, ``pose/<n>``, ``trajectory``, ``plan``, ``measure``
+(queryable), ``error``; services announce themselves with liveliness tokens
 ``findme/@services/<name>/<id>`` and answer ``.../status`` queries.
 
 Traps this module handles (STACK-NOTES.md): multicast scouting is off and every session has
@@ -121,12 +121,22 @@ class BusConfig:
         return c
 
 
+def zenoh_reason(e: Exception) -> str:
+    """A Zenoh error's text without the Rust source location it ends with."""
+    return re.sub(r"\s+at \S+\.rs:\d+\.?\s*$", "", str(e)).strip()
+
+
 def open_session(cfg: BusConfig = BusConfig()) -> zenoh.Session:
     try:
         return zenoh.open(cfg.zenoh())
     except zenoh.ZError as e:
         where = ", ".join(cfg.connect or cfg.listen) or "in-process"
-        raise BusError(f"cannot open the Zenoh session ({cfg.mode}, {where}): {e}") from None
+        reason = zenoh_reason(e)
+        if cfg.connect and "Timeout" in reason:
+            reason = (f"no router answered within {cfg.connect_timeout_ms / 1000:g} s (is it "
+                      "running and reachable? for tls/ endpoints: the CA, the certificate's "
+                      "host names and the password)")
+        raise BusError(f"cannot open the Zenoh session ({cfg.mode}, {where}): {reason}") from None
 
 
 # ---------------------------------------------------------------------------------- publish

@@ -12,8 +12,8 @@ what ``Peers`` keeps, seeded by one query when it starts.
 
 from __future__ import annotations
 
+import hashlib
 import threading
-import zlib
 
 import zenoh
 
@@ -21,10 +21,12 @@ from . import bus
 
 
 def owner(shard_key: str, instances) -> str:
-    """The instance that handles ``shard_key`` among ``instances``: rendezvous hashing
-    (highest crc32 of instance + key), so an instance joining or leaving moves only the
-    work that goes to or came from it."""
-    return max(instances, key=lambda inst: (zlib.crc32(f"{inst}\x00{shard_key}".encode()), inst))
+    """The instance that handles ``shard_key`` among ``instances``: rendezvous hashing (the
+    highest hash of instance and key), so an instance joining or leaving moves only the work
+    that goes to or came from it. (blake2b, not crc32: crc32 is linear in its input, and
+    ``crc32(key) % n`` sent frames 0-3 of every session to the same one of two instances.)"""
+    return max(sorted(instances), key=lambda i: hashlib.blake2b(
+        f"{i}\0{shard_key}".encode(), digest_size=8).digest())
 
 
 class Peers:

@@ -81,6 +81,9 @@ def make_handler(name: str, args) -> Handler:
         from ..pipeline.odometry import OdometryHandler
         return OdometryHandler(gap_wait_s=getattr(args, "gap_wait", 5.0),
                                idle_s=getattr(args, "idle", 600.0))
+    if name == "mapper":
+        from ..pipeline.mapper import make_mapper
+        return make_mapper(args)
     if name == "store":
         from .store import make_store
         return make_store(args)
@@ -115,7 +118,7 @@ def _extra_services() -> dict:
 
 
 def service_names() -> list[str]:
-    return ["capture", "hypotheses", "selection", "measurement", "odometry", "store",
+    return ["capture", "hypotheses", "selection", "measurement", "odometry", "mapper", "store",
             *_extra_services()]
 
 

@@ -38,6 +38,7 @@ from .cache import CacheServer, OutputCache
 from .handler import Handler, Input, Output, error_message
 from .inbox import Inbox
 from .peers import Peers, owner
+from .peers import owner as shard_owner  # noqa: F401 - the name tests and tools use
 
 log = logging.getLogger("findme.services")
 
@@ -290,11 +291,14 @@ class Service:
                 self.inbox.bump("handed_over")   # the instances changed since it came:
                 self.inbox.forget(key)           # its owner sweeps it up
                 return
+            t0 = time.perf_counter()
             outputs = self.handler.on_message(key, msg)
             for out in outputs:
                 self.publish(out)
             self.inbox.bump("handled")
             self.inbox.handled(key)
+            log.info("%s: %s -> %s (%.0f ms)", self.ident, key,   # one line per message
+                     ", ".join(o.key for o in outputs) or "nothing", 1e3 * (time.perf_counter() - t0))
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
             self.report(key, exc)
 
@@ -308,6 +312,7 @@ class Service:
             query.reply(key, schemas.encode(reply))
             with self._cv:
                 self.results_out += 1
+            log.info("%s: query %s answered", self.ident, key)
         except Exception as exc:  # noqa: BLE001 - the asker gets the error, the log the reason
             ekey, err = self.report(key, exc)
             query.reply_err(schemas.encode(err))

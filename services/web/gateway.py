@@ -14,7 +14,7 @@ own session:
                                             (the reply also on findme/<s>/measured/<n>, for the record)
 
     bus -> page: everything on findme/<s>/** except frames, as JSON: hypotheses, selection,
-    scene, motion, pose, trajectory and error (``Error.message`` verbatim).
+    scene, motion, pose, trajectory, plan and error (``Error.message`` verbatim).
 
 When photo n's hypotheses arrive the gateway selects rank 1 for it (by AUTO: "the best one
 preselected"); the user's tap on another publishes a new selection (by USER). So do not run
@@ -60,6 +60,7 @@ log = logging.getLogger("findme.services.gateway")
 MAX_SESSIONS = 100             # open pages at once
 WEB_FILES = {"/": ("index.html", "text/html"), "/app.js": ("app.js", "text/javascript"),
              "/style.css": ("style.css", "text/css")}
+WEB_FILES["/plan.js"] = ("plan.js", "text/javascript")   # the floor plan drawing
 
 
 class GatewayHandler(Handler):

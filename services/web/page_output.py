@@ -1,7 +1,7 @@
 """Bus messages as the JSON a page reads: what the gateway forwards to a page.
 
     HypothesisSet -> {"type": "hypotheses", ...}     MeasureReply -> {"type": "measure", ...}
-    Selection, Scene, Motion, Pose, Trajectory, Error -> the type of the same name, lower-case
+    Selection, Scene, Motion, Pose, Trajectory, Error, Plan -> the type of the same name, lower-case
     anything else (a Frame)                           -> None: not for the page
 
 Nothing changes frame or unit on the way: pixels as on the bus ((0, 0) is the centre of the
@@ -37,6 +37,17 @@ def _pose(p) -> dict:
             "sigma_yaw_rad": _opt(p, "sigma_yaw_rad")}
 
 
+def _sources(camera) -> dict:
+    """Where a Camera message's lens and gravity came from (the page shows it)."""
+    import math
+    k = camera.intrinsics
+    return {"lens_source": camera.lens_source or None,
+            "hfov_deg": math.degrees(2 * math.atan(k.width / (2 * k.fx))) if k.fx > 0 else None,
+            "gravity": [camera.gravity.x, camera.gravity.y, camera.gravity.z],
+            "gravity_source": camera.gravity_source or None,
+            "gravity_sigma_deg": math.degrees(camera.gravity_sigma_rad)}
+
+
 def to_page(session: str, msg) -> dict | None:
     """A bus message of ``session`` as the JSON the page reads (None: not for the page)."""
     name = type(msg).__name__
@@ -47,15 +58,15 @@ def to_page(session: str, msg) -> dict | None:
                 "hypotheses": [{"rank": h.rank, "score": h.score, "support": h.support,
                                 "points": [[p.u, p.v] for p in h.polyline.points],
                                 "kinds": [_kind_name(k) for k in h.polyline.kinds]}
-                               for h in msg.hypotheses]}
+                               for h in msg.hypotheses],
+                "camera": _sources(msg.camera) if msg.HasField("camera") else None}
     if name == "Selection":
         return {"type": "selection", "index": msg.index, "rank": msg.rank,
                 "by": "user" if msg.by == schemas.SELECTED_BY_USER else "auto",
                 "camera_height_m": _opt(msg, "camera_height_m")}
     if name == "Scene":
         return {"type": "scene", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
-                "camera_height_m": msg.camera_height_m,
-                "gravity": [msg.camera.gravity.x, msg.camera.gravity.y, msg.camera.gravity.z]}
+                "camera_height_m": msg.camera_height_m, **_sources(msg.camera)}
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}
@@ -81,4 +92,29 @@ def to_page(session: str, msg) -> dict | None:
                 "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
                                "sigma_m": _opt(d, "sigma_m"), "error": d.error}
                               for d in msg.distances]}
+    if name == "Plan":
+        return plan_to_page(msg)
     return None
+
+
+def plan_to_page(m) -> dict:
+    """A Plan as the page draws it: points as [x_m, z_m] (plan frame: the level frame of
+    photo ``origin_index``), wall and photo kinds as lower-case names."""
+    def xz(q):
+        return [q.x_m, q.z_m]
+
+    def kind(enum, v, prefix):
+        return enum.Name(v).removeprefix(prefix).lower()
+    return {"type": "plan", "up_to_index": m.up_to_index, "photos": m.photos,
+            "origin_index": m.origin_index, "metric": m.metric,
+            "camera_height_m": m.camera_height_m, "reason": m.reason, "area_m2": m.area_m2,
+            "closed": m.closed, "manhattan": m.manhattan,
+            "polygon": [xz(q) for q in m.polygon],
+            "walls": [{"a": xz(w.a), "b": xz(w.b), "length_m": w.length_m, "sigma_m": w.sigma_m,
+                       "kind": kind(schemas.WallKind, w.kind, "WALL_KIND_"),
+                       "openings": [[o.from_m, o.to_m] for o in w.openings]} for w in m.walls],
+            "poses": [{"index": q.index, "spot": q.spot, "reason": q.reason,
+                       "status": kind(schemas.PlanPhotoStatus, q.status, "PLAN_PHOTO_STATUS_"),
+                       **{k: _opt(q, k) for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m",
+                                                  "sigma_z_m", "sigma_yaw_rad", "ambiguity")}}
+                      for q in m.poses]}

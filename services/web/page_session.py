@@ -52,7 +52,7 @@ MAX_PHOTOS = 100               # per session
 MAX_MEASURES_IN_FLIGHT = 4     # per session
 MEASURE_TIMEOUT_S = 10.0
 #: What a page sees of its session (frames are its own uploads: never sent back).
-FORWARDED = ("hypotheses", "selection", "scene", "motion", "pose", "trajectory", "error")
+FORWARDED = ("hypotheses", "selection", "scene", "motion", "pose", "trajectory", "error", "plan")
 
 
 class PageSession:

@@ -23,7 +23,8 @@ GT_FIELDS = ("labels", "label_legend", "floor_fraction", "valid_fraction", "boun
 def scored(tmp_path_factory):
     needs_eval_data()
     out = tmp_path_factory.mktemp("eval") / "pred.json"
-    run_findme("eval", EVAL_DIR, "--out", out)
+    # the whole dev split (views, pairs and room plans): minutes on a loaded 2-core machine
+    run_findme("eval", EVAL_DIR, "--out", out, timeout=1200)
     spec = importlib.util.spec_from_file_location("findme_eval_score", SCORER)
     score = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(score)

@@ -6,10 +6,10 @@ import cv2
 import pytest
 
 
-def run_findme(*args, check=True):
+def run_findme(*args, check=True, timeout=120):
     """Run the real ``findme`` entry point in a subprocess; returns CompletedProcess."""
     p = subprocess.run([sys.executable, "-m", "findme.cli", *map(str, args)],
-                       capture_output=True, text=True, timeout=120)
+                       capture_output=True, text=True, timeout=timeout)
     if check and p.returncode != 0:
         raise AssertionError(f"findme {args} exited {p.returncode}: {p.stderr}")
     return p

@@ -51,9 +51,11 @@ def test_locate_matches_the_rendered_scene(level_jpg, level_view, tmp_path):
     pts = tmp_path / "p.json"
     pts.write_text(json.dumps({"points": pick + [[320, 50]]}))
     out = as_json(run_findme("locate", level_jpg, "--intrinsics", intrinsics_flag(cam),
-                             "--camera-height", level_view.camera_height, "--points", pts,
-                             "--json"))
+                             "--gravity", "0,1,0", "--camera-height", level_view.camera_height,
+                             "--points", pts, "--json"))
     assert out["metric"] is True and len(out["points"]) == 4 and len(out["distances_m"]) == 3
+    assert out["camera"]["source"] == "input" and out["gravity"]["source"] == "input"
+    assert out["gravity"]["vector"] == [0, 1, 0]
     for (u, v), p in zip(pick, out["points"]):
         assert p["surface"] == "floor" and p["error"] is None
         assert np.allclose(p["xyz_m"], level_view.points_cam[v, u], atol=2e-3)
@@ -65,8 +67,8 @@ def test_locate_matches_the_rendered_scene(level_jpg, level_view, tmp_path):
 
 def test_locate_without_height_is_up_to_scale(level_jpg, level_view):
     out = as_json(run_findme("locate", level_jpg, "--intrinsics",
-                             intrinsics_flag(level_view.camera), "--point", "320,470",
-                             "--point=-4,2", "--json"))
+                             intrinsics_flag(level_view.camera), "--gravity", "0,1,0",
+                             "--point", "320,470", "--point=-4,2", "--json"))
     assert out["metric"] is False and out["camera_height_m"] == 1.0
     assert out["points"][0]["xyz_m"][1] == pytest.approx(1.0)      # on the floor, y = h = 1
     assert "outside" in out["points"][1]["error"] and out["distances_m"] == [None]
@@ -88,6 +90,12 @@ BAD = [
     (["locate", "{jpg}", "--point", "3,3", "--hypothesis", "99"], "does not exist"),
     (["locate", "{jpg}", "--point", "3,3", "--camera-height", "-1"], "camera-height"),
     (["locate", "{jpg}"], "required"),
+    (["locate", "{jpg}", "--points", "{binary}"], "not a text file"),
+    (["locate", "{jpg}", "--points", "{nanpoints}"], "NaN"),
+    (["locate", "{jpg}", "--point", "3,3", "--camera-height", "nan"], "finite"),
+    (["hypotheses", "{jpg}", "--overlay", "{txt_out}"], "overlay"),
+    (["hypotheses", "{jpg}", "--hfov", "nan"], "finite"),
+    (["hypotheses", "{heic_fake}"], "corrupt"),
 ]
 
 
@@ -102,9 +110,34 @@ def test_bad_input_is_one_line_and_exit_2(argv, msg, level_jpg, tmp_path):
                      + b"\x08\x02\x00\x00\x00" + b"\x00" * 64)
     badpoints = tmp_path / "bp.json"
     badpoints.write_text(json.dumps([[1, 2], ["a", 3]]))
+    binary = tmp_path / "points.bin"
+    binary.write_bytes(bytes(range(256)) * 4)
+    nanpoints = tmp_path / "nan.json"
+    nanpoints.write_text("[[1, 2], [NaN, 3]]")
+    heic_fake = tmp_path / "fake.heic"   # an HEIF box header and nothing behind it
+    heic_fake.write_bytes(b"\x00\x00\x00\x18ftypheic\x00\x00\x00\x00mif1heic" + b"\x00" * 100)
     subst = dict(missing=tmp_path / "nope.jpg", text=text, corrupt=corrupt, huge=huge,
-                 jpg=level_jpg, badpoints=badpoints)
+                 jpg=level_jpg, badpoints=badpoints, binary=binary, nanpoints=nanpoints,
+                 txt_out=tmp_path / "out.txt", heic_fake=heic_fake)
     p = run_findme(*[a.format(**subst) for a in argv], check=False)
     assert p.returncode == 2, p.stderr
     assert msg in p.stderr and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+def test_run_refuses_a_nan_field_of_view():
+    p = run_findme("run", "--hfov", "nan", "--no-record", check=False)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "finite" in p.stderr
+
+
+def test_run_into_a_closed_pipe_is_quiet(tmp_path):
+    """``findme run | head -3``: the reader leaves early; no traceback, exit 0."""
+    import subprocess
+    import sys
+    run = subprocess.Popen([sys.executable, "-m", "findme.cli", "run", "--out", str(tmp_path)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    head = [run.stdout.readline() for _ in range(3)]
+    run.stdout.close()                      # what head does after its third line
+    err = run.stderr.read().decode()
+    assert run.wait(timeout=120) == 0, err
+    assert all(head) and "Error" not in err and "Traceback" not in err, err

@@ -95,3 +95,35 @@ def test_large_photo_is_processed_at_working_size(level_view):
     lab = cv2.resize(level_view.labels, (1280, 960), interpolation=cv2.INTER_NEAREST)
     assert hs.width == 1280 and hs.hypotheses[0].polyline[-1, 0] == 1279
     assert floor_pixel_error(hs.hypotheses[0].polyline, lab) < 0.03
+
+
+@pytest.mark.parametrize("row,top_is_none", [(124, True), (180, False)])
+def test_a_boundary_implausibly_far_gives_no_floor_visible(row, top_is_none):
+    """A level camera and one horizontal edge: 4 px below the horizon (row 119.5) its floor
+    would lie ~30 camera heights away (a counter top's edge, a window sill), so "no floor
+    visible" comes first; 60 px below, the edge is the boundary."""
+    hs = H.generate(_edge_image(row), Camera.from_hfov(70, 320, 240))
+    kinds = [h.kinds.tolist() for h in hs.hypotheses]
+    assert (kinds[0] == [SegKind.NONE]) == top_is_none
+    assert [SegKind.NONE] in kinds   # both answers are offered either way
+    edge = [h for h in hs.hypotheses if h.kinds.tolist() != [SegKind.NONE]]
+    np.testing.assert_allclose(edge[0].polyline[:, 1], row, atol=2)
+
+
+def test_no_floor_visible_is_offered_only_against_a_far_boundary(box_view):
+    """With a near boundary (a room seen from 1.3 m, looking down) the answer "no floor
+    visible" is not forced into the candidates; against a boundary just below the horizon it
+    is, even when many paths score higher in the search."""
+    from findme_core.ranking import IDX
+    for image, camera, forced in ((box_view.image, box_view.camera, False),
+                                  (_edge_image(124), Camera.from_hfov(70, 320, 240), True)):
+        dbg: dict = {}
+        H.generate(image, camera, 10, debug=dbg)
+        nones = [r for r in dbg["ranked"] if r[3][IDX["bottom"]] > 0.999]
+        assert len(nones) == int(forced), (forced, len(dbg["ranked"]))
+
+
+def _edge_image(row):
+    img = np.full((240, 320, 3), 200, np.uint8)
+    img[row:, :] = 90
+    return cv2.GaussianBlur(img, (0, 0), 1)

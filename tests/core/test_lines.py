@@ -86,3 +86,49 @@ def test_classify_in_level_frame(pitch, roll):
         coef.append([n[0], n[1], -n @ s[:2]])
     lines = Lines(np.array(list(segs.values())), np.array(coef), np.ones(len(segs)))
     assert classify(lines, cam).tolist() == [int(k) for k in segs]
+
+
+def _cam(pitch_deg=0.0, roll_deg=0.0):
+    p, r = math.radians(pitch_deg), math.radians(roll_deg)
+    return Camera.from_hfov(80, 640, 480, [math.sin(r) * math.cos(p), math.cos(r) * math.cos(p),
+                                            math.sin(p)])
+
+
+def test_horizon_top_row():
+    from findme_core.lines import horizon_top_row
+    level = _cam()
+    top = horizon_top_row(level, margin_px=8.0)
+    assert top % 2 == 0 and level.cy - 8 - 2 < top <= level.cy - 8
+    # rolled: the horizon's highest end decides
+    rolled = _cam(roll_deg=10)
+    a, b, c = rolled.horizon_line()
+    highest = min(-(c + a * u) / b for u in (0, 639))
+    assert highest - 10 < horizon_top_row(rolled) <= highest - 8
+    # degenerate: horizon above the image (looking down), camera looking far up (horizon below
+    # the image, the floor outside it), upside down, horizon steeper than 76 deg
+    assert horizon_top_row(_cam(pitch_deg=60)) == 0
+    assert horizon_top_row(_cam(pitch_deg=-60)) == 478
+    assert horizon_top_row(_cam(roll_deg=180)) == 0
+    assert horizon_top_row(_cam(roll_deg=80)) == 0
+
+
+@pytest.mark.parametrize("method", ["lsd", "hough"])
+def test_detect_below_a_row_keeps_full_image_coordinates(method):
+    truth = [(50, 400, 600, 350), (100, 50, 100, 300), (60, 100, 600, 120)]
+    img = _img_with_lines(truth)
+    full = detect_segments(img, method)
+    assert (np.abs(full[:, [1, 3]] - 110).max(1) < 15).any()
+    part = detect_segments(img, method, top_row=200)
+    assert len(part) >= 2 and (part[:, [1, 3]] >= 200 - 1e-6).all()
+    assert not (np.abs(part[:, [1, 3]] - 110).max(1) < 15).any()   # the line above row 200 is gone
+    # the line below is found where the whole-image detector finds it, over the same extent
+    u1, v1, u2, v2 = truth[0]
+    n = np.array([v2 - v1, u1 - u2], float) / np.hypot(v2 - v1, u1 - u2)
+    for segs in (full, part):
+        d = np.abs(np.stack([segs[:, :2] - (u1, v1), segs[:, 2:] - (u1, v1)]) @ n).max(0)
+        on = segs[d < 3.0]
+        assert len(on) and on[:, [0, 2]].min() < u1 + 10 and on[:, [0, 2]].max() > u2 - 10
+    # the vertical line (3 px wide: two edges) is cut at row 200 and keeps its column
+    vert = part[np.abs(part[:, 0] - part[:, 2]) < 3]
+    assert len(vert) and np.allclose(vert[:, [0, 2]], 100, atol=3.5)
+    assert vert[:, [1, 3]].min() >= 200 and vert[:, [1, 3]].max() == pytest.approx(300, abs=2)

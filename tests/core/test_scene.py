@@ -1,3 +1,4 @@
+import cv2
 import numpy as np
 import pytest
 
@@ -127,3 +128,53 @@ def test_distances_and_sigmas(level_view):
     # a point further away is less certain (one pixel covers more floor)
     near, far = scene.locate([(320, 470), (320, 420)])
     assert far.sigma_m > near.sigma_m
+
+
+def _tilted(cam, d_pitch):
+    """The camera with gravity pitched down by ``d_pitch`` radians more (about level x)."""
+    R = cam.R_level_from_cam
+    w = d_pitch * R[0]
+    Rw, _ = cv2.Rodrigues(w.reshape(3, 1))
+    return cam.with_gravity(Rw @ cam.gravity)
+
+
+def test_gravity_sigma_part(tilted_view):
+    """The 'gravity' part is the point's displacement under a 1-sigma tilt (checked against
+    the scene rebuilt with the tilted gravity); exact gravity gives 0 and no jacobian."""
+    view = tilted_view
+    poly = view.ground_truth_boundary_polyline()
+    px = _pixels(view, lambda l: l == FLOOR, n=8) + 0.0
+    exact = Scene(view.camera, view.camera_height, poly)
+    assert all(p.sigma_parts["gravity"] == 0 and p.gravity_jac is None for p in exact.locate(px))
+    s = np.radians(0.5)
+    scene = Scene(view.camera, view.camera_height, poly, gravity_cov=np.diag([s * s, 0.0]))
+    moved = Scene(_tilted(view.camera, s), view.camera_height, poly)
+    for p, q in zip(scene.locate(px), moved.locate(px)):
+        d = np.linalg.norm(q.xyz - p.xyz)
+        assert p.sigma_parts["gravity"] == pytest.approx(d, rel=0.05)
+        assert p.sigma_m ** 2 == pytest.approx(sum(v * v for v in p.sigma_parts.values()))
+    iso = Scene(view.camera, view.camera_height, poly, gravity_cov=np.eye(2) * s * s)
+    assert all(a.sigma_parts["gravity"] > b.sigma_parts["gravity"]
+               for a, b in zip(iso.locate(px), scene.locate(px)))   # roll adds to it
+
+
+def test_gravity_part_of_a_distance_is_correlated(tilted_view):
+    """Both ends move together under a tilt: the distance's gravity part is the change of
+    the distance itself, not the two points' parts added up."""
+    view = tilted_view
+    poly = view.ground_truth_boundary_polyline()
+    a, b = _pixels(view, lambda l: l == FLOOR, n=2, seed=5)
+    s = np.radians(1.0)
+    kw = dict(height_sigma=0.0, gravity_cov=np.diag([s * s, 0.0]))
+    pa, pb = Scene(view.camera, view.camera_height, poly, **kw).locate([a, b])
+    (d, sd, err), = distances([pa, pb], view.camera_height, 0.0)
+    qa, qb = Scene(_tilted(view.camera, s), view.camera_height, poly).locate([a, b])
+    change = abs(np.linalg.norm(qb.xyz - qa.xyz) - d)
+    rest = np.sqrt(sum(p.sigma_parts[k] ** 2 for p in (pa, pb) for k in ("boundary", "pixel")))
+    assert err is None and sd == pytest.approx(np.hypot(change, rest), rel=0.05)
+    assert change < pa.sigma_parts["gravity"] + pb.sigma_parts["gravity"]
+
+
+def test_nonfinite_gravity_cov_is_refused(tilted_view):
+    with pytest.raises(GeometryError, match="gravity_cov"):
+        Scene(tilted_view.camera, 1.4, [[0, 300], [639, 300]], gravity_cov=[[np.nan, 0], [0, 1]])

@@ -27,7 +27,7 @@ def sample_messages() -> list[tuple[str, object]]:
 
     frame = S.Frame(session=SESSION, index=3, capture_time_ns=T0, intrinsics=intr,
                     gravity=gravity, camera_height_m=1.42, camera_height_sigma_m=0.05,
-                    device="Pixel 7 / Android 14 / findme-app 0.3")
+                    device="Pixel 7 / Android 14 / findme-app 0.3", gravity_sigma_rad=0.012)
     frame.image.data = JPEG
     frame.image.format = "jpeg"
     frame.image.frame_id = f"{SESSION}/camera/3"
@@ -43,7 +43,10 @@ def sample_messages() -> list[tuple[str, object]]:
         session=SESSION, index=3, width=640, height=480, method="lsd+dp findme_core 0.1",
         hypotheses=[S.Hypothesis(rank=1, score=12.75, support=0.83, polyline=poly1),
                     S.Hypothesis(rank=2, score=9.5, support=0.61, polyline=poly2)],
-        timing_ms={"lines": 24.8, "merge": 1.9, "search": 112.4})
+        timing_ms={"lines": 24.8, "merge": 1.9, "search": 112.4},
+        camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="exif",
+                        gravity_source="image", gravity_sigma_rad=0.0141,
+                        gravity_cov_rad2=[0.0002, 0.00001, 0.00001, 0.00018]))
     hset_empty = S.HypothesisSet(session=SESSION, index=4, width=640, height=480,
                                  reason="no floor lines below the horizon",
                                  timing_ms={"lines": 20.0}, method="lsd+dp findme_core 0.1")
@@ -55,7 +58,8 @@ def sample_messages() -> list[tuple[str, object]]:
                            time_ns=T0 + 9_000_000_000)
 
     scene = S.Scene(session=SESSION, index=3, rank=2,
-                    camera=S.Camera(intrinsics=intr, gravity=gravity),
+                    camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="input",
+                                    gravity_source="input", gravity_sigma_rad=0.0087),
                     camera_height_m=1.38, camera_height_sigma_m=0.03, metric=True,
                     polyline=poly1, time_ns=T0 + 4_210_000_000)
 
@@ -93,6 +97,35 @@ def sample_messages() -> list[tuple[str, object]]:
                   sigma_yaw_rad=0.04)
     traj = S.Trajectory(session=SESSION, poses=poses, time_ns=T0 + 12_500_000_000)
 
+    P = S.PlanPoint
+    square = [P(x_m=-1.5, z_m=-1.0), P(x_m=3.5, z_m=-1.0), P(x_m=3.5, z_m=3.0), P(x_m=-1.5, z_m=3.0)]
+    kinds = [S.WALL_KIND_WALL, S.WALL_KIND_OPENING, S.WALL_KIND_WALL, S.WALL_KIND_MISSING]
+    walls = [S.PlanWall(a=square[k], b=square[(k + 1) % 4], length_m=5.0 if k % 2 == 0 else 4.0,
+                        sigma_m=0.03, kind=kinds[k]) for k in range(4)]
+    walls[0].openings.append(S.PlanOpening(from_m=1.2, to_m=2.1))
+    plan = S.Plan(
+        session=SESSION, up_to_index=4, photos=4, origin_index=1, metric=True,
+        camera_height_m=1.42, polygon=square, walls=walls, area_m2=20.0, closed=False,
+        manhattan=True, time_ns=T0 + 14_000_000_000,
+        timing_ms={"relate": 410.5, "place": 120.25, "plan": 12.0},
+        poses=[S.PlanPhoto(index=0, status=S.PLAN_PHOTO_STATUS_LEFT_OUT,
+                           reason="no hypotheses: no floor lines below the horizon"),
+               S.PlanPhoto(index=1, status=S.PLAN_PHOTO_STATUS_PLACED, x_m=0.0, z_m=0.0,
+                           yaw_rad=0.0, sigma_x_m=0.01, sigma_z_m=0.012, sigma_yaw_rad=0.002),
+               S.PlanPhoto(index=2, status=S.PLAN_PHOTO_STATUS_PLACED, x_m=0.1, z_m=0.05,
+                           yaw_rad=0.8, sigma_x_m=0.02, sigma_z_m=0.02, sigma_yaw_rad=0.004,
+                           spot=1, ambiguity=0.35),
+               S.PlanPhoto(index=4, status=S.PLAN_PHOTO_STATUS_NOT_PLACED, spot=2,
+                           reason="no wall of its photos matches a wall of the placed photos")])
+    plan_closed = S.Plan(session=SESSION, up_to_index=7, photos=8, camera_height_m=1.5,
+                         metric=True, polygon=square, area_m2=20.0, closed=True, time_ns=T0,
+                         walls=[S.PlanWall(a=w.a, b=w.b, length_m=w.length_m, sigma_m=0.02,
+                                           kind=S.WALL_KIND_WALL) for w in walls])
+    plan_reason = S.Plan(session=SESSION, up_to_index=0, photos=1, camera_height_m=1.0,
+                         reason="no placed photo saw any floor", time_ns=T0,
+                         poses=[S.PlanPhoto(index=0, status=S.PLAN_PHOTO_STATUS_NOT_PLACED,
+                                            reason="no layout: no floor lines")])
+
     err = S.Error(session=SESSION, key=f"findme/{SESSION}/selection/9",
                   code=S.ErrorCode.Value("ERROR_CODE_NO_SUCH_HYPOTHESIS"),
                   message="photo 9 has no hypothesis set; rank 2 cannot be selected",
@@ -112,6 +145,8 @@ def sample_messages() -> list[tuple[str, object]]:
            ("selection-auto", sel_auto), ("scene", scene), ("measure-request", req),
            ("measure-reply", reply), ("measure-reply-error", reply_err), ("motion", motion),
            ("motion-failed", motion_failed), ("pose", pose), ("trajectory", traj),
+           ("plan", plan), ("plan-closed", plan_closed),
+           ("plan-reason", plan_reason),
            ("error", err), ("error-no-session", err_nosession), ("status", status)]
     for _, m in out:
         if not m.schema:

@@ -2,7 +2,9 @@
 loads, and the phone + server router configuration enforces TLS, passwords and per-device
 keys (run for real with generated certificates)."""
 
+import json
 import shlex
+import signal
 import sys
 import threading
 from pathlib import Path
@@ -12,22 +14,86 @@ import zenoh
 
 from findme.cli import build_parser
 from services.runtime.bus import BusConfig, open_session
+from tests.cli.conftest import run_findme
 from tests.services.conftest import free_port, spawn_findme, wait_logged
 
 COMPOSE = Path(__file__).resolve().parents[2] / "compose"
 
 
-def test_procfile_lines_are_findme_commands():
+def test_procfile_is_what_findme_up_runs():
+    """compose/Procfile (for foreman/honcho users) lists exactly the processes of
+    ``findme up``, and each line is a valid findme command."""
     lines = [ln for ln in (COMPOSE / "Procfile").read_text().splitlines()
              if ln.strip() and not ln.startswith("#")]
-    assert len(lines) >= 5
+    from findme.up_cli import processes
     parser = build_parser()
+    want = [f"{name}: {shlex.join(['findme', *argv])}"
+            for name, argv in processes(parser.parse_args(["up"]))]
+    assert lines == want
+    names = {ln.split(":")[0] for ln in lines}
+    assert {"router", "selection", "measurement", "odometry", "recorder"} <= names
+    assert sum(n.startswith("hypotheses") for n in names) == 2
     for ln in lines:
-        name, cmd = ln.split(":", 1)
-        argv = shlex.split(cmd)
-        assert argv[0] == "findme", ln
-        args = parser.parse_args(argv[1:])
-        assert args.command in ("router", "serve")
+        argv = shlex.split(ln.split(":", 1)[1])
+        assert parser.parse_args(argv[1:]).command in ("router", "serve")
+
+
+def _compose_commands() -> dict[str, list[str]]:
+    """service -> its command (each a JSON list on one line, as the file says)."""
+    out, service = {}, None
+    for ln in (COMPOSE / "docker-compose.yml").read_text().splitlines():
+        bare = ln.split("#", 1)[0].rstrip()
+        if bare.startswith("  ") and not bare.startswith("   ") and bare.endswith(":"):
+            service = bare.strip()[:-1]
+        elif ln.strip().startswith("command:"):
+            out[service] = json.loads(ln.split(":", 1)[1])
+    return out
+
+
+def test_compose_commands_certificates_and_image_files():
+    """Every compose command is a valid findme command; the certificate names every host
+    the services connect to and every TLS file they use; the image copies every package
+    and its build context leaves out the venv, keys and recordings; certs/ is git-ignored."""
+    cmds = _compose_commands()
+    assert set(cmds) == {"router", "store", "hypotheses", "measurement", "odometry", "recorder",
+                         "gateway"}
+    parser = build_parser()
+    for argv in cmds.values():
+        assert parser.parse_args(argv).command in ("router", "serve")
+    sys.path.insert(0, str(COMPOSE.parent / "tools"))
+    from make_certs import COMPOSE_TLS_HOSTS
+    conf = zenoh.Config.from_file(str(COMPOSE / "service-tls.json5"))
+    hosts = {e.split("/", 1)[1].rsplit(":", 1)[0] for e in json.loads(conf.get_json("connect/endpoints"))}
+    assert hosts == {"router"} and hosts <= set(COMPOSE_TLS_HOSTS)
+    gw = cmds["gateway"]
+    assert gw[gw.index("--tls-cert") + 1] == "/certs/gateway.pem" and "gateway" in COMPOSE_TLS_HOSTS
+    docker = (COMPOSE / "Dockerfile").read_text()
+    import tomllib
+    include = tomllib.loads((COMPOSE.parent / "pyproject.toml").read_text())[
+        "tool"]["setuptools"]["packages"]["find"]["include"]
+    for pkg in include:
+        assert f"COPY {pkg.rstrip('*')} " in docker, pkg
+    ignored = (COMPOSE.parent / ".dockerignore").read_text().split()
+    assert {".venv/", "certs/", ".git/", "recordings/*", "**/__pycache__/"} <= set(ignored)
+    assert "certs/" in (COMPOSE.parent / ".gitignore").read_text().split()
+
+
+def test_make_certs_names_compose_hosts_and_given_ones(tmp_path):
+    pytest.importorskip("cryptography", reason="cryptography reads the certificates")
+    from cryptography import x509
+    sys.path.insert(0, str(COMPOSE.parent / "tools"))
+    from make_certs import main
+    main([str(tmp_path), "--host", "findme.lan", "--host", "192.168.1.20"])
+    for stem in ("router", "gateway"):
+        cert = x509.load_pem_x509_certificate((tmp_path / f"{stem}.pem").read_bytes())
+        san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+        assert set(san.get_values_for_type(x509.DNSName)) == {stem, "localhost", "findme.lan"}
+        assert {str(a) for a in san.get_values_for_type(x509.IPAddress)} == {"127.0.0.1", "192.168.1.20"}
+        eku = cert.extensions.get_extension_for_class(x509.ExtendedKeyUsage).value
+        assert x509.oid.ExtendedKeyUsageOID.SERVER_AUTH in eku
+        assert (tmp_path / f"{stem}.key").stat().st_mode & 0o077 == 0
+    ca = x509.load_der_x509_certificate((tmp_path / "ca.crt").read_bytes())
+    assert ca == x509.load_pem_x509_certificate((tmp_path / "ca.pem").read_bytes())
 
 
 @pytest.mark.parametrize("name", ["router.json5", "router-tls.json5", "service-tls.json5"])
@@ -89,3 +155,55 @@ def test_tls_passwords_and_per_device_keys(tls_router):
         with pytest.raises(Exception, match="cannot open the Zenoh session"):
             open_session(bad)
     server.close()
+
+
+def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
+    """``findme send`` as device alice (her password, the CA) to services joined as the
+    server user: the report of findme run, in a session named after her."""
+    endpoint, tls = tls_router
+    server_pw, alice_pw = tmp_path / "server.pw", tmp_path / "alice.pw"
+    server_pw.write_text("change-me-server\n")
+    alice_pw.write_text("change-me-alice\n")
+    auth = ["--connect", endpoint, "--ca", tls["root_ca_certificate"]]
+    procs = [spawn_findme("serve", name, *auth, "--user", "server", "--password-file", server_pw)
+             for name in ("hypotheses", "measurement", "odometry")]
+    try:
+        for p in procs:
+            wait_logged(p, " started")
+        p = run_findme("send", *auth, "--user", "alice", "--password-file", alice_pw,
+                       "--wait", "30", check=False)
+        assert p.returncode == 0, p.stderr
+        assert "motion 0 -> 1: x +0.385 m" in p.stdout and "session alice-" in p.stdout
+    finally:
+        for p in procs:
+            p.send_signal(signal.SIGTERM)
+        for p in procs:
+            p.wait(20)
+
+
+def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
+    """``findme app --https`` uses certs/gateway.pem; a client trusting ca.pem (as a phone
+    with ca.crt installed) gets the page. Without the files: one line, exit 2."""
+    import ssl
+    import subprocess
+    import urllib.request
+    no = subprocess.run([sys.executable, "-m", "findme.cli", "app", "--https"], cwd=tmp_path,
+                        capture_output=True, text=True, timeout=60)
+    assert no.returncode == 2 and no.stderr.count("\n") == 1 and "make_certs.py" in no.stderr
+    pytest.importorskip("cryptography", reason="cryptography makes the certificates")
+    sys.path.insert(0, str(COMPOSE.parent / "tools"))
+    from make_certs import make_certs
+    make_certs(tmp_path / "certs")
+    app = subprocess.Popen([sys.executable, "-m", "findme.cli", "app", "--https", "--http",
+                            "127.0.0.1:0", "--no-record"], cwd=tmp_path, text=True,
+                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        line = app.stdout.readline()              # the readiness line
+        assert "serving https://127.0.0.1:" in line, line
+        url = line.split("serving ", 1)[1].split()[0]
+        ctx = ssl.create_default_context(cafile=str(tmp_path / "certs" / "ca.pem"))
+        with urllib.request.urlopen(url, context=ctx, timeout=30) as r:
+            assert r.status == 200 and b"<html" in r.read().lower()
+    finally:
+        app.send_signal(signal.SIGTERM)
+        assert app.wait(30) == 0

@@ -1,0 +1,187 @@
+"""``findme plan`` (a room's floor plan from a session of photos) and ``findme locate-in``
+(where a new photo was taken on a plan); ``room_job`` plans a findme-eval room set.
+
+Photos are given in capture order: stand at a spot, turn right taking photos tilted down to
+see the floor, move to the next spot. Each photo's camera comes from its sidecar
+``PHOTO.json`` when there is one (the findme-eval view format: ``intrinsics``,
+``gravity_cam``, ``camera_height_m``), else from ``--hfov`` / ``--gravity`` /
+``--camera-height``. The plan's frame is the level frame of the first photo (x right, z
+forward, metres); degrees only here, at the edge.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import sys
+
+import cv2
+
+from findme_core import relocalise, session
+from findme_core.camera import Camera
+from findme_core.errors import FindmeError, InputError
+from findme_core.floorplan import Plan
+
+from findme_io.imageio import read_image
+from findme_io.plan_svg import plan_svg
+from .options import add_camera_args, camera_from, camera_height
+
+_SPOT = re.compile(r"_p(\d+)_")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("plan", help="a room's floor plan from a session of photos",
+                       description=__doc__)
+    p.add_argument("photos", nargs="+", metavar="PHOTO")
+    add_camera_args(p)
+    p.add_argument("--camera-height", type=float, metavar="M",
+                   help="camera height above the floor in metres (default: the sidecar's, "
+                        "else 1: the plan up to scale)")
+    p.add_argument("--spots", metavar="N,N,...",
+                   help="spot label of each photo (photos with one label were taken standing "
+                        "at one place); default: found from the photos")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--svg", metavar="OUT.svg", help="also draw the plan")
+    p.add_argument("--feet", action="store_true", help="wall lengths in feet in the drawing")
+    p.set_defaults(func=cmd_plan)
+    q = sub.add_parser("locate-in", help="where a photo was taken on a floor plan",
+                       description="Register the photo's walls to the plan's walls: its pose "
+                                   "in the plan's frame, and the other poses a symmetric room "
+                                   "allows.")
+    q.add_argument("plan", metavar="PLAN.json")
+    q.add_argument("photo", metavar="PHOTO")
+    add_camera_args(q)
+    q.add_argument("--camera-height", type=float, metavar="M")
+    q.add_argument("--json", action="store_true")
+    q.set_defaults(func=cmd_locate_in)
+
+
+def photo_inputs(path: str, args) -> tuple:
+    """(image, camera, height, metric) of one photo: the sidecar's inputs, else the flags."""
+    img = read_image(path)
+    side = os.path.splitext(path)[0] + ".json"
+    if os.path.exists(side):
+        try:
+            with open(side) as f:
+                meta = json.load(f)
+            k = meta["intrinsics"]
+            cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], img.shape[1], img.shape[0],
+                         meta.get("gravity_cam"))
+            if args.camera_height is None and meta.get("camera_height_m"):
+                return img, cam, float(meta["camera_height_m"]), True
+            h, metric = camera_height(args.camera_height)
+            return img, cam, h, metric
+        except (OSError, KeyError, TypeError, ValueError) as e:
+            raise InputError(f"{side}: not a camera sidecar ({e})") from None
+    cam = camera_from(img.shape[1], img.shape[0], args.hfov, args.intrinsics, args.gravity)
+    h, metric = camera_height(args.camera_height)
+    return img, cam, h, metric
+
+
+def cmd_plan(args) -> int:
+    spots = None
+    if args.spots:
+        spots = [s.strip() for s in args.spots.split(",")]
+        if len(spots) != len(args.photos):
+            raise InputError(f"--spots has {len(spots)} labels for {len(args.photos)} photos")
+    photos, metric = [], True
+    for path in args.photos:
+        img, cam, h, m = photo_inputs(path, args)
+        metric &= m
+        photos.append(session.analyse(img, cam, h))
+    plan, _, timing = session.plan(photos, spots)
+    names = [os.path.basename(p) for p in args.photos]
+    out = plan.to_dict(names)
+    out["metric"] = metric
+    out["timing_ms"] = {k: round(v, 1) for k, v in timing.items()}
+    if args.svg:
+        with open(args.svg, "w") as f:
+            f.write(plan_svg(plan, names, feet=args.feet))
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    unit = "m" if metric else "camera heights"
+    print(f"floor plan: {len(plan.walls)} walls, area {plan.area_m2:.2f} "
+          f"{'m2' if metric else '(camera heights)^2'}"
+          + ("" if plan.closed else f"; missing walls (not seen): {plan.missing}"))
+    for k, w in enumerate(plan.walls):
+        print(f"  wall {k}: {w.length_m:.2f} ± {w.sigma_m:.2f} {unit}"
+              + ("" if w.seen else " (not seen)")
+              + "".join(f", opening {a:.2f}-{b:.2f}" for a, b in w.apertures))
+    for name, p in out["poses"].items():
+        print(f"  {name}: " + ("not placed: " + out["notes"].get(name, "") if p is None else
+                              f"x {p['x_m']:+.2f} z {p['z_m']:+.2f} yaw {p['yaw_deg']:+.1f} deg"))
+    return 0
+
+
+def cmd_locate_in(args) -> int:
+    try:
+        with open(args.plan) as f:
+            plan = Plan.from_dict(json.load(f))
+    except (OSError, KeyError, TypeError, ValueError) as e:
+        raise InputError(f"{args.plan}: not a plan from findme plan --json ({e})") from None
+    img, cam, h, _ = photo_inputs(args.photo, args)
+    photo = session.analyse(img, cam, h)
+    if photo.layout is None:
+        raise FindmeError(f"the photo shows no usable floor boundary: {photo.reason}")
+    found = relocalise.locate(plan, photo.layout)
+    poses = [{"x_m": round(p.x, 3), "z_m": round(p.z, 3), "yaw_deg": round(math.degrees(p.yaw), 2),
+              "score": round(p.score, 2), "agreeing": p.agreeing} for p in found]
+    best = found[0]
+    amb = found[1].score / best.score if len(found) > 1 and best.score > 0 else 0.0
+    out = {"pose": poses[0], "alternatives": poses[1:], "ambiguity": round(amb, 3)}
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(f"you are at x {best.x:+.2f} z {best.z:+.2f}, facing {math.degrees(best.yaw):+.1f} deg "
+          f"({best.agreeing} wall samples agree)")
+    if amb > 0.8:
+        print(f"  ambiguous: {len(found) - 1} other pose(s) fit almost as well "
+              f"(runner-up {amb:.0%} of the best score)")
+    return 0
+
+
+def room_photos(room_dir: str, view_dir: str, rid: str) -> tuple[list, list]:
+    """(view ids, analysed photos) of one findme-eval room set: only its ordered view ids
+    and their camera inputs are read."""
+    with open(os.path.join(room_dir, rid + ".json")) as f:
+        views = json.load(f)["views"]
+    photos = []
+    for v in views:
+        with open(os.path.join(view_dir, v + ".json")) as f:
+            meta = json.load(f)
+        k = meta["intrinsics"]
+        cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"],
+                     meta.get("gravity_cam"))
+        photos.append(session.analyse(read_image(os.path.join(view_dir, meta["image"])),
+                                      cam, float(meta["camera_height_m"])))
+    return views, photos
+
+
+def room_spots(views, spots_mode: str):
+    """Spot labels from the ids' ``_p<N>_`` token ('ids'), or None ('auto': from the photos)."""
+    if spots_mode != "ids":
+        return None
+    return [(_SPOT.search(v).group(1) if _SPOT.search(v) else v) for v in views]
+
+
+def room_prediction(views, photos, spots_mode: str) -> dict:
+    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON."""
+    plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
+    d = plan.to_dict(views)
+    d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
+    return d
+
+
+def room_job(args) -> tuple[str, dict | None, str | None]:
+    """Plan of one findme-eval room set (``room_photos``); spots from the ids' ``_p<N>_``
+    token ('ids') or from the photos ('auto')."""
+    room_dir, view_dir, rid, spots_mode = args
+    cv2.setNumThreads(1)
+    try:
+        views, photos = room_photos(room_dir, view_dir, rid)
+        return rid, room_prediction(views, photos, spots_mode), None
+    except (FindmeError, OSError, KeyError, ValueError) as e:
+        return rid, None, str(e)

@@ -1,0 +1,227 @@
+"""What a session's results look like on a terminal: ``Printer`` (each photo's hypotheses,
+selection, scene, motion and pose, and the errors about it, as they arrive on the bus),
+``report_session`` (publish photos, print their results in order), the final measurement
+and, for the bundled example, its truth. Shared by ``findme run`` and ``findme send``.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from importlib import resources
+
+import zenoh
+
+import schemas
+from findme_core.errors import BusError, InputError
+from services.pipeline.capture import Lens, publish_frames, sources
+from services.runtime import bus
+
+from .options import floats
+
+
+class Printer:
+    """Prints a session's results as they arrive on the bus."""
+
+    def __init__(self, session: str, out=None):
+        self.session, self.out = session, out or sys.stdout
+        self.cv = threading.Condition()
+        self.seen: dict[str, object] = {}     # key -> its latest message
+        self.errors: list = []                # every Error published on the session
+
+    def __call__(self, sample: zenoh.Sample) -> None:
+        k = str(sample.key_expr)
+        try:
+            msg = schemas.decode_any(sample.payload.to_bytes())
+        except Exception:  # noqa: BLE001 - a foreign payload: nothing to print
+            return
+        with self.cv:
+            if type(msg).__name__ == "Error":
+                self.errors.append(msg)
+            else:
+                self.seen[k] = msg
+            self.cv.notify_all()
+
+    ORDER = ("frame", "hypotheses", "selection", "scene", "motion", "pose")
+
+    @staticmethod
+    def _about(err, n: int, kinds=ORDER) -> bool:
+        """Whether an Error is about photo n (its key is one of photo n's keys)."""
+        parts = err.key.split("/")
+        return len(parts) >= 4 and parts[2] in kinds and parts[-1] == str(n)
+
+    def report(self, n: int) -> None:
+        """Print photo n's results in pipeline order (they arrive in any order), then the
+        errors about it, one line each."""
+        p = f"findme/{self.session}/"
+        with self.cv:
+            items, errors = list(self.seen.items()), list(self.errors)
+        lines = []
+        for kind in self.ORDER:
+            for k, m in items:
+                if k.startswith(p + kind + "/") and k.endswith(f"/{n}"):
+                    line = self.describe(k, m)
+                    if line and line not in lines:
+                        lines.append(line)
+        for e in errors:
+            line = self.describe(e.key, e)
+            if self._about(e, n) and line not in lines:
+                lines.append(line)
+        print("\n".join(lines), file=self.out, flush=True)
+
+    def wait(self, done, timeout: float) -> bool:
+        """Until ``done(seen, errors)`` is true (results arrived), or the timeout."""
+        with self.cv:
+            return self.cv.wait_for(lambda: done(self.seen, self.errors), timeout)
+
+    def photo_done(self, n: int, odometry: bool):
+        """Photo n's results are all in: its scene (or an error about it), and its pose or
+        motion when odometry runs."""
+        def done(seen, errors):
+            p = f"findme/{self.session}/"
+            failed = any(self._about(e, n, ("frame", "hypotheses", "selection")) for e in errors)
+            scene = (p + f"scene/{n}" in seen and p + f"hypotheses/{n}" in seen) or failed
+            if not odometry or not scene:
+                return scene
+            return p + f"pose/{n}" in seen or any(k.startswith(p + "motion/") and
+                                                   k.endswith(f"/{n}") for k in seen)
+        return done
+
+    @staticmethod
+    def describe(k: str, m) -> str | None:
+        name = type(m).__name__
+        if name == "Frame":
+            return f"photo {m.index}: {m.device or 'frame'} ({len(m.image.data) // 1024} kB)"
+        if name == "HypothesisSet":
+            t = sum(m.timing_ms.values())
+            return (f"photo {m.index}: {len(m.hypotheses)} hypotheses in {t:.0f} ms"
+                    + (f" ({m.reason})" if m.reason else ""))
+        if name == "Selection":
+            return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
+        if name == "Scene":
+            return f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m" \
+                   f"{'' if m.metric else ', up to scale'})"
+        if name == "Motion":
+            if m.error:
+                return f"motion {m.index_a} -> {m.index_b}: no estimate: {m.error}"
+            return (f"motion {m.index_a} -> {m.index_b}: x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, yaw "
+                    f"{__import__('math').degrees(m.yaw_rad):+.2f} deg ({m.inliers}/{m.matches} inliers)")
+        if name == "Pose":
+            return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
+                    f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
+        if name == "Plan":
+            if m.reason:
+                return f"floor plan: none yet ({m.reason})"
+            placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
+            unit = "m" if m.metric else "camera heights"
+            return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
+                f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING else "")
+                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f}, "
+                f"{placed} of {len(m.poses)} photos placed")
+        if name == "Error":
+            return f"error on {m.key}: {m.message}"
+        return None
+
+    def plan_done(self, n: int):
+        """The mapper's plan has taken in (or named) every one of the n photos."""
+        def done(seen, errors):
+            m = seen.get(f"findme/{self.session}/plan")
+            return m is not None and len(m.poses) >= n and not any(
+                q.reason.startswith("waiting") for q in m.poses)
+        return done
+
+
+def _example_paths() -> list[str]:
+    base = resources.files("findme") / "examples"
+    return [str(base / "room_a.jpg"), str(base / "room_b.jpg")]
+
+
+def read_photos(photos, out=None) -> list:
+    """Every readable photo of ``photos`` (files, folders, videos, cameras) as capture
+    sources; each unreadable one is reported on one line of ``out`` (stderr) and skipped.
+
+    Returns:
+        (sources, errors): errors are (path, FindmeError).
+
+    Raises:
+        InputError: none of them could be read.
+    """
+    errors: list = []
+    srcs = list(sources(photos, errors=errors))
+    for path, e in errors:
+        print(f"findme: skipped {path}: {e}", file=out or sys.stderr, flush=True)
+    if not srcs:
+        raise InputError(f"none of the {len(photos)} inputs is a photo that can be read")
+    return srcs, errors
+
+
+def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: Lens,
+                   odometry: bool, timeout: float, mapper: bool = False) -> int:
+    """Publish the photos through ``publisher`` (a running capture-like Service), then print
+    each photo's results in order as they arrive, and the floor plan once it has taken in
+    every photo (when a mapper runs); returns the number of photos.
+
+    Raises:
+        BusError: a photo's results did not all arrive within ``timeout`` seconds.
+    """
+    t0 = time.perf_counter()
+    n = publish_frames(publisher, session_id, srcs, lens)
+    for i in range(n):
+        if not printer.wait(printer.photo_done(i, odometry), timeout):
+            printer.report(i)
+            raise BusError(f"photo {i}: not all results arrived within {timeout:.0f} s "
+                           "(is every service still running? see findme status)")
+        printer.report(i)
+    pk = f"findme/{session_id}/plan"
+    if (mapper or pk in printer.seen) and printer.wait(printer.plan_done(n), timeout):
+        print(printer.describe(pk, printer.seen[pk]), file=printer.out, flush=True)
+    print(f"session {session_id}: {n} photos processed in {time.perf_counter() - t0:.2f} s",
+          file=printer.out, flush=True)
+    return n
+
+
+def _measure(session, session_id, args, photos) -> None:
+    pixels = [floats(p, 2, "--measure") for p in args.measure or []]
+    if not pixels and not args.photos:  # the example: its ground-truth floor points
+        import json
+        meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())
+        pixels = [tuple(q["px"]) for q in meta["ground_truth"]["floor_points"][1:3]]
+    if not pixels:
+        return
+    req = schemas.MeasureRequest(session=session_id, index=0)
+    req.pixels.extend(schemas.pixels_to_msg(pixels))
+    for reply in session.get(bus.key(session_id, "measure"), payload=schemas.encode(req), timeout=10):
+        if reply.ok is None:
+            err = schemas.decode(schemas.Error, reply.err.payload.to_bytes())
+            print(f"measure: {err.message}")
+            continue
+        rep = schemas.decode(schemas.MeasureReply, reply.ok.payload.to_bytes())
+        bus.put(session, bus.key(session_id, "measured", rep.index), reply.ok.payload.to_bytes())  # for the record
+        unit = "m" if rep.metric else "camera heights"
+        for p in rep.points:
+            where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "
+                     f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
+                     if not p.error else p.error)
+            print(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): {where}")
+        for d in rep.distances:
+            if not d.error:
+                print(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} {unit} ± {d.sigma_m:.3f}")
+        if not args.photos:
+            _example_truth(pixels)
+        return
+
+
+def _example_truth(pixels) -> None:
+    """The bundled example is rendered: print its true motion and distance to compare."""
+    import json
+    import math
+    base = resources.files("findme") / "examples"
+    pair = json.loads((base / "pair.json").read_text())["motion"]
+    pts = {tuple(q["px"]): q["xyz_m"] for q in
+           json.loads((base / "room_a.json").read_text())["ground_truth"]["floor_points"]}
+    known = [pts.get(tuple(p)) for p in pixels[:2]]
+    d = (f"; distance 1-2 {math.dist(*known):.3f} m" if len(known) == 2 and None not in known
+         else "")   # the truth is known at the example's own points only
+    print(f"truth (the example is rendered): motion x {pair['x_m']:+.3f} m, z {pair['z_m']:+.3f} m,"
+          f" yaw {pair['yaw_deg']:+.2f} deg{d}")

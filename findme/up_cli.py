@@ -1,0 +1,170 @@
+"""``findme up``: one machine, many processes: a router and one process per service.
+
+    findme up [--listen tcp/127.0.0.1:7447] [--hypotheses 2] [--out recordings]
+              [--gateway [--http HOST:PORT] [--https | --tls-cert CERT --tls-key KEY]] [--quiet]
+
+Starts, as child processes of this one: ``router``; ``store`` (the last minute of messages,
+for a service that restarts); ``hypotheses`` x N (they share the
+frames); ``selection --auto``; ``measurement``; ``odometry``; ``recorder`` (sessions to
+``--out``); and with ``--gateway`` the phone page's gateway (which then selects for its
+pages and for nobody else, so no ``selection`` service is started: ``findme send`` selects
+for itself when none runs). Each child is this same Python (``sys.executable -m
+findme.cli``), so nothing depends on PATH or an activated virtual environment. Their
+logs are forwarded with a ``time name |`` prefix (one line per handled message; ``--quiet``:
+warnings and errors only). Ctrl-C or SIGTERM stops them all (SIGTERM, then SIGKILL after
+5 s); so does the death of any one of them, and the exit status is then its status.
+Once every service is on the bus it says so: ``system | ready: ...`` (a frame published
+before, while the store is up, is picked up by a hypotheses instance when it starts).
+
+Process supervision is honcho's (``honcho.manager.Manager``, the Python Foreman); the same
+processes, for foreman/honcho users with the virtual environment on PATH, are in
+compose/Procfile (``findme up --procfile`` prints them).
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import sys
+
+from findme_core.errors import InputError
+
+
+def register(sub) -> None:
+    import argparse
+    p = sub.add_parser("up", help="router + one process per service on this machine",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--listen", default="tcp/127.0.0.1:7447", metavar="ENDPOINT",
+                   help="the router's endpoint, which the services join "
+                        "(default tcp/127.0.0.1:7447: this machine only)")
+    p.add_argument("--hypotheses", type=int, default=2, metavar="N",
+                   help="hypotheses processes sharing the frames (default 2)")
+    p.add_argument("--out", default="recordings", metavar="DIR",
+                   help="where the recorder writes <session>.mcap (default recordings/)")
+    p.add_argument("--gateway", action="store_true",
+                   help="also serve the phone page (and let it select: no selection service)")
+    p.add_argument("--http", default=None, metavar="HOST:PORT",
+                   help="gateway: where the page is served (default 127.0.0.1:8080, "
+                        "0.0.0.0:8443 with --https)")
+    p.add_argument("--https", action="store_true",
+                   help="gateway: HTTPS with certs/gateway.pem and certs/gateway.key "
+                        "(python tools/make_certs.py certs --host THIS-MACHINE)")
+    p.add_argument("--tls-cert", "--cert", dest="tls_cert", metavar="CERT.pem")
+    p.add_argument("--tls-key", "--key", dest="tls_key", metavar="KEY.pem")
+    p.add_argument("--quiet", action="store_true",
+                   help="services log warnings and errors only")
+    p.add_argument("--procfile", action="store_true",
+                   help="print the processes as a Procfile (commands as `findme ...`) and exit")
+    p.set_defaults(func=cmd_up)
+
+
+def processes(args) -> list[tuple[str, list[str]]]:
+    """(name, findme arguments) of every process ``findme up`` starts, router first."""
+    if args.hypotheses < 1:
+        raise InputError(f"--hypotheses must be at least 1, got {args.hypotheses}")
+    ep = args.listen
+    quiet = ["--quiet"] if args.quiet else []
+    procs = [("router", ["router", "--listen", ep, *quiet]),
+             ("store", ["serve", "store", "--connect", ep, *quiet])]   # recovery: see README
+    procs += [(f"hypotheses{i}", ["serve", "hypotheses", "--connect", ep, "--instance", f"h{i}",
+                                  *quiet]) for i in range(1, args.hypotheses + 1)]
+    if not args.gateway:
+        procs.append(("selection", ["serve", "selection", "--auto", "--connect", ep, *quiet]))
+    procs += [(name, ["serve", name, "--connect", ep, *quiet]) for name in ("measurement", "odometry")]
+    procs.append(("recorder", ["serve", "recorder", "--connect", ep, "--out", args.out, *quiet]))
+    if args.gateway:
+        from .app_cli import https_files
+        cert, key = https_files(args)
+        http = args.http or ("0.0.0.0:8443" if cert else "127.0.0.1:8080")
+        tls = ["--tls-cert", cert, "--tls-key", key] if cert else []
+        procs.append(("gateway", ["serve", "gateway", "--connect", ep, "--http", http, *tls, *quiet]))
+    return procs
+
+
+def _expected(procs) -> set[str]:
+    """Liveliness tokens (``service/instance`` or ``service/*``) the started services make."""
+    out = set()
+    for name, argv in procs:
+        if argv[0] == "serve":
+            inst = argv[argv.index("--instance") + 1] if "--instance" in argv else "*"
+            out.add(f"{argv[1]}/{inst}")
+    return out
+
+
+def _local(endpoint: str) -> str:
+    """Where a process of this machine reaches a router listening on ``endpoint``."""
+    proto, _, addr = endpoint.partition("/")
+    host, _, port = addr.rpartition(":")
+    return f"{proto}/127.0.0.1:{port}" if host in ("0.0.0.0", "[::]") else endpoint
+
+
+def announce_ready(endpoint: str, expected: set[str], say, timeout: float = 120.0) -> None:
+    """Wait (on liveliness, no polling) until every expected service is on the bus, then
+    ``say`` the readiness line; or, after ``timeout``, which ones are missing."""
+    import threading
+
+    import zenoh
+
+    from services.runtime import bus
+    seen, cv = set(), threading.Condition()
+
+    def on_token(sample):
+        with cv:
+            tok = "/".join(str(sample.key_expr).split("/")[-2:])
+            (seen.add if sample.kind == zenoh.SampleKind.PUT else seen.discard)(tok)
+            cv.notify_all()
+
+    def missing():
+        return {e for e in expected if not any(
+            t == e or (e.endswith("/*") and t.startswith(e[:-1])) for t in seen)}
+    try:
+        session = bus.open_session(bus.BusConfig(mode="client", connect=(endpoint,)))
+    except Exception as e:  # noqa: BLE001 - reported on the console, the services go on
+        say(f"cannot watch for readiness: {e}\n")
+        return
+    try:
+        sub = session.liveliness().declare_subscriber(f"{bus.SERVICES}/**", on_token, history=True)
+        with cv:
+            ok = cv.wait_for(lambda: not missing(), timeout)
+            gone = sorted(missing())
+        sub.undeclare()
+    finally:
+        session.close()
+    if ok:
+        say(f"ready: {len(expected)} services on {endpoint}; send photos with: findme send "
+            f"--connect {endpoint}\n")
+    else:
+        say(f"not ready after {timeout:.0f} s: no {', '.join(gone)} on the bus (see above)\n")
+
+
+def cmd_up(args) -> int:
+    procs = processes(args)
+    if args.procfile:
+        for name, argv in procs:
+            print(f"{name}: {shlex.join(['findme', *argv])}")
+        return 0
+    import threading
+
+    from honcho.manager import SIGNALS, Manager
+    from honcho.printer import Message
+
+    class _Manager(Manager):
+        def _start(self):
+            super()._start()      # forks the children first: no Zenoh session in them
+            threading.Thread(target=announce_ready, daemon=True, args=(
+                _local(args.listen), _expected(procs), self._say)).start()
+
+        def _say(self, text):
+            self.events.put(Message(type="line", data=text, time=self._clock.now(),
+                                    name="system", colour=None))
+
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    sys.stdout.reconfigure(line_buffering=True)   # lines as they come, also into a pipe
+    m = _Manager()
+    for name, argv in procs:
+        # exec: the shell honcho starts is replaced, so signals reach the service itself
+        m.add_process(name, "exec " + shlex.join([sys.executable, "-m", "findme.cli", *argv]),
+                      env=env)
+    m.loop()
+    stopped_by_us = m.returncode in {v["rc"] for v in SIGNALS.values()}
+    return 0 if stopped_by_us else (m.returncode or 1)

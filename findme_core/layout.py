@@ -1,0 +1,279 @@
+"""The room's layout seen by one photo, on the floor plane of its level frame.
+
+A boundary hypothesis (pixel polyline + segment kinds, ``search.SegKind``), the camera
+(intrinsics + gravity) and the camera height h give, in the photo's LEVEL frame (x right,
+z forward, y down; metres; the floor is y = h, so everything here is (x, z)):
+
+* walls: the floor lines of the WALL segments (paper eq. 2 on their image end points), each
+  from its left to its right end in the image, with what bounds each end (``End``): a
+  corner (two walls meet), an occluding vertical edge (the near surface of a step ends
+  there), or nothing seen (the wall goes on past the image border or behind an occluder);
+* a scan: the boundary sampled across the image, like a 2-D range scan on the floor: per
+  azimuth (atan2(x, z), radians) the horizontal distance to the wall base (WALL), a lower
+  bound (OPEN: the floor goes on past the top border) or an upper bound (NONE: no floor
+  seen down to the bottom border), with its 1-sigma;
+* the room's orientation: the dominant horizontal direction of the photo's straight lines
+  modulo 90 degrees (``orientation``; walls, ceiling edges, window and cabinet edges of a
+  Manhattan room), which needs no floor in view.
+
+Registration of two photos' layouts is ``register``. Pure numpy; no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from .camera import Camera
+from .errors import HypothesisError
+from .search import SegKind
+
+
+class End(IntEnum):
+    """What bounds a wall at one end in the photo."""
+
+    OPEN = 0     # nothing seen: the wall goes on past the border or behind an occluder
+    CORNER = 1   # another wall meets it at a floor corner
+    EDGE = 2     # an occluding vertical edge: the (nearer) surface ends there
+
+
+@dataclass(frozen=True)
+class LayoutParams:
+    """Sampling and uncertainty of a layout.
+
+    Attributes:
+        step_px: the scan samples the boundary every ``step_px`` image columns.
+        boundary_px: 1-sigma of the boundary position, pixels (hypothesis and snapping).
+        gravity_deg: 1-sigma of the gravity direction, degrees.
+        height_rel: relative 1-sigma of the camera height.
+        merge_deg: consecutive WALL segments closer than this in direction (and 5 % of their
+            distance in offset) are one wall.
+    """
+
+    step_px: float = 6.0
+    boundary_px: float = 1.5
+    gravity_deg: float = 0.5
+    height_rel: float = 0.02
+    merge_deg: float = 6.0
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What one photo under one hypothesis shows of the room, on the floor of its level frame.
+
+    Attributes:
+        walls: (K, 2, 2) wall base segments [[x0, z0], [x1, z1]], metres, left end first.
+        ends: (K, 2) ``End`` of each wall's left and right end.
+        azimuth: (S,) scan directions, radians (atan2(x, z), > 0 to the right), ascending.
+        range: (S,) horizontal distance to the boundary in each direction, metres (inf: no
+            bound).
+        kind: (S,) SegKind of each sample: WALL (the wall base is there), OPEN (floor seen
+            at least that far), NONE (no floor seen: something stands nearer).
+        sigma: (S,) 1-sigma of ``range``, metres.
+        wall: (S,) index of the wall of a WALL sample, else -1.
+        height: camera height above the floor, metres.
+        rank: the hypothesis' rank (1 = best), 0 when not from a ranked list.
+    """
+
+    walls: np.ndarray
+    ends: np.ndarray
+    azimuth: np.ndarray
+    range: np.ndarray
+    kind: np.ndarray
+    sigma: np.ndarray
+    wall: np.ndarray
+    height: float
+    rank: int = 0
+
+    @property
+    def points(self) -> np.ndarray:
+        """(S, 2) floor points (x, z) of the samples (inf where the range is unbounded)."""
+        return self.range[:, None] * np.column_stack([np.sin(self.azimuth), np.cos(self.azimuth)])
+
+    @property
+    def normals(self) -> np.ndarray:
+        """(K, 2) unit normal of each wall, pointing to the camera's side."""
+        d = self.walls[:, 1] - self.walls[:, 0]
+        n = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(np.hypot(*d.T), 1e-12)[:, None]
+        flip = np.einsum("ij,ij->i", n, self.walls[:, 0]) > 0   # the camera is at the origin
+        return np.where(flip[:, None], -n, n)
+
+    @property
+    def corners(self) -> np.ndarray:
+        """(C, 2) floor points where two walls meet (the right end of the left wall)."""
+        return self.walls[self.ends[:, 1] == End.CORNER, 1].reshape(-1, 2)
+
+    @property
+    def n_wall_samples(self) -> int:
+        return int(np.count_nonzero(self.kind == SegKind.WALL))
+
+
+def _floor(camera: Camera, h: float, pixels) -> tuple[np.ndarray, np.ndarray]:
+    """Level rays of (N, 2) pixels and their floor points (x, z) (eq. 2; NaN at or above
+    the horizon)."""
+    r = camera.rays_level(pixels)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(r[:, 1] > 1e-9, h / r[:, 1], np.nan)
+    return r, s[:, None] * r[:, [0, 2]]
+
+
+def from_hypothesis(camera: Camera, height: float, polyline, kinds=None, rank: int = 0,
+                    params: LayoutParams = LayoutParams()) -> Layout:
+    """Layout of one photo under a boundary hypothesis.
+
+    Args:
+        camera: intrinsics and gravity of the photo.
+        height: camera height above the floor, metres (> 0).
+        polyline: (M, 2) boundary vertices in pixels, u non-decreasing from 0 to W - 1.
+        kinds: (M - 1,) SegKind per segment (default: all WALL).
+
+    Raises:
+        HypothesisError: fewer than 2 vertices, non-finite values, or a WALL vertex at or
+            above the horizon (not a floor line).
+    """
+    poly = np.asarray(polyline, float).reshape(-1, 2)
+    if len(poly) < 2 or not np.isfinite(poly).all():
+        raise HypothesisError(f"a boundary needs at least 2 finite vertices, got {poly.tolist()}")
+    kinds = np.full(len(poly) - 1, SegKind.WALL) if kinds is None else np.asarray(kinds, int)
+    if len(kinds) != len(poly) - 1:
+        raise HypothesisError(f"{len(kinds)} segment kinds for {len(poly)} vertices")
+    if not (np.isfinite(height) and height > 0):
+        raise HypothesisError(f"camera height must be a positive number of metres, got {height!r}")
+    h = float(height)
+    _, q = _floor(camera, h, poly)
+    walls, ends = _walls(poly, kinds, q, params)
+    return Layout(walls, ends, *_scan(camera, h, poly, kinds, walls, params), h, int(rank))
+
+
+def _walls(poly, kinds, q, params: LayoutParams):
+    """Wall segments (K, 2, 2) and their end kinds (K, 2) from the WALL segments, merging
+    nearly collinear neighbours."""
+    walls, ends = [], []
+    for s, k in enumerate(kinds):
+        if k != SegKind.WALL:
+            continue
+        if not np.isfinite(q[s]).all() or not np.isfinite(q[s + 1]).all():
+            raise HypothesisError(f"boundary segment {s} from {poly[s].round(1).tolist()} to "
+                                  f"{poly[s + 1].round(1).tolist()} reaches the horizon: not a "
+                                  "floor line")
+        if np.hypot(*(q[s + 1] - q[s])) < 1e-6:
+            continue
+        ends.append([_end(poly, kinds, s, -1), _end(poly, kinds, s, +1)])
+        walls.append([q[s], q[s + 1]])
+    walls, ends = np.array(walls, float).reshape(-1, 2, 2), np.array(ends, int).reshape(-1, 2)
+    keep = np.ones(len(walls), bool)
+    for k in range(1, len(walls)):   # merge a corner between two nearly collinear walls
+        j = np.flatnonzero(keep[:k])[-1]
+        if ends[j, 1] != End.CORNER or not np.allclose(walls[j, 1], walls[k, 0]):
+            continue
+        d0, d1 = walls[j, 1] - walls[j, 0], walls[k, 1] - walls[k, 0]
+        ang = abs(np.arctan2(d0[0] * d1[1] - d0[1] * d1[0], d0 @ d1))
+        if ang < np.radians(params.merge_deg):
+            walls[j, 1], ends[j, 1] = walls[k, 1], ends[k, 1]
+            keep[k] = False
+    return walls[keep], ends[keep]
+
+
+def _end(poly, kinds, s: int, side: int) -> int:
+    """End kind of WALL segment s on its left (side -1) or right (+1)."""
+    j = s + side   # the neighbouring segment
+    if j < 0 or j >= len(kinds):
+        return End.OPEN
+    if kinds[j] == SegKind.WALL:
+        return End.CORNER
+    if kinds[j] == SegKind.STEP:   # the lower side of a step (larger v) is the nearer surface
+        mine, other = (poly[s], poly[s - 1]) if side < 0 else (poly[s + 1], poly[s + 2])
+        return End.EDGE if mine[1] > other[1] else End.OPEN
+    return End.OPEN
+
+
+def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
+    """Samples of the boundary every ``step_px`` columns: azimuth, range, kind, sigma and
+    wall index (see ``Layout``)."""
+    W, H = camera.width, camera.height
+    u = np.arange(0.0, W - 1.0 + 1e-9, params.step_px)
+    seg = np.clip(np.searchsorted(poly[1:, 0], u, side="left"), 0, len(kinds) - 1)
+    kind = kinds[seg].copy()
+    step = kind == SegKind.STEP   # a sample falling on a step's 0.5-px width: skip it
+    v = np.interp(u, poly[:, 0], poly[:, 1])
+    rows = np.where(kind == SegKind.OPEN, -0.5, np.where(kind == SegKind.NONE, H - 0.5, v))
+    r, q = _floor(camera, h, np.column_stack([u, rows]))
+    az = np.arctan2(r[:, 0], r[:, 2])
+    rng = np.hypot(q[:, 0], q[:, 1])
+    rng = np.where(np.isfinite(rng), rng, np.where(kind == SegKind.NONE, np.inf, np.inf))
+    # 1-sigma: the depression angle off by the boundary and gravity errors moves the floor
+    # point by (h^2 + d^2) / h per radian; the height error scales it
+    dep = np.hypot(params.boundary_px / np.hypot(camera.fx, camera.fy) * np.sqrt(2),
+                   np.radians(params.gravity_deg))
+    sigma = np.hypot((h * h + rng ** 2) / h * dep, params.height_rel * rng)
+    wall = np.full(len(u), -1)
+    if len(walls):
+        w = np.flatnonzero(kind == SegKind.WALL)
+        pts = q[w]
+        a, b = walls[:, 0], walls[:, 1]
+        d = b - a
+        t = np.clip(np.einsum("skj,kj->sk", pts[:, None] - a[None], d)
+                    / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0, 1)
+        dist = np.linalg.norm(pts[:, None] - (a[None] + t[..., None] * d[None]), axis=2)
+        wall[w] = np.argmin(dist, axis=1)
+    keep = ~step & ((kind != SegKind.WALL) | np.isfinite(rng))
+    o = np.argsort(az[keep], kind="stable")
+    return az[keep][o], rng[keep][o], kind[keep][o], sigma[keep][o], wall[keep][o]
+
+
+# ---------------------------------------------------------------------------- orientation
+@dataclass(frozen=True)
+class Orientation:
+    """The room's dominant horizontal direction in a photo's level frame, modulo 90 deg.
+
+    Attributes:
+        angle: azimuth of the direction, radians in [0, pi / 2) (atan2(x, z) of a wall's
+            direction, modulo a quarter turn).
+        support: length-weighted fraction of the photo's horizontal line evidence within
+            2 degrees of it (0..1).
+        n_lines: lines that took part.
+    """
+
+    angle: float
+    support: float
+    n_lines: int
+
+
+def orientation(segments, camera: Camera, min_vertical_deg: float = 10.0,
+                resolution_deg: float = 0.25, spread_deg: float = 1.5) -> Orientation | None:
+    """Dominant horizontal direction (mod 90 deg) of the 3D lines seen as ``segments``.
+
+    Each image segment with its camera centre spans a plane (normal n, level frame); a
+    horizontal 3D line in it has direction n x g = (-n_z, 0, n_x). Segments whose plane is
+    within ``min_vertical_deg`` of vertical are left out (the images of vertical lines, and
+    horizontal lines seen end-on, which look alike); the others vote with weight length x
+    (1 - n_y^2) (the direction is ill-defined near the horizon) on a circular histogram of
+    4 x angle, smoothed by ``spread_deg``.
+
+    Args:
+        segments: (N, 4) image segments [u1, v1, u2, v2], pixels.
+
+    Returns:
+        The orientation, or None without a usable line.
+    """
+    seg = np.asarray(segments, float).reshape(-1, 4)
+    if len(seg) == 0:
+        return None
+    n = np.cross(camera.rays_level(seg[:, :2]), camera.rays_level(seg[:, 2:]))
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    horiz = np.hypot(n[:, 0], n[:, 2])                 # sin of the plane's tilt from level
+    ok = np.abs(n[:, 1]) > np.sin(np.radians(min_vertical_deg))
+    if not ok.any():
+        return None
+    ang = np.arctan2(-n[ok, 2], n[ok, 0])
+    w = np.hypot(*(seg[ok, 2:] - seg[ok, :2]).T) * horiz[ok] ** 2
+    grid = np.radians(np.arange(0.0, 90.0, resolution_deg))
+    k = 1.0 / (4.0 * np.radians(spread_deg)) ** 2
+    score = np.exp((np.cos(4.0 * (grid[:, None] - ang[None])) - 1.0) * k) @ w
+    best = grid[int(np.argmax(score))]
+    near = np.abs(np.angle(np.exp(4j * (ang - best)))) < 4 * np.radians(2.0)
+    # sub-bin angle: circular mean of the nearby votes
+    best = float(np.angle(np.sum(w[near] * np.exp(4j * ang[near]))) / 4.0) % (np.pi / 2)
+    return Orientation(best, float(w[near].sum() / max(w.sum(), 1e-12)), int(ok.sum()))

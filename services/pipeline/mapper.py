@@ -1,0 +1,301 @@
+"""The mapper service: a session's floor plan, recomputed as its photos arrive.
+
+    frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/plan   (findme.v1.Plan)
+
+Per photo, once, when its frame arrives: its camera and ORB features (the image is then
+dropped). When its hypotheses and selection are in (in any order: what is missing is fetched
+from the bus when someone caches it, else awaited): its layout under the selected boundary
+(a new selection rebuilds it); a photo whose hypothesis set is empty takes part without a
+layout. Between photos: rotation-only yaws, feature matches and two-photo motions
+(``session.relate``), each pair computed once and kept. Then ``session.plan`` (placement of
+every photo, outline, walls, joint refinement) over the session's photos in index order;
+each placed photo's 1-sigma is the refinement's, else ``plan_pose.covariance``. The plan
+frame is the level frame of the first photo with a layout (``Plan.origin_index``; photo 0
+normally).
+
+Cost, bounded per session: at most ``max_photos`` photos per plan (the first ones; later
+ones are listed LEFT_OUT), a new plan after every ``every`` newly ready photos or when no
+photo is left waiting (a count, not a time: a replay gives the same plans), and the pair
+relations of those photos only. State: at most ``max_sessions`` sessions (the least recently
+active one is dropped first) and a session idle for ``idle_s`` seconds is dropped.
+
+Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan, one that
+cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline
+yet gets a Plan with the reason. Camera height: the selection's, else the frame's, else 1
+(``metric`` false: lengths in camera heights). Instances share the load by session.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import schemas
+from findme_core import features, fuse, layout, plan_pose, session as plan_session
+from findme_core.errors import FindmeError, HypothesisError, InputError
+from findme_core.scene import Scene
+from findme_io.convert import frame_camera, msg_hypotheses
+from findme_io.imageio import decode_image
+
+from ..runtime import bus
+from ..runtime.handler import Handler, Input, Output
+
+#: A seen edge with floor seen beyond at least this share of it is an opening, not a wall.
+OPENING_SHARE = 0.9
+
+
+@dataclass
+class _Photo:
+    """One photo's inputs: camera and features (from the frame), its hypotheses and
+    selection, and the analysed photo (``session.Photo``) once it is ready."""
+
+    camera: object = None
+    features: object = None
+    frame_height: float | None = None
+    bad: str | None = None            # why the frame cannot be used
+    hset: object = None
+    selection: object = None
+    photo: plan_session.Photo | None = None
+    key: tuple = ()                   # (rank, height) the photo was analysed with
+
+
+@dataclass
+class _Session:
+    photos: dict = field(default_factory=dict)      # n -> _Photo
+    pairs: dict = field(default_factory=dict)       # (i, j, adjacent) -> relate() of the two
+    planned: int = -1                                # ready photos at the last plan
+    signature: tuple = ()
+    seen: float = 0.0                                # clock of the last message
+
+
+class MapperHandler(Handler):
+    name = "mapper"
+    cache_keys = ("findme/*/plan",)
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),   # fetched again if skipped
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+              Input("findme/*/selection/*", schemas.Selection))
+    shard = True
+
+    def __init__(self, max_photos: int = 32, every: int = 1, max_sessions: int = 16,
+                 idle_s: float = 3600.0, params: plan_session.SessionParams | None = None,
+                 clock=time.monotonic, wall_clock=time.time_ns):
+        self.max_photos, self.every = int(max_photos), max(1, int(every))
+        self.max_sessions, self.idle_s = int(max_sessions), float(idle_s)
+        self.params = params or plan_session.SessionParams()
+        self.clock, self.wall_clock = clock, wall_clock
+        self.sessions: dict[str, _Session] = {}
+        self.plans = 0
+
+    def shard_key(self, key, msg):
+        return bus.parse_key(key).session   # a session's photos stay on one instance
+
+    # ------------------------------------------------------------------ inputs
+    def _session(self, sid: str) -> _Session:
+        now = self.clock()
+        for s in [s for s, st in self.sessions.items() if now - st.seen > self.idle_s]:
+            del self.sessions[s]
+        st = self.sessions.get(sid)
+        if st is None:
+            while len(self.sessions) >= self.max_sessions:
+                del self.sessions[min(self.sessions, key=lambda s: self.sessions[s].seen)]
+            st = self.sessions[sid] = _Session()
+        st.seen = now
+        return st
+
+    def on_message(self, key, msg):
+        k = bus.parse_key(key)
+        n = msg.index
+        if msg.session != k.session or str(n) != (k.parts[0] if k.parts else ""):
+            raise InputError(f"{key} carries photo {n} of session {msg.session!r}")
+        st = self._session(k.session)
+        if n >= self.max_photos and n not in st.photos:
+            st.photos.setdefault(n, _Photo(bad=f"over the limit of {self.max_photos} photos "
+                                               "per plan"))
+            return []
+        ph = st.photos.setdefault(n, _Photo())
+        if isinstance(msg, schemas.Frame):
+            self._frame(ph, msg)
+        elif isinstance(msg, schemas.HypothesisSet):
+            ph.hset = msg
+        else:   # the inputs it needs may still be on their way: fetched if cached, else awaited
+            ph.hset = ph.hset or self._fetch(bus.key(k.session, "hypotheses", n),
+                                             schemas.HypothesisSet)
+            if ph.hset is not None and not 1 <= msg.rank <= len(ph.hset.hypotheses):
+                raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which "
+                                      f"has {len(ph.hset.hypotheses)} hypotheses")
+            if ph.camera is None and ph.bad is None:
+                f = self._fetch(bus.key(k.session, "frame", n), schemas.Frame)
+                if f is not None:
+                    self._frame(ph, f)
+            ph.selection = msg
+        self._analyse(st, n, ph)
+        return self._maybe_plan(k.session, st)
+
+    def _fetch(self, key: str, cls):
+        """A message this mapper has not received, from whoever caches it, or None."""
+        try:
+            return self.need(key, cls)
+        except HypothesisError:
+            return None
+
+    def _frame(self, ph: _Photo, f) -> None:
+        if ph.camera is not None:
+            return
+        try:
+            image = decode_image(f.image.data, f"frame {f.index}")
+            ph.camera = frame_camera(f, image.shape[1], image.shape[0])
+            ph.features = features.detect(image, self.params.features)
+        except FindmeError as e:
+            ph.bad = f"its photo cannot be used: {str(e).splitlines()[0][:200]}"
+            ph.camera = None
+        ph.frame_height = f.camera_height_m if f.HasField("camera_height_m") else None
+
+    def _analyse(self, st: _Session, n: int, ph: _Photo) -> None:
+        """(Re)build photo n's layout when its frame, hypotheses and selection are in."""
+        if ph.camera is None or ph.hset is None:
+            return
+        hyps = msg_hypotheses(ph.hset)
+        if hyps and (ph.selection is None or not 1 <= ph.selection.rank <= len(hyps)):
+            return   # not selected yet (or a selection of a rank it does not have)
+        sel = ph.selection
+        height = (sel.camera_height_m if sel is not None and sel.HasField("camera_height_m")
+                  else ph.frame_height)
+        rank = sel.rank if sel is not None else 0
+        if ph.photo is not None and ph.key == (rank, height):
+            return
+        h = 1.0 if height is None else float(height)
+        L, sc, why = None, None, ph.hset.reason or "no hypotheses"
+        if hyps:
+            hyp = hyps[rank - 1]
+            try:
+                L = layout.from_hypothesis(ph.camera, h, hyp.polyline, hyp.kinds, 1)
+                sc = Scene(ph.camera, h, hyp.polyline, hyp.kinds)
+                why = None
+            except FindmeError as e:
+                why = str(e).splitlines()[0][:200]
+        ph.photo = plan_session.Photo(ph.camera, h, L, sc, ph.features, why)
+        ph.key = (rank, height)
+        for pk in [pk for pk in st.pairs if n in pk[:2]]:   # motions lift with the scene
+            del st.pairs[pk]
+
+    # ------------------------------------------------------------------ planning
+    def _maybe_plan(self, sid: str, st: _Session) -> list[Output]:
+        ready = [n for n in sorted(st.photos) if st.photos[n].photo is not None]
+        sig = tuple((n, st.photos[n].key) for n in ready)
+        if sig == st.signature or not st.photos:
+            return []
+        waiting = any(ph.photo is None and ph.bad is None for ph in st.photos.values())
+        grown = len(ready) - max(st.planned, 0)
+        if st.planned >= 0 and 0 < grown < self.every and waiting:
+            return []
+        st.signature, st.planned = sig, len(ready)
+        self.plans += 1
+        return [Output(bus.key(sid, "plan"), self._plan(sid, st, ready))]
+
+    def _relations(self, st: _Session, order: list[int]):
+        """links, matches, motions among the photos ``order`` (list positions), from the
+        cached relations of each pair."""
+        links, matches, motions = [], {}, []
+        for a in range(len(order)):
+            for b in range(a + 1, len(order)):
+                i, j = order[a], order[b]
+                pk = (i, j, b == a + 1)
+                if pk not in st.pairs:
+                    pair = [st.photos[i].photo, st.photos[j].photo]
+                    st.pairs[pk] = plan_session.relate(pair, None if pk[2] else [0, 1],
+                                                       self.params)
+                lk, mt, mo = st.pairs[pk]
+                links += [fuse.Link(a, b, x.yaw, x.sigma, x.t) for x in lk]
+                matches.update({(a, b): v for v in mt.values()})
+                motions += [fuse.Link(a, b, x.yaw, x.sigma, x.t) for x in mo]
+        return links, matches, motions
+
+    def _plan(self, sid: str, st: _Session, ready: list[int]):
+        msg = schemas.Plan(session=sid, time_ns=self.wall_clock(), camera_height_m=1.0)
+        first = next((n for n in ready if st.photos[n].photo.layout is not None), None)
+        order = [n for n in ready if first is not None and n >= first]
+        status = {}
+        for n, ph in st.photos.items():
+            if n in order:
+                continue
+            status[n] = schemas.PlanPhoto(index=n, status=schemas.PLAN_PHOTO_STATUS_LEFT_OUT,
+                                          reason=_left_out(ph, first))
+        if order:
+            msg.up_to_index, msg.photos, msg.origin_index = max(order), len(order), order[0]
+            photos = [st.photos[n].photo for n in order]
+            msg.camera_height_m = photos[0].height
+            msg.metric = all(st.photos[n].key[1] is not None for n in order)
+            try:
+                t0 = time.perf_counter()
+                rel = self._relations(st, order)
+                t_rel = 1e3 * (time.perf_counter() - t0)
+                plan, pl, timing = plan_session.plan(photos, None, self.params, relations=rel)
+                timing["relate"] = t_rel   # the new pairs' share: the others were cached
+            except FindmeError as e:
+                msg.reason = str(e).splitlines()[0][:500]
+                for n in order:
+                    status[n] = schemas.PlanPhoto(index=n, reason=msg.reason,
+                                                  status=schemas.PLAN_PHOTO_STATUS_NOT_PLACED)
+            else:
+                _fill(msg, plan, pl, timing, photos, order, status)
+        else:
+            msg.reason = ("no photo with a floor boundary yet" if status else "no photo yet")
+        msg.poses.extend(status[n] for n in sorted(status))
+        return msg
+
+    def counters(self):
+        return {"sessions": len(self.sessions), "plans": self.plans}
+
+
+def _left_out(ph: _Photo, first: int | None) -> str:
+    """Why a photo is not in the plan's input."""
+    if ph.bad:
+        return ph.bad
+    if ph.photo is not None:   # ready, but before the first photo with a floor boundary
+        return f"no floor boundary ({ph.photo.reason}); the plan starts at a photo with one"
+    if ph.camera is None:
+        return "waiting for its frame"
+    return "waiting for its hypotheses" if ph.hset is None else "waiting for its selection"
+
+
+def _fill(msg, plan, pl, timing, photos, order, status) -> None:
+    """The core plan into the message; each photo's status into ``status`` (n -> PlanPhoto)."""
+    for v in plan.polygon:
+        msg.polygon.add(x_m=float(v[0]), z_m=float(v[1]))
+    for w in plan.walls:
+        gaps = sum(b - a for a, b in w.apertures)
+        kind = (schemas.WALL_KIND_MISSING if not w.seen else schemas.WALL_KIND_OPENING
+                if gaps >= OPENING_SHARE * w.length_m else schemas.WALL_KIND_WALL)
+        pw = msg.walls.add(length_m=float(w.length_m), sigma_m=float(w.sigma_m), kind=kind)
+        pw.a.x_m, pw.a.z_m, pw.b.x_m, pw.b.z_m = map(float, (*w.a, *w.b))
+        for a, b in w.apertures:
+            pw.openings.add(from_m=float(a), to_m=float(min(b, w.length_m)))
+    msg.area_m2, msg.closed, msg.manhattan = float(plan.area_m2), plan.closed, plan.manhattan
+    for stage, ms in timing.items():
+        msg.timing_ms[stage] = max(float(ms), 0.0)
+    for a, n in enumerate(order):
+        p = plan.poses[a]
+        q = schemas.PlanPhoto(index=n, spot=int(pl.spot[a]))
+        if np.all(np.isfinite(p)):
+            q.status = schemas.PLAN_PHOTO_STATUS_PLACED
+            q.x_m, q.z_m, q.yaw_rad = float(p[0]), float(p[1]), float(fuse.wrap(p[2]))
+            sig = plan.pose_sigma[a] if plan.pose_sigma is not None else np.full(3, np.nan)
+            if not np.all(np.isfinite(sig)):   # not refined jointly: from its wall samples
+                C = plan_pose.covariance(plan, photos[a].layout, p)
+                sig = np.sqrt(np.maximum(np.diag(C), 0.0)) if C is not None else sig
+            if np.all(np.isfinite(sig)):
+                q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad = map(float, sig)
+            if a < len(plan.ambiguity) and np.isfinite(plan.ambiguity[a]):
+                q.ambiguity = max(float(plan.ambiguity[a]), 0.0)
+        else:
+            q.status = schemas.PLAN_PHOTO_STATUS_NOT_PLACED
+            q.reason = (plan.notes[a] if a < len(plan.notes) and plan.notes[a]
+                        else "not placed")
+        status[n] = q
+
+
+def make_mapper(args) -> MapperHandler:
+    """``findme serve mapper``: the defaults (32 photos per plan, a plan per new photo)."""
+    return MapperHandler()

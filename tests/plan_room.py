@@ -1,0 +1,92 @@
+"""A mapping session of a room the project renders, as bus messages: each photo's Frame
+(the rendered JPEG, its exact camera), a HypothesisSet whose rank 1 is the exact ground-wall
+boundary (``synth``; segment kinds WALL, or STEP at occluding edges) and its Selection; plus
+the truth in the level frame of photo 0 (the plan's frame).
+
+Photos turn right at each spot (``yaws`` degrees, the spot's heading offset by 7 deg per
+spot), tilted down ``pitch`` degrees, 1.4 m above the floor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+import schemas
+from findme_core.room import Pose, Room
+from findme_core.search import SegKind
+from findme_core.synth import render
+from findme_io.convert import make_frame
+
+H = 1.4
+
+
+@dataclass
+class RenderedSession:
+    frames: list
+    hsets: list
+    selections: list
+    jpegs: list            # the photos' bytes (what a page uploads)
+    views: list            # synth.View of each photo
+    polygon: np.ndarray    # (V, 2) true outline in the level frame of photo 0
+    poses: np.ndarray      # (N, 3) true (x, z, yaw) in that frame
+
+    def messages(self):
+        """(key, message) of every photo, photo by photo: frame, hypotheses, selection."""
+        for f, h, s in zip(self.frames, self.hsets, self.selections):
+            sid, n = f.session, f.index
+            yield f"findme/{sid}/frame/{n}", f
+            yield f"findme/{sid}/hypotheses/{n}", h
+            yield f"findme/{sid}/selection/{n}", s
+
+    def wall_lengths(self) -> list[float]:
+        P = self.polygon
+        return sorted(float(x) for x in np.linalg.norm(np.roll(P, -1, 0) - P, axis=1))
+
+
+def boundary_kinds(cam, poly, height=H) -> np.ndarray:
+    """WALL, or STEP where neighbouring columns' floor points lie far apart (an occlusion)."""
+    kinds = np.full(len(poly) - 1, SegKind.WALL)
+    r = cam.rays_level(poly)
+    q = height / r[:, 1:2] * r[:, [0, 2]]
+    step = np.linalg.norm(np.diff(q, axis=0), axis=1) > 0.05 * np.maximum(np.diff(poly[:, 0]), 1)
+    kinds[step] = SegKind.STEP
+    return kinds
+
+
+def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, hfov=70.0,
+                     session="plan-test", size=(640, 480)) -> RenderedSession:
+    poses = [Pose(x, z, H, float(y) + 7.0 * s, pitch, 0.0)
+             for s, (x, z) in enumerate(spots_xz) for y in yaws]
+    frames, hsets, sels, jpegs, views = [], [], [], [], []
+    for n, p in enumerate(poses):
+        v = render(room, p, size[0], size[1], hfov_deg=hfov, supersample=1)
+        c = v.camera
+        data = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
+        frames.append(make_frame(session, n, data, intrinsics=(c.fx, c.fy, c.cx, c.cy,
+                                                                 c.width, c.height),
+                                 gravity=c.gravity, camera_height_m=H,
+                                 time_ns=1_700_000_000_000_000_000 + n * 10**9))
+        poly = v.ground_truth_boundary_polyline()
+        poly = poly[np.isfinite(poly[:, 1])]
+        hs = schemas.HypothesisSet(session=session, index=n, width=c.width, height=c.height,
+                                   method="truth")
+        hs.hypotheses.add(rank=1, score=1.0, support=1.0,
+                          polyline=schemas.polyline_to_msg(poly, boundary_kinds(c, poly)))
+        hsets.append(hs)
+        sels.append(schemas.Selection(session=session, index=n, rank=1,
+                                      by=schemas.SELECTED_BY_AUTO, time_ns=n + 1))
+        jpegs.append(data)
+        views.append(v)
+    p0 = poses[0]
+    c, s = math.cos(math.radians(p0.yaw_deg)), math.sin(math.radians(p0.yaw_deg))
+
+    def to0(X, Z):
+        dx, dz = X - p0.x, Z - p0.z
+        return np.array([c * dx - s * dz, s * dx + c * dz])
+    truth = np.array([[*to0(p.x, p.z), math.radians(p.yaw_deg - p0.yaw_deg)] for p in poses])
+    poly = np.array([to0(X, Z) for X, Z in room.floor_polygon])
+    return RenderedSession(frames, hsets, sels, jpegs, views, poly, truth)

@@ -1,0 +1,195 @@
+"""The mapper handler, driven directly (no bus), on a room the project renders.
+
+The session's hypothesis sets carry each photo's exact ground-wall boundary (tests/plan_room),
+so the plan must be the room within the core's tolerances (tests/core/test_floorplan.py:
+vertices 4 cm, lengths 3 cm, positions 1 cm); the frames are the rendered photos, so the spots
+and their turns come from the photos' own features (yaws within 0.5 deg, not the core tests'
+0.2 deg for exact turns).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import schemas
+from findme_core import fuse, polygon, session as plan_session
+from findme_core.errors import HypothesisError, InputError
+from findme_core.room import Room
+from services.pipeline.mapper import MapperHandler
+from tests.plan_room import rendered_session
+
+
+@pytest.fixture(scope="module")
+def room():
+    """A 5 x 4 m room, 2 spots x 6 photos."""
+    return rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
+                            yaws=range(0, 360, 60))
+
+
+@pytest.fixture(scope="module")
+def mapped(room):
+    """Every photo's messages through one mapper: (handler, plans in order)."""
+    m = MapperHandler()
+    plans = []
+    for key, msg in room.messages():
+        for out in m.on_message(key, msg):
+            assert out.key == "findme/plan-test/plan"
+            plans.append(schemas.decode(schemas.Plan, schemas.encode(out.msg)))
+    return m, plans
+
+
+def _vertices(plan) -> np.ndarray:
+    return np.array([(q.x_m, q.z_m) for q in plan.polygon])
+
+
+def test_the_plan_of_the_rendered_room_is_exact(room, mapped):
+    _, plans = mapped
+    plan = plans[-1]
+    assert (plan.photos, plan.up_to_index, plan.origin_index) == (12, 11, 0)
+    assert plan.metric and plan.camera_height_m == pytest.approx(1.4)
+    assert plan.closed and plan.manhattan and not plan.reason
+    V, T = _vertices(plan), room.polygon
+    d = np.linalg.norm(V[:, None] - T[None], axis=2)
+    assert d.min(0).max() < 0.04 and d.min(1).max() < 0.04, (V.round(3), T.round(3))
+    assert sorted(w.length_m for w in plan.walls) == pytest.approx(room.wall_lengths(), abs=0.03)
+    assert all(w.kind == schemas.WALL_KIND_WALL and 0 < w.sigma_m < 0.2 for w in plan.walls)
+    assert plan.area_m2 == pytest.approx(abs(polygon.area(T)), rel=0.01)
+    assert [q.index for q in plan.poses] == list(range(12))
+    assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
+    got = np.array([(q.x_m, q.z_m, q.yaw_rad) for q in plan.poses])
+    assert np.abs(got[:, :2] - room.poses[:, :2]).max() < 0.01
+    # the turns come from the JPEG photos' features here (the core tests give exact ones)
+    assert np.abs(fuse.wrap(got[:, 2] - room.poses[:, 2])).max() < math.radians(0.5)
+    assert [q.spot for q in plan.poses] == [0] * 6 + [1] * 6      # found from the photos
+    # 1-sigma relative to the plan frame: photo 0 defines it, its spot shares its position
+    assert all(q.HasField("sigma_x_m") and q.HasField("sigma_yaw_rad") for q in plan.poses)
+    assert (plan.poses[0].sigma_x_m, plan.poses[0].sigma_yaw_rad) == (0.0, 0.0)
+    assert all(0 < q.sigma_x_m < 0.1 and 0 < q.sigma_z_m < 0.1 for q in plan.poses[6:])
+    assert all(0 < q.sigma_yaw_rad < math.radians(3) for q in plan.poses[1:])
+    assert set(plan.timing_ms) == {"relate", "place", "plan"}
+
+
+def test_the_plan_grows_photo_by_photo(mapped):
+    m, plans = mapped
+    assert len(plans) == 12 and [p.up_to_index for p in plans] == list(range(12))
+    # one photo sees too little for an outline: a plan that says why, never a crash
+    assert plans[0].reason and not plans[0].walls
+    assert plans[0].poses[0].status == schemas.PLAN_PHOTO_STATUS_NOT_PLACED
+    # a few photos of one spot: an open outline whose unseen edges are named, not invented
+    partial = plans[1]
+    assert not partial.reason and not partial.closed
+    assert any(w.kind == schemas.WALL_KIND_MISSING for w in partial.walls)
+    assert plans[-1].closed
+    # each pair of photos was related once (cached), never again
+    st = m.sessions["plan-test"]
+    assert len({pk[:2] for pk in st.pairs}) == 12 * 11 // 2
+    assert m.counters() == {"sessions": 1, "plans": 12}
+
+
+def test_the_mapper_gives_what_the_core_gives_for_the_same_photos(mapped):
+    m, plans = mapped
+    st = m.sessions["plan-test"]
+    photos = [st.photos[n].photo for n in range(12)]
+    core, _, _ = plan_session.plan(photos)                 # relates every pair afresh
+    np.testing.assert_allclose(_vertices(plans[-1]), core.polygon, atol=1e-9)
+
+
+def test_debounce_by_photo_count_and_the_last_photo_always_counts(room):
+    m = MapperHandler(every=5)
+    burst = sorted(room.messages(), key=lambda km: km[0].split("/")[2] != "frame")
+    plans = [o.msg for k, msg in burst for o in m.on_message(k, msg)]
+    # a burst (all frames first, as a replay at full speed): the first plan, then one per 5
+    # new ready photos, and the last, when no photo is left waiting
+    assert [p.up_to_index for p in plans] == [0, 5, 10, 11]
+
+
+def test_a_reselection_replans_and_a_repeat_does_not(room):
+    m = MapperHandler()
+    for k, msg in list(room.messages())[:9]:
+        m.on_message(k, msg)
+    assert m.on_message("findme/plan-test/selection/2", room.selections[2]) == []
+    again = schemas.Selection()
+    again.CopyFrom(room.selections[2])
+    again.camera_height_m = 1.45
+    (out,) = m.on_message("findme/plan-test/selection/2", again)
+    assert out.msg.up_to_index == 2 and out.msg.metric
+
+
+def test_photos_that_cannot_be_used_are_named_in_the_plan(room):
+    m = MapperHandler(max_photos=6)
+    empty = schemas.HypothesisSet(session="plan-test", index=0, width=640, height=480,
+                                  reason="no floor lines below the horizon", method="t")
+    assert m.on_message("findme/plan-test/hypotheses/0", empty) == []   # no frame yet
+    (out,) = m.on_message("findme/plan-test/frame/0", room.frames[0])
+    assert out.msg.reason == "no photo with a floor boundary yet"
+    assert "no floor lines" in out.msg.poses[0].reason
+    bad = schemas.Frame()
+    bad.CopyFrom(room.frames[1])
+    bad.image.data = b"\xff\xd8\xff" + b"\x00" * 64
+    msgs = list(room.messages())
+    outs = []
+    for k, msg in [("findme/plan-test/frame/1", bad), *msgs[6:15],
+                   ("findme/plan-test/frame/9", room.frames[9]), *msgs[15:18]]:
+        outs += m.on_message(k, msg)
+    out = outs[-1]
+    last = out.msg
+    by = {q.index: q for q in last.poses}
+    assert last.origin_index == 2 and by[2].status == schemas.PLAN_PHOTO_STATUS_PLACED
+    assert by[1].status == schemas.PLAN_PHOTO_STATUS_LEFT_OUT and "cannot be used" in by[1].reason
+    assert by[0].status == schemas.PLAN_PHOTO_STATUS_LEFT_OUT and "plan starts" in by[0].reason
+    assert all(by[n].status == schemas.PLAN_PHOTO_STATUS_PLACED for n in (3, 4, 5))
+    assert not last.reason and len(last.walls) >= 4
+    assert by[9].status == schemas.PLAN_PHOTO_STATUS_LEFT_OUT
+    assert by[9].reason == "over the limit of 6 photos per plan"
+    schemas.encode(out.msg)                                           # a valid message
+
+
+def test_bad_input_is_a_clear_error(room):
+    m = MapperHandler()
+    with pytest.raises(InputError, match="carries photo 0"):
+        m.on_message("findme/plan-test/frame/3", room.frames[0])
+    m.on_message("findme/plan-test/hypotheses/0", room.hsets[0])
+    sel = schemas.Selection()
+    sel.CopyFrom(room.selections[0])
+    sel.rank = 4
+    with pytest.raises(HypothesisError, match="hypothesis 4 of photo 0, which has 1"):
+        m.on_message("findme/plan-test/selection/0", sel)
+    # a selection before its hypotheses and frame (nobody to fetch them from): it waits
+    assert m.on_message("findme/plan-test/selection/5", room.selections[5]) == []
+    assert m.on_message("findme/plan-test/hypotheses/5", room.hsets[5]) == []
+    (out,) = m.on_message("findme/plan-test/frame/5", room.frames[5])
+    assert out.msg.up_to_index == 5
+
+
+def test_sessions_are_bounded_and_expire(room):
+    now = [0.0]
+    m = MapperHandler(max_sessions=2, idle_s=60.0, clock=lambda: now[0])
+
+    def frame(sid):
+        f = schemas.Frame()
+        f.CopyFrom(room.frames[0])
+        f.session = sid
+        m.on_message(f"findme/{sid}/frame/0", f)
+    frame("a")
+    now[0] = 1.0
+    frame("b")
+    now[0] = 2.0
+    frame("c")                      # the least recently active one ("a") makes room
+    assert set(m.sessions) == {"b", "c"}
+    now[0] = 61.5
+    frame("d")                      # "b" was idle for more than 60 s
+    assert set(m.sessions) == {"c", "d"}
+
+
+def test_the_registry_makes_the_mapper():
+    import argparse
+    from services.runtime.registry import add_service_args, make_handler, service_names
+    p = argparse.ArgumentParser()
+    add_service_args(p)
+    assert "mapper" in service_names()
+    h = make_handler("mapper", p.parse_args([]))
+    assert isinstance(h, MapperHandler) and h.name == "mapper"
+    assert h.cache_keys == ("findme/*/plan",) and h.shard

@@ -1,0 +1,75 @@
+"""``findme up``, as the README runs it: the router and one process per service start as
+children (this Python, no PATH), say when ready, take ``findme send``, log one line per
+handled message, and all stop on SIGTERM (exit 0) or when one of them dies."""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+
+from tests.cli.conftest import run_findme
+from tests.services.conftest import free_port
+
+
+def _up(tmp_path, *extra):
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    env = {**os.environ, "PATH": "/usr/bin:/bin"}        # no venv on PATH
+    proc = subprocess.Popen([sys.executable, "-m", "findme.cli", "up", "--listen", ep,
+                             "--out", str(tmp_path / "rec"), *extra], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc.lines, proc.cv = [], threading.Condition()
+
+    def drain():
+        for line in proc.stdout:
+            with proc.cv:
+                proc.lines.append(line)
+                proc.cv.notify_all()
+    proc.drain = threading.Thread(target=drain, daemon=True)
+    proc.drain.start()
+    return ep, proc
+
+
+def _wait(proc, text, timeout=90):
+    with proc.cv:
+        assert proc.cv.wait_for(lambda: any(text in x for x in proc.lines), timeout), \
+            "".join(proc.lines)[-3000:]
+
+
+def test_up_serves_send_and_stops_on_sigterm(tmp_path):
+    ep, up = _up(tmp_path)
+    try:
+        _wait(up, "| ready: 7 services")
+        p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
+        assert p.returncode == 0, p.stderr
+        assert "motion 0 -> 1: x +0.385 m" in p.stdout
+        _wait(up, "findme/up-1/frame/0 -> findme/up-1/hypotheses/0 (")   # one line per message
+        _wait(up, "-> findme/up-1/scene/1")
+    finally:
+        up.send_signal(signal.SIGTERM)
+        code = up.wait(60)
+        up.drain.join(10)           # every line read (the pipe is closed)
+    log = "".join(up.lines)
+    assert code == 0, log[-3000:]
+    for name in ("router", "store", "hypotheses1", "hypotheses2", "selection", "measurement",
+                 "odometry", "recorder"):
+        assert f"{name} stopped (rc=0)" in log, name
+    assert (tmp_path / "rec" / "up-1.mcap").stat().st_size > 0
+
+
+def test_up_stops_all_when_one_dies_and_quiet_logs_no_message_lines(tmp_path):
+    ep, up = _up(tmp_path, "--quiet", "--hypotheses", "1")
+    try:
+        _wait(up, "ready: 6 services")
+        pid = next(int(x.split("pid=")[1].rstrip(")\n")) for x in up.lines
+                   if "odometry started (pid=" in x)
+        os.kill(pid, signal.SIGKILL)
+        code = up.wait(60)
+        up.drain.join(10)
+    finally:
+        if up.poll() is None:
+            up.kill()
+    log = "".join(up.lines)
+    assert code == -signal.SIGKILL or code != 0, log
+    assert "router stopped (rc=0)" in log and "measurement stopped (rc=0)" in log, log
+    assert " INFO " not in log
