@@ -5,11 +5,14 @@
 A router and three services (selection, measurement, store), each its own process; one
 long-lived client session asks, in a row:
 
-* ``liveliness().get("findme/@services/**")`` n times back to back (what ``findme status``
-  and sharding used before), then n times 0.25 s apart, then once on each of 15 fresh
-  sessions;
-* ``findme.deploy.service_statuses`` n times back to back (now: every instance answers a
-  status query sent to all, plus a liveliness subscriber with history).
+* ``liveliness().get("findme/@services/**")`` n times back to back right after
+  ``bus.wait_alive`` for each service (a liveliness subscriber declared and undeclared per
+  service, as a client waiting for the services does), then n times back to back later,
+  n times 0.25 s apart, and once on each of 15 fresh sessions: what ``findme status`` and
+  sharding used before;
+* ``findme.deploy.service_statuses`` n times back to back, also right after
+  ``bus.wait_alive`` (now: every instance answers a status query sent to all, plus a
+  liveliness subscriber with history).
 
 Prints how many calls saw all three services, and how many saw none.
 """
@@ -44,7 +47,14 @@ def main() -> None:
             def live(session):
                 return count(str(r.ok.key_expr) for r in
                              session.liveliness().get(f"{bus.SERVICES}/**", timeout=3) if r.ok)
-            rows = {"liveliness get, back to back": [live(c) for _ in range(args.n)]}
+            names = ("selection", "measurement", "store")
+
+            def after_wait(ask):
+                for name in names:
+                    bus.wait_alive(c, name)
+                return [ask() for _ in range(args.n)]
+            rows = {"liveliness get, right after wait_alive": after_wait(lambda: live(c)),
+                    "liveliness get, back to back": [live(c) for _ in range(args.n)]}
             spaced = []
             for _ in range(args.n):
                 spaced.append(live(c))
@@ -56,12 +66,12 @@ def main() -> None:
                 fresh.append(live(s))
                 s.close()
             rows["liveliness get, fresh session each"] = fresh
-            rows["service_statuses, back to back"] = [len(service_statuses(c))
-                                                      for _ in range(args.n)]
+            rows["service_statuses, right after wait_alive"] = after_wait(
+                lambda: len(service_statuses(c)))
         finally:
             dep.close()
     for name, seen in rows.items():
-        print(f"{name:40s} all 3: {sum(x == 3 for x in seen):3d} / {len(seen)}   "
+        print(f"{name:42s} all 3: {sum(x == 3 for x in seen):3d} / {len(seen)}   "
               f"none: {sum(x == 0 for x in seen):3d}")
 
 
