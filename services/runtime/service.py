@@ -129,7 +129,9 @@ class Service:
         log.info("%s started", self.ident)
         return self
 
-    def stop(self, timeout: float = 5.0) -> None:
+    def stop(self, timeout: float = 3.0) -> None:
+        """Stop within about ``timeout`` s (after draining, for ``drain_on_stop``): a
+        supervisor (``findme up``) kills what takes longer than 5 s."""
         if self.handler.drain_on_stop:
             self.wait_idle(timeout)
         self._stop.set()
@@ -137,8 +139,9 @@ class Service:
         with self._cv:
             self._cv.notify_all()
         self._cache_server.wake()
-        for t in self._threads:
-            t.join(timeout)
+        deadline = time.monotonic() + timeout   # all threads within ``timeout`` (a sweep
+        for t in self._threads:                  # waiting on a reply is let go: a daemon)
+            t.join(max(0.05, deadline - time.monotonic()))
         for d in reversed(self._decls):
             try:
                 d.undeclare()
@@ -326,9 +329,9 @@ class Service:
             bus.put(self.session, out.key, payload, self.max_message_bytes)  # raises
         if out.cache:
             self._cache.put(out.key, payload)
-        bus.put(self.session, out.key, payload, self.max_message_bytes)
-        with self._cv:
+        with self._cv:   # counted first: a subscriber in this process hears it during the put
             self.results_out += 1
+        bus.put(self.session, out.key, payload, self.max_message_bytes)
 
     def report(self, key: str, exc: BaseException):
         """Publish and log an error about ``key``; returns (error key, Error)."""

@@ -99,10 +99,18 @@ def test_a_burst_into_a_slow_service_is_answered_frame_by_frame(slow_bus, vga_fr
 
 
 def test_a_flooding_session_does_not_delay_another(slow_bus, vga_frame):
-    """Session A sends 30 frames at once; once A's queue is full (A's overflow is answered
-    OVERLOADED), session B sends one: B's photo is handled right after the A frames in
-    progress and the next one in turn (round-robin), not after A's whole queue."""
+    """Session A sends 30 large photos at once (~0.3 s each here); once all have reached the
+    service (A's overflow answered OVERLOADED, its queue full), session B sends one: B is
+    handled before A's queue has drained (round-robin), so A results still come after B's.
+    With one FIFO, B would come after every A photo queued before it."""
+    import cv2
     pb = slow_bus
+    big = schemas.Frame()
+    big.CopyFrom(frame_of(vga_frame, "flood", 0))
+    big.image.data = cv2.imencode(".jpg", cv2.resize(vga_frame.image, (1600, 1200)))[1].tobytes()
+    big.intrinsics.fx, big.intrinsics.fy = 2.5 * big.intrinsics.fx, 2.5 * big.intrinsics.fy
+    big.intrinsics.cx, big.intrinsics.cy = 2.5 * big.intrinsics.cx, 2.5 * big.intrinsics.cy
+    big.intrinsics.width, big.intrinsics.height = 1600, 1200
     a, b = Answers(pb.client, "flood"), Answers(pb.client, "calm")
     order, cv = [], threading.Condition()
 
@@ -111,24 +119,21 @@ def test_a_flooding_session_does_not_delay_another(slow_bus, vga_frame):
             order.append(bus.parse_key(str(sample.key_expr)).session)
             cv.notify_all()
     sub = pb.client.declare_subscriber("findme/*/hypotheses/*", seen)
+    before = pb.status("hypotheses", "h1").frames_in
     for i in range(30):
-        bus.put(pb.client, f"findme/flood/frame/{i}", schemas.encode(frame_of(vga_frame, "flood", i)))
-    with a.cv:   # A's queue is full at the service: its overflow is being refused
-        assert a.cv.wait_for(lambda: sum(k == "error" for k, *_ in a.items) >= 10, 30)
-    with cv:
-        ahead = len(order)
+        big.index, big.image.frame_id = i, f"flood/camera/{i}"
+        bus.put(pb.client, f"findme/flood/frame/{i}", schemas.encode(big))
+    pb.wait_status("hypotheses", "h1", lambda st: st.frames_in - before >= 30)   # all arrived
     bus.put(pb.client, "findme/calm/frame/0", schemas.encode(frame_of(vga_frame, "calm", 0)))
     got_a, got_b = a.wait(30), b.wait(1)
     with cv:
-        assert cv.wait_for(lambda: order.count("flood") == sum(k == "hypotheses" for k, *_ in got_a), 30)
+        assert cv.wait_for(lambda: order.count("flood") == sum(k == "hypotheses" for k, *_ in got_a), 60)
     sub.undeclare()
     a.close(), b.close()
     assert got_b[0][0] == "hypotheses"
     # 2 worker threads: at most 2 in progress and 4 waiting, the rest refused at once
     assert sum(k == "error" and e.code == OVERLOADED for k, _, e in got_a) >= 30 - 8
-    # behind A's 2 frames in progress and the one taken just before it in turn (which may
-    # finish first, the two threads running side by side); with one FIFO, behind all 6
-    assert order.index("calm") - ahead <= 4, (ahead, order)
+    assert order[order.index("calm") + 1:].count("flood") >= 1, order
 
 
 def test_status_and_sharding_see_every_instance_every_time():
