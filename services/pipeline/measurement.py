@@ -41,28 +41,27 @@ class MeasurementHandler(Handler):
         self.answered = 0
 
     def on_message(self, key, msg):
-        k = bus.parse_key(key)
+        k = bus.parse_key(key)   # the key names session and n, never the payload
         self.sessions.add(k.session)
         if isinstance(msg, schemas.Frame):
-            self._frame(msg)
+            self._frame(k.session, k.index(), msg)
             return []
         if isinstance(msg, schemas.HypothesisSet):
-            self.hsets[(k.session, msg.index)] = msg
+            self.hsets[(k.session, k.index())] = msg
             return []
-        return self._select(k.session, msg)
+        return self._select(k.session, k.index(), msg)
 
-    def _frame(self, f):
-        w, h = image_size(f.image.data, f"frame {f.index}")
+    def _frame(self, session, n, f):
+        w, h = image_size(f.image.data, f"frame {n}")
         cam = frame_camera(f, w, h)
         height = f.camera_height_m if f.HasField("camera_height_m") else None
         sigma = (f.camera_height_sigma_m if f.HasField("camera_height_sigma_m")
                  else DEFAULT_HEIGHT_SIGMA_M)
-        self.frames[(f.session, f.index)] = (cam, height, sigma)
+        self.frames[(session, n)] = (cam, height, sigma)
 
-    def _select(self, session, sel):
-        n = sel.index
+    def _select(self, session, n, sel):
         if (session, n) not in self.frames:
-            self._frame(self.need(bus.key(session, "frame", n), schemas.Frame))
+            self._frame(session, n, self.need(bus.key(session, "frame", n), schemas.Frame))
         if (session, n) not in self.hsets:
             self.hsets[(session, n)] = self.need(bus.key(session, "hypotheses", n),
                                                  schemas.HypothesisSet)
@@ -107,7 +106,7 @@ class MeasurementHandler(Handler):
                 raise HypothesisError(f"photo {req.index} of session {k.session!r} has no "
                                       "selected hypothesis yet") from None
             self.sessions.add(k.session)
-            self._select(k.session, sel)
+            self._select(k.session, req.index, sel)
         scene, rank, metric = self.scenes[(k.session, req.index)]
         located = scene.locate(schemas.msg_to_pixels(req.pixels))
         self.answered += 1

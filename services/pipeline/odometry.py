@@ -59,9 +59,9 @@ class OdometryHandler(Handler):
         return bus.parse_key(key).session  # a session's photos stay on one instance
 
     def on_message(self, key, msg):
-        k = bus.parse_key(key)
+        k = bus.parse_key(key)   # the key names session and n, never the payload
         st = self.sessions.setdefault(k.session, _Session())
-        n = msg.index
+        n = k.index()
         if isinstance(msg, schemas.Frame):
             st.frames[n] = msg
             return []

@@ -34,7 +34,7 @@ import zenoh
 import schemas
 from findme_core.errors import FindmeError, SchemaError
 
-from . import bus
+from . import authority, bus
 from .handler import Handler, Input, Output, error_message
 
 log = logging.getLogger("findme.services")
@@ -238,6 +238,7 @@ class Service:
         inp = self.handler.inputs[i]
         try:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
+            authority.check(key, msg)
             if not self._mine(key, msg):
                 return
             t0 = time.perf_counter()
@@ -255,6 +256,7 @@ class Service:
             if query.payload is None:
                 raise SchemaError(f"query on {key} carries no {q.type.DESCRIPTOR.full_name} payload")
             msg = schemas.decode(q.type, query.payload.to_bytes())
+            authority.check(key, msg)
             reply = self.handler.on_query(key, msg)
             query.reply(key, schemas.encode(reply))
             self.counters.results_out += 1
