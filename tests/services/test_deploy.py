@@ -163,7 +163,7 @@ def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
         p = run_findme("send", *auth, "--user", "alice", "--password-file", alice_pw,
                        "--wait", "30", check=False)
         assert p.returncode == 0, p.stderr
-        assert "motion 0 -> 1: x +0.385 m" in p.stdout and "session alice-" in p.stdout
+        assert "motion 0 -> 1: x +0.386 m" in p.stdout and "session alice-" in p.stdout
     finally:
         for p in procs:
             p.send_signal(signal.SIGTERM)
