@@ -3,14 +3,17 @@
     python bench/bench_motion.py [--json OUT.json] [--repeat 3]
 
 For every dev pair whose two views are 640x480 (../shared/data/findme-eval: the ZInD and TUM
-pairs; rendered synthetic pairs without it): feature extraction of both photos, matching,
-and the motion (lifting the matched points under each photo's rank-1 hypothesis, then the
-estimator), with the chosen detector and matcher (ORB, 3000 keypoints spread on a grid,
-FLANN-LSH matching) side by side with the alternatives (exact brute-force matching of the
-same keypoints, ORB with 1500 keypoints, SIFT with 3000) in the same run, and the paper's
-estimator next to ours on the chosen features. Hypotheses are computed before the clock
-starts (~40-60 ms per photo, their own benchmark). Per pair the best of ``--repeat`` runs;
-reports median, p10/p90 and IQR over the pairs. Goal: features + matching + motion <= 60 ms.
+pairs; rendered synthetic pairs without it): feature extraction of both photos, their
+layouts (walls of the candidate hypotheses, the room's orientation from the hypotheses'
+lines), matching, and the motion (lifting the matched points under each photo's rank-1
+hypothesis, then the estimator), with the chosen detector and matcher (ORB, 3000 keypoints
+spread on a grid, FLANN-LSH matching) side by side with the alternatives (exact brute-force
+matching of the same keypoints, ORB with 1500 keypoints, SIFT with 3000) in the same run,
+and the feature-only estimator (the default before layouts) and the paper's estimator next
+to ours on the chosen features. Hypotheses are computed before the clock starts (~40-60 ms
+per photo, their own benchmark). Per pair the best of ``--repeat`` runs; reports median,
+p10/p90 and IQR over the pairs, in CPU milliseconds of the (one) thread, which other
+processes on the machine do not inflate. Goal: features + matching + motion <= 60 ms.
 """
 
 from __future__ import annotations
@@ -25,8 +28,10 @@ import time
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
 from findme.evaluate import pair_inputs  # noqa: E402
-from findme_core.pair import motion_pair, scene_of  # noqa: E402
 from findme_core.features import FeatureParams  # noqa: E402
+from findme_core.methods import hypothesize  # noqa: E402
+from findme_core.motion import MotionParams  # noqa: E402
+from findme_core.pair import motion_photos, prepare  # noqa: E402
 
 DETECTORS = {
     "orb 3000 grid, lsh matching (chosen)": FeatureParams(),
@@ -66,41 +71,49 @@ def main(argv=None):
     a = ap.parse_args(argv)
     how = pin_one_core()
     runs: dict = {}
-    n, answered = 0, {k: 0 for k in DETECTORS}
+    n, answered = 0, {}
+    params = MotionParams()
     for pid, ia, ib, ca, cb, ha, hb in pairs():
-        sa, sb = scene_of(ia, ca, ha)[0], scene_of(ib, cb, hb)[0]   # not timed
+        # hypotheses (and their lines) are computed once, before the clock
+        hsa, hsb = (hypothesize(i, c, "findme", params.max_layouts) for i, c in ((ia, ca), (ib, cb)))
         for name, fp in DETECTORS.items():
-            methods = ("findme", "paper") if "chosen" in name else ("findme",)
+            methods = ("findme", "features", "paper") if "chosen" in name else ("findme",)
             best = None
             for _ in range(a.repeat):
-                res = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, methods, fp,
-                                  clock=time.perf_counter)
+                clock = time.thread_time   # CPU time: steady on a shared machine
+                pa = prepare(ia, ca, ha, hsa.hypotheses, 1, hsa.lines.ends, params.max_layouts,
+                             fp, clock)
+                pb = prepare(ib, cb, hb, hsb.hypotheses, 1, hsb.lines.ends, params.max_layouts,
+                             fp, clock)
+                res = motion_photos(pa, pb, methods, fp, params, clock)
                 ours = res["findme"]
                 if isinstance(ours, Exception):     # no estimate: time up to the error
                     break
                 tm = dict(ours.timing_ms)
-                if "paper" in res and not isinstance(res["paper"], Exception):
-                    tm["paper motion"] = res["paper"].timing_ms["motion"]
+                for other in ("features", "paper"):
+                    if other in res and not isinstance(res[other], Exception):
+                        tm[f"{other} estimator (motion)"] = res[other].timing_ms["motion"]
                 if best is None or sum(tm.values()) < sum(best.values()):
                     best = tm
             if best is None:
                 continue
-            answered[name] += 1
-            core = best["features"] + best["matching"] + best["motion"]
-            for k, v in [("features", best["features"]), ("matching", best["matching"]),
-                         ("lift (3D)", best["lift"]), ("motion", best["motion"]),
-                         ("features + matching + motion", core),
-                         ("... + lift", core + best["lift"])] + (
-                    [("paper estimator (motion)", best["paper motion"])]
-                    if "paper motion" in best else []):
+            answered[name] = answered.get(name, 0) + 1
+            core = best["features"] + best["layout"] + best["matching"] + best["lift"] + best["motion"]
+            rows = [("features", best["features"]), ("layout (walls, orientation)", best["layout"]),
+                    ("matching", best["matching"]), ("lift (3D)", best["lift"]),
+                    ("motion", best["motion"]),
+                    ("features + matching + motion", core)]
+            rows += [(k, v) for k, v in best.items() if k.endswith("estimator (motion)")]
+            for k, v in rows:
                 runs.setdefault(name, {}).setdefault(k, []).append(v)
         n += 1
     src = "dev split" if (EVAL_DIR / "index.json").exists() else "synthetic"
-    print(f"two-image mode on {n} 640x480 pairs ({src}), best of {a.repeat} per pair, {how}; "
-          "hypotheses excluded")
+    print(f"two-image mode on {n} 640x480 pairs ({src}), best of {a.repeat} per pair, {how}, "
+          "thread CPU time; hypotheses excluded; 'features + matching + motion' includes the "
+          "layouts and lifting")
     out = {}
     for name, parts in runs.items():
-        print(f"-- {name}: estimate for {answered[name]} of {n} pairs")
+        print(f"-- {name}: estimate for {answered.get(name, 0)} of {n} pairs")
         out[name] = {k: stats(v) for k, v in parts.items()}
         for k, s in out[name].items():
             print("  " + fmt(k, s))

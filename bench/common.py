@@ -7,7 +7,12 @@ import os
 import time
 from pathlib import Path
 
-import numpy as np
+# one core means one thread: numpy's BLAS threads would share the pinned core (set before
+# numpy is first imported; the benchmarks import this module first)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 
 EVAL_DIR = Path(os.environ.get("FINDME_EVAL_DIR",
                                Path(__file__).resolve().parents[2] / "shared" / "data" / "findme-eval"))

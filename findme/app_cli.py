@@ -52,6 +52,14 @@ def _web_args(p, default_http: str | None) -> None:
                    help="gateway: serve HTTPS with this certificate")
     p.add_argument("--tls-key", "--key", dest="tls_key", metavar="KEY.pem",
                    help="gateway: the certificate's private key")
+    p.add_argument("--allow-origin", action="append", default=[], metavar="URL",
+                   help="gateway: a web origin allowed to open the page's WebSocket, e.g. "
+                        "https://findme.example.org behind a proxy (repeatable; pages loaded "
+                        "from this server by IP address, localhost or this machine's name are "
+                        "always allowed)")
+    p.add_argument("--trusted-proxy", action="append", default=[], metavar="IP",
+                   help="gateway: a reverse proxy whose X-Forwarded-For names the client "
+                        "(per-client page limits count clients, not the proxy; repeatable)")
 
 
 #: Where ``--https`` finds the gateway's certificate (tools/make_certs.py writes them).
@@ -108,9 +116,12 @@ def register(sub) -> None:
 
 def _start_gateway(session, args, instance=None):
     from services.web.gateway import Gateway, parse_http, ssl_context
+    from services.web.page_guard import served_names
     cert, key = https_files(args)
     host, port = parse_http(args.http or ("0.0.0.0:8443" if cert else "127.0.0.1:8080"))
-    gw = Gateway(session, host, port, ssl_context(cert, key), instance=instance)
+    gw = Gateway(session, host, port, ssl_context(cert, key), instance=instance,
+                 allowed_origins=args.allow_origin, own_names=served_names(cert),
+                 trusted_proxies=args.trusted_proxy)
     url = gw.start()
     if host not in ("127.0.0.1", "localhost", "::1"):
         if not cert:

@@ -53,7 +53,8 @@ def register(sub) -> None:
     p.add_argument("--max", type=int, default=10, metavar="N", help="hypotheses per view (10)")
     p.add_argument("--motion-method", default="findme", metavar="NAME[,NAME...]",
                    help="pair motion estimator(s): " + ", ".join(MOTION_METHODS) + " (default "
-                        "findme); with several, the first goes to --out and each other one to "
+                        "findme; features = the matches alone, the default before layouts); "
+                        "with several, the first goes to --out and each other one to "
                         "OUT.<name>.json, from the same features and hypotheses")
     p.add_argument("--no-gravity", action="store_true",
                    help="withhold the views' gravity_cam: gravity from the image, else level")
@@ -153,14 +154,19 @@ def predict_pair(args) -> tuple[str, dict, dict]:
                 errs[method] = str(r)
                 continue
             m = r.motion
-            preds[method] = {"x_m": round(m.x, 6), "z_m": round(m.z, 6),
-                             "yaw_deg": round(math.degrees(m.yaw), 6),
-                             "sigma_x_m": round(m.sigma_x, 6), "sigma_z_m": round(m.sigma_z, 6),
-                             "sigma_yaw_deg": round(math.degrees(m.sigma_yaw), 6),
-                             "inliers": m.n_inliers, "matches": r.matches}
+            preds[method] = {**_motion_numbers(m), "inliers": m.n_inliers, "matches": r.matches,
+                             "alternatives": [_motion_numbers(a) for a in m.alternatives]}
+            if m.layout is not None:
+                preds[method]["layout_samples"] = m.layout.samples
     except (FindmeError, OSError, KeyError, ValueError) as e:   # a broken pair, not a crash
         errs = {method: str(e) for method in methods}
     return pid, preds, errs
+
+
+def _motion_numbers(m) -> dict:
+    return {"x_m": round(m.x, 6), "z_m": round(m.z, 6), "yaw_deg": round(math.degrees(m.yaw), 6),
+            "sigma_x_m": round(m.sigma_x, 6), "sigma_z_m": round(m.sigma_z, 6),
+            "sigma_yaw_deg": round(math.degrees(m.sigma_yaw), 6)}
 
 
 def _motion_methods(text: str) -> list[str]:

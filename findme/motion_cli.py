@@ -1,9 +1,11 @@
 """``findme motion``: the planar motion between two photos (two-image mode, paper step 5).
 
-Pipeline (``motion_pair``, shared with ``findme eval`` and the benchmark): hypotheses of each
-photo (the chosen rank becomes the photo's scene), ORB features and matches, then
-``findme_core.motion.estimate`` lifts the matched points under each scene and estimates
-(x, z, yaw) of photo B in photo A's level frame. Degrees only here, at the edge.
+Pipeline (``findme_core.pair``, shared with ``findme eval``, the odometry service and the
+benchmark): hypotheses of each photo (the chosen rank becomes the photo's scene, the next ranks
+candidate layouts), its room orientation from its lines, ORB features and matches, then
+``findme_core.motion.estimate`` registers the two photos' layouts with the matches and gives
+(x, z, yaw) of photo B in photo A's level frame, with its evidence and, where the evidence
+allows several, the alternatives. Degrees only here, at the edge.
 """
 
 from __future__ import annotations
@@ -15,23 +17,43 @@ import time
 
 from findme_core.methods import METHODS as HYPOTHESIS_METHODS
 from findme_core.motion import METHODS
-from findme_core.pair import PairResult, motion_pair, scene_of
+from findme_core.pair import PairResult, motion_photos, photo_of
 
 from findme_io.camera_source import camera_json
 from findme_io.imageio import read_photo
 from .options import add_camera_args, camera_height, finite_float, photo_camera_from
 
 
-def motion_json(r: PairResult, metric: bool) -> dict:
-    """The JSON contract of ``findme motion --json``."""
-    m = r.motion
+def _estimate_json(m) -> dict:
+    """One motion's numbers and evidence (also each alternative's)."""
     r6 = lambda v: round(float(v), 6)  # noqa: E731
-    return {"x_m": r6(m.x), "z_m": r6(m.z), "yaw_deg": r6(math.degrees(m.yaw)),
-            "sigma_x_m": r6(m.sigma_x), "sigma_z_m": r6(m.sigma_z),
-            "sigma_yaw_deg": r6(math.degrees(m.sigma_yaw)), "dy_m": r6(m.dy),
-            "inliers": m.n_inliers, "matches": r.matches, "scale_points": m.n_scale,
-            "keypoints": list(r.keypoints), "method": m.method, "metric": metric,
-            "timing_ms": {k: round(v, 3) for k, v in r.timing_ms.items()}}
+    out = {"x_m": r6(m.x), "z_m": r6(m.z), "yaw_deg": r6(math.degrees(m.yaw)),
+           "sigma_x_m": r6(m.sigma_x), "sigma_z_m": r6(m.sigma_z),
+           "sigma_yaw_deg": r6(math.degrees(m.sigma_yaw)), "dy_m": r6(m.dy),
+           "inliers": m.n_inliers, "scale_points": m.n_scale}
+    if math.isfinite(m.score):
+        out["score"] = round(float(m.score), 3)
+    if m.layout is not None:
+        lay = m.layout
+        out["layout"] = {"hypotheses": [lay.rank_a, lay.rank_b], "samples": lay.samples,
+                         "violations": lay.violations,
+                         "rms_m": None if not math.isfinite(lay.rms_m) else r6(lay.rms_m),
+                         "walls": [list(w) for w in lay.walls],
+                         "corners": [list(c) for c in lay.corners]}
+    return out
+
+
+def motion_json(r: PairResult, metric: bool) -> dict:
+    """The JSON contract of ``findme motion --json``: the motion, its evidence (inliers;
+    ``layout``: which hypotheses' walls were registered, how many boundary samples agree,
+    which walls (A's index, B's index) and corners matched, the rms residual) and the
+    ``alternatives`` the evidence allows nearly as well (a symmetric room), best first."""
+    m = r.motion
+    out = _estimate_json(m)
+    out.update({"matches": r.matches, "keypoints": list(r.keypoints), "method": m.method,
+                "metric": metric, "alternatives": [_estimate_json(a) for a in m.alternatives],
+                "timing_ms": {k: round(v, 3) for k, v in r.timing_ms.items()}})
+    return out
 
 
 def register(sub) -> None:
@@ -49,7 +71,9 @@ def register(sub) -> None:
     p.add_argument("--hypothesis-b", type=int, default=1, metavar="RANK",
                    help="chosen boundary hypothesis of photo B (1 = best ranked)")
     p.add_argument("--method", default="findme", choices=METHODS,
-                   help="motion estimator: findme (default), lifted, or paper (eqs. 5-8)")
+                   help="motion estimator: findme (default: the photos' layouts and their "
+                        "feature matches), features (the matches alone), lifted, or paper "
+                        "(eqs. 5-8)")
     p.add_argument("--hypothesis-method", default="findme", choices=HYPOTHESIS_METHODS,
                    help="boundary hypothesis method of both photos")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -67,12 +91,11 @@ def cmd_motion(args) -> int:
         cams.append(cam)
         sources.append(camera_json(cam, prov))
     clock = time.perf_counter
-    scenes, hyp_ms = [], 0.0
-    for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b), "AB"):
-        sc, ms = scene_of(img, cam, h, rank, args.hypothesis_method, which, clock)
-        scenes.append(sc)
-        hyp_ms += ms
-    res = motion_pair(*images, *cams, *scenes, h, h, (args.method,), clock=clock)[args.method]
+    photos = [photo_of(img, cam, h, rank, args.hypothesis_method, which, clock=clock)
+              for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b),
+                                               "AB")]
+    hyp_ms = sum(p.timing_ms.pop("hypotheses") for p in photos)
+    res = motion_photos(*photos, (args.method,), clock=clock)[args.method]
     if isinstance(res, Exception):
         raise res
     out = motion_json(res, metric)
@@ -88,6 +111,14 @@ def cmd_motion(args) -> int:
           "(> 0: turned right)")
     print(f"  {out['inliers']} of {out['matches']} matches agree, {out['scale_points']} 3D points "
           f"fix the scale; {sum(out['timing_ms'].values()):.0f} ms")
+    if "layout" in out:
+        lay = out["layout"]
+        print(f"  layouts (hypotheses {lay['hypotheses'][0]} and {lay['hypotheses'][1]}): "
+              f"{lay['samples']} boundary samples on each other's walls, {len(lay['walls'])} "
+              f"wall pairs, {len(lay['corners'])} corners")
+    for k, alt in enumerate(out["alternatives"], 2):
+        print(f"  candidate {k} (the evidence allows it nearly as well): x {alt['x_m']:+.3f}, "
+              f"z {alt['z_m']:+.3f} {unit}, yaw {alt['yaw_deg']:+.2f} deg")
     for which, s in zip("AB", sources):
         g = s["gravity"]
         note = {"input": "given", "image": f"from the photo's lines, ± {g['sigma_deg']:.1f} deg",

@@ -12,18 +12,17 @@ z forward, y down; metres; the floor is y = h, so everything here is (x, z)):
   azimuth (atan2(x, z), radians) the horizontal distance to the wall base (WALL), a lower
   bound (OPEN: the floor goes on past the top border) or an upper bound (NONE: no floor
   seen down to the bottom border), with its 1-sigma;
-* the room's orientation: the dominant horizontal direction of the photo's straight lines
-  modulo 90 degrees (``orientation``; walls, ceiling edges, window and cabinet edges of a
-  Manhattan room), which needs no floor in view.
-
-Registration of two photos' layouts is ``register``. Pure numpy; no I/O.
+The room's orientation from the photo's lines (no floor needed) is ``orientation``; how two
+photos' layouts agree under a motion is ``register``. Pure numpy / OpenCV; no I/O.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import cached_property
 
+import cv2
 import numpy as np
 
 from .camera import Camera
@@ -48,8 +47,9 @@ class LayoutParams:
         boundary_px: 1-sigma of the boundary position, pixels (hypothesis and snapping).
         gravity_deg: 1-sigma of the gravity direction, degrees.
         height_rel: relative 1-sigma of the camera height.
-        merge_deg: consecutive WALL segments closer than this in direction (and 5 % of their
-            distance in offset) are one wall.
+        merge_deg: consecutive WALL segments closer than this in direction are one wall.
+        simplify_px: a run of WALL segments is first reduced to the vertices that keep it
+            within this many pixels (Douglas-Peucker).
     """
 
     step_px: float = 6.0
@@ -57,6 +57,7 @@ class LayoutParams:
     gravity_deg: float = 0.5
     height_rel: float = 0.02
     merge_deg: float = 6.0
+    simplify_px: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -87,12 +88,17 @@ class Layout:
     height: float
     rank: int = 0
 
-    @property
+    @cached_property
     def points(self) -> np.ndarray:
         """(S, 2) floor points (x, z) of the samples (inf where the range is unbounded)."""
         return self.range[:, None] * np.column_stack([np.sin(self.azimuth), np.cos(self.azimuth)])
 
-    @property
+    @cached_property
+    def spacing(self) -> float:
+        """Median azimuth step between samples, radians (0 with fewer than 2)."""
+        return float(np.median(np.diff(self.azimuth))) if len(self.azimuth) > 1 else 0.0
+
+    @cached_property
     def normals(self) -> np.ndarray:
         """(K, 2) unit normal of each wall, pointing to the camera's side."""
         d = self.walls[:, 1] - self.walls[:, 0]
@@ -142,9 +148,34 @@ def from_hypothesis(camera: Camera, height: float, polyline, kinds=None, rank: i
     if not (np.isfinite(height) and height > 0):
         raise HypothesisError(f"camera height must be a positive number of metres, got {height!r}")
     h = float(height)
-    _, q = _floor(camera, h, poly)
-    walls, ends = _walls(poly, kinds, q, params)
+    wpoly, wkinds = _simplify(poly, kinds, params.simplify_px)
+    _, q = _floor(camera, h, wpoly)
+    walls, ends = _walls(wpoly, wkinds, q, params)
     return Layout(walls, ends, *_scan(camera, h, poly, kinds, walls, params), h, int(rank))
+
+
+def _simplify(poly, kinds, eps: float):
+    """The polyline with each run of consecutive WALL segments reduced by Douglas-Peucker
+    (``eps`` pixels; a boundary traced column by column becomes its few straight lines)."""
+    out_p, out_k, s = [poly[0]], [], 0
+    while s < len(kinds):
+        if kinds[s] != SegKind.WALL:
+            out_p.append(poly[s + 1])
+            out_k.append(int(kinds[s]))
+            s += 1
+            continue
+        e = s
+        while e < len(kinds) and kinds[e] == SegKind.WALL:
+            e += 1
+        run = poly[s:e + 1]
+        if len(run) > 2:
+            keep = cv2.approxPolyDP(run.astype(np.float32).reshape(-1, 1, 2), eps, False)
+            idx = [int(np.argmin(np.abs(run - k).sum(1))) for k in keep.reshape(-1, 2)]
+            run = run[sorted(set(idx) | {0, len(run) - 1})]
+        out_p.extend(run[1:])
+        out_k.extend([SegKind.WALL] * (len(run) - 1))
+        s = e
+    return np.array(out_p), np.array(out_k, int)
 
 
 def _walls(poly, kinds, q, params: LayoutParams):
@@ -221,59 +252,3 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
     keep = ~step & ((kind != SegKind.WALL) | np.isfinite(rng))
     o = np.argsort(az[keep], kind="stable")
     return az[keep][o], rng[keep][o], kind[keep][o], sigma[keep][o], wall[keep][o]
-
-
-# ---------------------------------------------------------------------------- orientation
-@dataclass(frozen=True)
-class Orientation:
-    """The room's dominant horizontal direction in a photo's level frame, modulo 90 deg.
-
-    Attributes:
-        angle: azimuth of the direction, radians in [0, pi / 2) (atan2(x, z) of a wall's
-            direction, modulo a quarter turn).
-        support: length-weighted fraction of the photo's horizontal line evidence within
-            2 degrees of it (0..1).
-        n_lines: lines that took part.
-    """
-
-    angle: float
-    support: float
-    n_lines: int
-
-
-def orientation(segments, camera: Camera, min_vertical_deg: float = 10.0,
-                resolution_deg: float = 0.25, spread_deg: float = 1.5) -> Orientation | None:
-    """Dominant horizontal direction (mod 90 deg) of the 3D lines seen as ``segments``.
-
-    Each image segment with its camera centre spans a plane (normal n, level frame); a
-    horizontal 3D line in it has direction n x g = (-n_z, 0, n_x). Segments whose plane is
-    within ``min_vertical_deg`` of vertical are left out (the images of vertical lines, and
-    horizontal lines seen end-on, which look alike); the others vote with weight length x
-    (1 - n_y^2) (the direction is ill-defined near the horizon) on a circular histogram of
-    4 x angle, smoothed by ``spread_deg``.
-
-    Args:
-        segments: (N, 4) image segments [u1, v1, u2, v2], pixels.
-
-    Returns:
-        The orientation, or None without a usable line.
-    """
-    seg = np.asarray(segments, float).reshape(-1, 4)
-    if len(seg) == 0:
-        return None
-    n = np.cross(camera.rays_level(seg[:, :2]), camera.rays_level(seg[:, 2:]))
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    horiz = np.hypot(n[:, 0], n[:, 2])                 # sin of the plane's tilt from level
-    ok = np.abs(n[:, 1]) > np.sin(np.radians(min_vertical_deg))
-    if not ok.any():
-        return None
-    ang = np.arctan2(-n[ok, 2], n[ok, 0])
-    w = np.hypot(*(seg[ok, 2:] - seg[ok, :2]).T) * horiz[ok] ** 2
-    grid = np.radians(np.arange(0.0, 90.0, resolution_deg))
-    k = 1.0 / (4.0 * np.radians(spread_deg)) ** 2
-    score = np.exp((np.cos(4.0 * (grid[:, None] - ang[None])) - 1.0) * k) @ w
-    best = grid[int(np.argmax(score))]
-    near = np.abs(np.angle(np.exp(4j * (ang - best)))) < 4 * np.radians(2.0)
-    # sub-bin angle: circular mean of the nearby votes
-    best = float(np.angle(np.sum(w[near] * np.exp(4j * ang[near]))) / 4.0) % (np.pi / 2)
-    return Orientation(best, float(w[near].sum() / max(w.sum(), 1e-12)), int(ok.sum()))

@@ -18,7 +18,7 @@ from .features import Lifted
 
 @dataclass(frozen=True)
 class MotionParams:
-    """Thresholds (pixels) and RANSAC settings.
+    """Thresholds (pixels), RANSAC settings and the weights of the registration.
 
     Attributes:
         thr_px: inlier threshold of epipolar and transfer residuals, pixels.
@@ -32,26 +32,53 @@ class MotionParams:
             d moves by ~ d^2 / h * error, added to its sigma.
         scale_sigma, direction_sigma_deg, yaw_sigma_deg: model errors the fit cannot see
             (camera height and gravity errors, a floor that is not flat, a hand-held phone
-            that does not move in a plane), added to every estimate's covariance: relative
-            along the baseline, across it (degrees of its direction) and on the yaw.
-            Fitted by ``tools/calibrate_motion.py`` on tum-cabinet-pairs (dev) so the median
-            normalised error is a calibrated Gaussian's; held out, zind-pairs-tilted has
-            62-81 % of its errors within 1 sigma (gross failures stay outside 3 sigma).
+            that does not move in a plane), added to the covariance of the ``features``,
+            ``lifted`` and ``paper`` estimates: relative along the baseline, across it
+            (degrees of its direction) and on the yaw. Fitted by
+            ``tools/calibrate_motion.py --method features`` on tum-cabinet-pairs (dev) so the
+            median normalised error is a calibrated Gaussian's; held out, zind-pairs-tilted
+            has 62-81 % of its errors within 1 sigma (gross failures stay outside 3 sigma).
+        findme_scale_sigma, findme_direction_sigma_deg, findme_yaw_sigma_deg: the same for
+            the ``findme`` estimates, fitted by ``tools/calibrate_motion.py`` on
+            tum-cabinet-pairs (dev); held out, zind-pairs-tilted has 57-90 % of its errors
+            within 1 sigma and 95 % within 3, zind-pairs-level 30-80 % and 80-90 % (its
+            sigma also spans the alternatives, ``motion_register``).
         seed: RANSAC seed.
-        max_layouts: candidate hypotheses (layouts) of each photo that take part (``findme``).
+
+    ``findme`` only:
+        max_layouts: candidate hypotheses (layouts) of each photo that take part.
         layout_weight, layout_violation: score of one boundary sample on the other photo's
             wall, and lost per sample on floor the other photo sees (a match scores 1).
+        layout_floor: a layout pair scoring less adds this instead (0: layouts that disagree
+            add nothing rather than count against: a wrong hypothesis must not outvote
+            the matches).
         rank_penalty: score lost per rank step of a layout that is not the chosen one.
         min_orientation_support: a photo's line orientation takes part when at least this
             fraction of its line evidence supports it.
         orientation_sigma_deg, orientation_weight: 1-sigma of the yaw the two photos' line
             orientations give (modulo 90 deg), and the score of a yaw that agrees with it.
-        refine_top: candidates refined (the best distinct ones).
+        max_wall_yaws: yaw candidates from wall pairs (the longest pairs).
+        max_direction_seeds: matches (most distinctive first) whose direction is tried at
+            each candidate yaw.
+        free_iters: most samples of the free (yaw unknown) epipolar RANSAC.
+        baseline_depths, baseline_weight: a baseline longer than ``baseline_depths`` times
+            the scene's depth loses ``baseline_weight`` per unit of the excess ratio.
+        refine_top, refine_iters: candidates refined (the best distinct ones within
+            ``alternative_ratio`` of the best) and Levenberg-Marquardt iterations of each.
         max_baseline_m: candidates farther apart are not considered.
         min_layout_samples: without agreeing matches, fewer boundary samples on each other's
             walls mean no common wall.
         alternative_ratio: other refined motions scoring at least this fraction of the best
             are its alternatives.
+        duplicate_px: matches within this many pixels of a more distinctive one (their
+            distances in A and in B add up to less than twice it) are its copies (one corner
+            at several ORB pyramid levels) and count once (``features.distinct``). Dev
+            pairs, success of findme at 4 / 8 / 12 px vs none: zind-pairs-level 10 / 12 /
+            11 of 22 vs 7, zind-pairs-tilted 16 / 14 / 14 vs 15, tum-cabinet-pairs 77 / 80
+            / 79 of 95 vs 81, kitti06-pairs 4 / 3 / 3 of 7 vs 3.
+        lift_min_elev_deg: a match lifted in one photo is placed in the other by its height
+            (``motion_lifted``) only when its bearing there is at least this far from the
+            horizon.
     """
 
     thr_px: float = 3.0
@@ -66,21 +93,37 @@ class MotionParams:
     scale_sigma: float = 0.13
     direction_sigma_deg: float = 5.0
     yaw_sigma_deg: float = 1.4
+    findme_scale_sigma: float = 0.033
+    findme_direction_sigma_deg: float = 3.1
+    findme_yaw_sigma_deg: float = 0.67
     seed: int = 0
     max_layouts: int = 1
     layout_weight: float = 0.25
     layout_violation: float = 0.25
+    layout_floor: float = 0.0
     rank_penalty: float = 2.0
     min_orientation_support: float = 0.2
     orientation_sigma_deg: float = 1.0
     orientation_weight: float = 10.0
-    refine_top: int = 6
+    max_wall_yaws: int = 4
+    max_direction_seeds: int = 100
+    free_iters: int = 256
+    baseline_depths: float = 2.0
+    baseline_weight: float = 10.0
+    refine_top: int = 3
+    refine_iters: int = 6
     max_baseline_m: float = 30.0
     min_layout_samples: int = 8
     alternative_ratio: float = 0.8
-    layout_floor: float = 0.0
-    max_wall_yaws: int = 4
-    max_direction_seeds: int = 300
+    duplicate_px: float = 4.0
+    lift_min_elev_deg: float = 3.0
+
+    def model_errors(self, method: str) -> tuple[float, float, float]:
+        """(relative scale, direction degrees, yaw degrees) model errors of ``method``."""
+        if method == "findme":
+            return (self.findme_scale_sigma, self.findme_direction_sigma_deg,
+                    self.findme_yaw_sigma_deg)
+        return self.scale_sigma, self.direction_sigma_deg, self.yaw_sigma_deg
 
 
 @dataclass(frozen=True)

@@ -15,11 +15,16 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import cv2
+import numpy as np
+
 from . import features, layout
+from .orientation import Orientation, orientation as room_orientation
 from .camera import Camera
 from .errors import FindmeError, HypothesisError
-from .lines import detect_segments
-from .methods import hypothesize
+from .hypotheses import HypothesisParams
+from .lines import detect_segments, merge_collinear
+from .methods import WORK_SIZE, hypothesize
 from .motion import MotionParams, PlanarMotion, estimate
 from .scene import Scene
 
@@ -52,12 +57,12 @@ class Photo:
     features: features.Features | None = None
     scene: Scene | None = None
     layouts: list = field(default_factory=list)
-    orientation: layout.Orientation | None = None
+    orientation: Orientation | None = None
     timing_ms: dict = field(default_factory=dict)
 
 
 def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
-            segments=None, max_layouts: int = 3,
+            segments=None, max_layouts: int = 1,
             feature_params: features.FeatureParams = features.FeatureParams(),
             clock=time.perf_counter) -> Photo:
     """A photo ready for its motions.
@@ -87,15 +92,38 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
             continue
     t2 = clock()
     if segments is None:
-        segments = detect_segments(image)
-    o = layout.orientation(segments, camera)
+        segments = line_segments(image)
+    o = room_orientation(segments, camera)
     t3 = clock()
     return Photo(camera, float(height), f, scene, lays, o,
                  {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t2 - t1 + t3 - t2)})
 
 
+def _work_scale(image) -> float:
+    """The scale ``methods.hypothesize`` works at for this image (1: full size)."""
+    s = min(1.0, WORK_SIZE / max(image.shape[:2]))
+    return s if s < 0.95 else 1.0
+
+
+def _full_size(ends, s: float):
+    """Segments (N, 4) found at working scale ``s`` back in the photo's pixels."""
+    return ends if s == 1.0 else (np.asarray(ends, float) + 0.5) / s - 0.5
+
+
+def line_segments(image) -> np.ndarray:
+    """(N, 4) the photo's merged straight lines [u1, v1, u2, v2] in its pixels, as
+    ``methods.hypothesize`` finds them (same working size, detector and settings), for a
+    photo whose hypotheses came without their lines (e.g. over the bus)."""
+    s, p = _work_scale(image), HypothesisParams()
+    if s < 1.0:
+        H, W = image.shape[:2]
+        image = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
+    segs = detect_segments(image, p.segment_method, p.min_segment_px, lsd_scale=p.lsd_scale)
+    return _full_size(merge_collinear(segs).ends, s)
+
+
 def photo_of(image, camera: Camera, height: float, rank: int = 1,
-             hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 3,
+             hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 1,
              feature_params: features.FeatureParams = features.FeatureParams(),
              clock=time.perf_counter) -> Photo:
     """``prepare`` with the photo's own hypotheses (``methods.hypothesize``, timed as
@@ -107,7 +135,8 @@ def photo_of(image, camera: Camera, height: float, rank: int = 1,
         raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "
                               f"{len(hs.hypotheses)} hypotheses"
                               + (f" ({hs.reason})" if hs.reason else ""))
-    photo = prepare(image, camera, height, hs.hypotheses, rank, hs.lines.ends, max_layouts,
+    photo = prepare(image, camera, height, hs.hypotheses, rank,
+                    _full_size(hs.lines.ends, _work_scale(image)), max_layouts,
                     feature_params, clock)
     photo.timing_ms["hypotheses"] = ms
     return photo

@@ -1,5 +1,6 @@
-"""3-DOF planar registration of two photos' layouts (``layout``): how well a motion puts one
-photo's walls on the other's, and the motions that wall and corner correspondences imply.
+"""How two photos' layouts (``layout``) agree under a planar motion, and the motions that
+wall and corner correspondences imply: the layout part of the registration of two photos
+(``motion_register``; also used to fuse a session's photos into a floor plan, ``fuse``).
 
 Convention (DESIGN.md): the motion of (A, B) is the pose of camera B in A's level frame; a
 floor point p_B = (x, z) of B is p_A = R(yaw) p_B + t in A, R(yaw) = [[c, s], [-s, c]] on
@@ -37,6 +38,8 @@ class RegisterParams:
         sigma_ref: samples with a larger sigma (metres) count less (their weight falls as
             (sigma_ref / sigma)^2).
         outside: score lost when a camera lies beyond the other photo's walls.
+        max_walls: at most this many walls (the longest) and corners of each photo propose
+            translations.
     """
 
     gate: float = 3.0
@@ -47,6 +50,7 @@ class RegisterParams:
     min_wall_m: float = 0.4
     sigma_ref: float = 0.1
     outside: float = 10.0
+    max_walls: int = 8
 
 
 @dataclass(frozen=True)
@@ -88,8 +92,7 @@ def _lookup(L: Layout, az: np.ndarray):
     i = np.clip(np.searchsorted(L.azimuth, az), 1, n - 1)
     left = az - L.azimuth[i - 1] < L.azimuth[i] - az
     j = np.where(left, i - 1, i)
-    tol = 1.5 * float(np.median(np.diff(L.azimuth)))
-    return j, np.abs(az - L.azimuth[j]) < tol
+    return j, np.abs(az - L.azimuth[j]) < 1.5 * L.spacing
 
 
 def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
@@ -136,18 +139,17 @@ def agreement(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = Registe
               ) -> Agreement:
     """The evidence of the layouts for one motion (see ``Agreement``)."""
     t = np.asarray(t, float).reshape(1, 2)
-    n_agree, n_viol, sq, pairs = 0, 0, [], {}
+    n_agree, n_viol, dist, pairs = 0, 0, [], {}
     for dst, src, into_a in ((la, lb, True), (lb, la, False)):
-        e, agree, viol, j, k = _one_way(dst, src, np.array([yaw]), t, into_a, p.gate)
-        a = agree[0]
-        n_agree += int(a.sum())
-        n_viol += int(viol[0].sum())
-        s = np.hypot(dst.sigma[j[0]], src.sigma[k])
-        sq.append((e[0][a] * s[a]) ** 2)
-        for wd, ws in zip(dst.wall[j[0][a]], src.wall[k[a]]):
+        ks, w, q, _ = _associate(dst, src, yaw, t, into_a, p.gate)
+        n_viol += int(_one_way(dst, src, np.array([yaw]), t, into_a, p.gate)[2].sum())
+        n_agree += len(ks)
+        n, c, _ = _lines(dst)
+        dist.append(np.einsum("sj,sj->s", q, n[w]) - c[w] if len(ks) else np.zeros(0))
+        for wd, ws in zip(w, src.wall[ks]):
             key = (int(wd), int(ws)) if into_a else (int(ws), int(wd))
             pairs[key] = pairs.get(key, 0) + 1
-    sq = np.concatenate(sq)
+    dist = np.concatenate(dist)
     ca, cb = la.corners, lb.corners
     corners = ()
     if len(ca) and len(cb):
@@ -155,8 +157,8 @@ def agreement(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = Registe
         corners = tuple((int(i), int(j)) for i, j in zip(*np.nonzero(d < 0.15 + 0.05 * np.hypot(
             *ca.T)[:, None])))
     return Agreement(la.rank, lb.rank, n_agree, n_viol,
-                     float(np.sqrt(sq.mean())) if len(sq) else float("nan"),
-                     tuple(sorted(k for k, v in pairs.items() if v >= 3)), corners,
+                     float(np.sqrt(np.mean(dist ** 2))) if len(dist) else float("nan"),
+                     tuple(sorted(k for k, v in pairs.items() if v >= 3 and k[1] >= 0)), corners,
                      float(scores(la, lb, np.array([yaw]), t, p)[0]))
 
 
@@ -166,6 +168,12 @@ def _lines(L: Layout):
     n = L.normals
     return n, np.einsum("ij,ij->i", n, L.walls[:, 0]), np.linalg.norm(
         L.walls[:, 1] - L.walls[:, 0], axis=1)
+
+
+def _longest(n, c, length, k: int):
+    """The k longest walls' (normals, offsets): candidate generation stays bounded."""
+    o = np.argsort(-length, kind="stable")[:k]
+    return n[o], c[o]
 
 
 def wall_yaws(la: Layout, lb: Layout, p: RegisterParams = RegisterParams()) -> np.ndarray:
@@ -181,11 +189,13 @@ def wall_yaws(la: Layout, lb: Layout, p: RegisterParams = RegisterParams()) -> n
 
 
 def translations(la: Layout, lb: Layout, yaw: float, directions=None,
-                 p: RegisterParams = RegisterParams()) -> np.ndarray:
+                 p: RegisterParams = RegisterParams(), single: bool = False) -> np.ndarray:
     """(N, 2) translations t that, at this yaw, put two non-parallel walls of B on two of A,
     a corner of B on a corner of A, or (given unit ``directions`` (D, 2) of the baseline,
-    e.g. from the features) one wall of B on one of A along a direction."""
-    (na, ca, _), (nb, cb, _) = _lines(la), _lines(lb)
+    e.g. from the features) one wall of B on one of A along a direction; with ``single``,
+    also one wall on one wall by the shortest move (the position along the wall is then
+    unknown: a degenerate pair, which the caller reports)."""
+    (na, ca), (nb, cb) = (_longest(*_lines(L), p.max_walls) for L in (la, lb))
     out = [np.zeros((0, 2))]
     if len(na) and len(nb):
         nbr = rot2(np.array([yaw]), nb)[0]
@@ -197,6 +207,8 @@ def translations(la: Layout, lb: Layout, yaw: float, directions=None,
         i, j, det = i[ok], j[ok], det[ok]
         out.append(np.column_stack([(rhs[i] * n[j, 1] - rhs[j] * n[i, 1]) / det,
                                     (n[i, 0] * rhs[j] - n[j, 0] * rhs[i]) / det]))
+        if single:
+            out.append(rhs[:, None] * n)
         if directions is not None and len(directions):
             d = np.asarray(directions, float).reshape(-1, 2)
             nd = n @ d.T                                   # (P, D)
@@ -204,29 +216,44 @@ def translations(la: Layout, lb: Layout, yaw: float, directions=None,
                 s = rhs[:, None] / nd
             ok = (np.abs(nd) > 0.3) & (s > 0)
             out.append(s[ok][:, None] * d[np.nonzero(ok)[1]])
-    qa, qb = la.corners, lb.corners
+    qa, qb = la.corners[:p.max_walls], lb.corners[:p.max_walls]
     if len(qa) and len(qb):
         out.append((qa[:, None] - rot2(np.array([yaw]), qb)[0][None]).reshape(-1, 2))
     return np.vstack(out)
 
 
+def _associate(dst: Layout, src: Layout, yaw: float, t, into_a: bool, gate: float):
+    """src's samples that agree with dst under one motion, each with the dst wall nearest to
+    it (point to segment): (src sample indices (S,), dst wall indices (S,), moved points
+    (S, 2), combined sigma (S,))."""
+    _, agree, _, j, k = _one_way(dst, src, np.array([yaw]), t, into_a, gate)
+    a = agree[0]
+    if not a.any() or len(dst.walls) == 0:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2)), np.zeros(0)
+    p = src.points[k[a]]
+    q = (rot2(np.array([yaw]), p)[0] + t[0]) if into_a else rot2(np.array([-yaw]), p - t[0])[0]
+    w0, d = dst.walls[:, 0], dst.walls[:, 1] - dst.walls[:, 0]
+    u = np.clip(np.einsum("skj,kj->sk", q[:, None] - w0[None], d)
+                / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0.0, 1.0)
+    dist = np.linalg.norm(q[:, None] - (w0[None] + u[..., None] * d[None]), axis=2)
+    return k[a], np.argmin(dist, axis=1), q, np.hypot(dst.sigma[j[0][a]], src.sigma[k[a]])
+
+
 def residual_terms(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = RegisterParams()):
     """The agreeing samples of one motion, frozen for refinement: a function mapping C motions
     (yaw (C,), t (C, 2)) to (C, R) signed distances of each sample to the line of the wall
-    it agreed with, over its sigma."""
+    nearest to it in the other photo, over its sigma; the samples along one wall share its
+    error (the boundary line's), so each wall's count as 2 independent ones."""
     t = np.asarray(t, float).reshape(1, 2)
     terms = []
     for dst, src, into_a in ((la, lb, True), (lb, la, False)):
-        _, agree, _, j, k = _one_way(dst, src, np.array([yaw]), t, into_a, p.gate)
-        a = agree[0]
-        w = dst.wall[j[0][a]]
-        keep = w >= 0
-        if not keep.any():
+        ks, w, _, sig = _associate(dst, src, yaw, t, into_a, p.gate)
+        if len(ks) == 0:
             continue
         n, c, _ = _lines(dst)
-        pts = src.points[k[a][keep]]
-        sig = np.hypot(dst.sigma[j[0][a][keep]], src.sigma[k[a][keep]])
-        terms.append((into_a, pts, n[w[keep]], c[w[keep]], sig))
+        count = np.bincount(w, minlength=len(dst.walls))[w]
+        terms.append((into_a, src.points[ks], n[w], c[w],
+                      sig * 1.0))
 
     def resid(yaw_c, t_c):
         out = [np.zeros((len(yaw_c), 0))]

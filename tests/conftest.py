@@ -82,3 +82,35 @@ def floor_pixel_error(polyline, labels):
     pred = np.arange(H, dtype=float)[:, None] >= vp[None, :] - 1e-6
     valid = labels != 255
     return float(((pred != (labels == 0)) & valid).sum() / valid.sum())
+
+
+def png_bomb(idat_length: int = 0xFFFFFFFF, pad: int = 400_000) -> bytes:
+    """A 640x480 RGB PNG whose IDAT chunk CLAIMS ``idat_length`` bytes while the file holds
+    only ~``pad`` (issue 11: a 404 kB file with 0xFFFFFFFF made the decoder allocate ~4 GB).
+    The header is valid, so checking the declared width x height does not catch it."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    raw = zlib.compress(b"".join(b"\x00" + bytes(640 * 3) for _ in range(480)))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 640, 480, 8, 2, 0, 0, 0))
+            + struct.pack(">I", idat_length) + b"IDAT" + raw + bytes(pad))
+
+
+def memory_cap(nbytes: int):
+    """A ``preexec_fn`` capping a child's data segment (RLIMIT_DATA): a test that feeds a
+    process something an unbounded decoder would allocate gigabytes for cannot take the
+    shared machine's memory; the test asserts a peak far below the cap."""
+    def limit():
+        import resource
+        resource.setrlimit(resource.RLIMIT_DATA, (nbytes, nbytes))
+    return limit
+
+
+def peak_rss_bytes(pid: int) -> int:
+    """A live process's peak resident memory (VmHWM, Linux)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) * 1024
+    raise AssertionError(f"no VmHWM for process {pid}")

@@ -1,13 +1,16 @@
 """Fit the motion's model-error terms so its 1-sigma values mean what they say.
 
     python tools/calibrate_motion.py ../shared/data/findme-eval [--fit tum-cabinet-pairs]
+                                     [--method findme]
 
-Runs the default estimator with no model error on every dev pair (rank-1 hypotheses), then
-finds the relative scale error (along the baseline), the direction error (across it,
-degrees) and the yaw error (degrees) that make the median normalised error on the ``--fit``
-subset equal to a calibrated Gaussian's (0.674), and prints the coverage (fraction within
-1 and 3 sigma) of the current and the fitted values on every pair subset; the other subsets
-are the held-out check. Put the fitted values in ``MotionParams`` (findme_core/motion_model.py).
+Runs the estimator (``--method``, default findme) with no model error on every dev pair
+(rank-1 hypotheses, as ``findme eval``), then finds the relative scale error (along the
+baseline), the direction error (across it, degrees) and the yaw error (degrees) that make
+the median normalised error on the ``--fit`` subset equal to a calibrated Gaussian's (0.674),
+and prints the coverage (fraction within 1 and 3 sigma) of the current and the fitted values
+on every pair subset; the other subsets are the held-out check. Put the fitted values in
+``MotionParams`` (findme_core/motion_model.py: ``findme_*`` for findme, the others for
+features, lifted and paper).
 """
 
 from __future__ import annotations
@@ -25,23 +28,31 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from findme.evaluate import pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion import MotionParams  # noqa: E402
-from findme_core.pair import motion_pair, scene_of  # noqa: E402
+from findme_core.motion import METHODS  # noqa: E402
+from findme_core.pair import motion_photos, photo_of  # noqa: E402
 
 SUBSETS = ("tum-cabinet-pairs", "zind-pairs-tilted", "zind-pairs-level", "kitti06-pairs")
 MEDIAN_ABS_Z = 0.6745   # median |z| of a standard normal
 
 
-def raw_motions(split: Path, subset: str) -> dict:
+def _no_model_error(method: str) -> MotionParams:
+    if method == "findme":
+        return MotionParams(findme_scale_sigma=0.0, findme_direction_sigma_deg=0.0,
+                            findme_yaw_sigma_deg=0.0)
+    return MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0)
+
+
+def raw_motions(split: Path, subset: str, method: str) -> dict:
     """Estimates with their fit sigmas only, and the truth, of the answered pairs: arrays
     x, z (m), yaw (deg), sx, sz (m), sy (deg), gx, gz, gy."""
     index = json.loads((split / "index.json").read_text())
-    p0 = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0)
+    p0 = _no_model_error(method)
     rows = []
     for pid in index["subsets"][subset]["pairs"]:
-        pair, ((ia, ca, ha), (ib, cb, hb)) = pair_inputs(split / "pairs", split / "views", pid)
+        pair, photos = pair_inputs(split / "pairs", split / "views", pid)
         try:
-            sa, sb = scene_of(ia, ca, ha)[0], scene_of(ib, cb, hb)[0]
-            r = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, ("findme",), params=p0)["findme"]
+            pa, pb = (photo_of(i, c, h, 1, "findme", w) for (i, c, h), w in zip(photos, "AB"))
+            r = motion_photos(pa, pb, (method,), params=p0)[method]
         except FindmeError:
             continue
         if isinstance(r, Exception):
@@ -82,15 +93,16 @@ def main(argv=None) -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("split", type=Path)
     ap.add_argument("--fit", default="tum-cabinet-pairs", choices=SUBSETS)
+    ap.add_argument("--method", default="findme", choices=[m for m in METHODS])
     a = ap.parse_args(argv)
     cv2.setNumThreads(1)
-    data = {s: raw_motions(a.split, s) for s in SUBSETS}
+    data = {s: raw_motions(a.split, s, a.method) for s in SUBSETS}
     d = data[a.fit]
     fitted = (_solve(lambda s: np.median(normalised(d, s, 0, 0)[0]) - MEDIAN_ABS_Z, 0, 1),
               _solve(lambda r: np.median(normalised(d, 0, r, 0)[1]) - MEDIAN_ABS_Z, 0, 45),
               _solve(lambda y: np.median(normalised(d, 0, 0, y)[2]) - MEDIAN_ABS_Z, 0, 45))
     p = MotionParams()
-    for name, terms in (("current", (p.scale_sigma, p.direction_sigma_deg, p.yaw_sigma_deg)),
+    for name, terms in (("current", p.model_errors(a.method)),
                         (f"fitted on {a.fit}", fitted)):
         print(f"{name}: scale_sigma {terms[0]:.3f}, direction_sigma_deg {terms[1]:.2f}, "
               f"yaw_sigma_deg {terms[2]:.2f}")

@@ -399,7 +399,9 @@
       p.sceneRank = m.rank;
       p.metric = m.metric;
       p.height_m = m.camera_height_m;
+      p.walls = m.walls_m || [];   // its boundary's walls on the floor, its level frame
       if (m.rank === p.rank) clearBusy('scene');
+      if (state.poses.size || state.motions.size) renderMotion();
       if (p.points.length) measure(p);
       if (p.index === state.current) render();
       if (m.index > 0) expectMotion(m.index);
@@ -682,10 +684,24 @@
   function drawMap(poses) {
     const svg = $('floor-map');
     const pts = [...poses.values()].sort((a, b) => a.index - b.index);
+    // each photo's walls registered in photo 1's frame by its pose: R(yaw) p + (x, z)
+    const walls = [];
+    for (const q of pts) {
+      const p = photoAt(q.index), c = Math.cos(q.yaw_rad), s = Math.sin(q.yaw_rad);
+      for (const w of (p && p.walls) || []) {
+        walls.push({index: q.index, ends: w.map(([x, z]) => [q.x_m + c * x + s * z, q.z_m - s * x + c * z])});
+      }
+    }
     let minX = -1, maxX = 1, minZ = -1, maxZ = 1;
     for (const q of pts) {
       minX = Math.min(minX, q.x_m - 1); maxX = Math.max(maxX, q.x_m + 1);
       minZ = Math.min(minZ, q.z_m - 1); maxZ = Math.max(maxZ, q.z_m + 1.5);
+    }
+    for (const w of walls) {
+      for (const [x, z] of w.ends) {
+        minX = Math.min(minX, x - 0.3); maxX = Math.max(maxX, x + 0.3);
+        minZ = Math.min(minZ, z - 0.3); maxZ = Math.max(maxZ, z + 0.3);
+      }
     }
     const side = Math.max(maxX - minX, maxZ - minZ);   // square, like the element
     minX -= (side - (maxX - minX)) / 2; maxX = minX + side;
@@ -704,6 +720,12 @@
     }
     svg.append(grid);
     svg.append(el('svg:text', {x: minX + 0.1, y: -minZ - 0.12, class: 'map-note'}, 'grid: 1 m'));
+    svg.dataset.walls = walls.length;
+    for (const w of walls) {
+      svg.append(el('svg:line', {x1: w.ends[0][0], y1: -w.ends[0][1], x2: w.ends[1][0], y2: -w.ends[1][1],
+                                 class: `wall wall-${w.index % 4}`, 'data-index': w.index,
+                                 'vector-effect': 'non-scaling-stroke'}));
+    }
     if (pts.length > 1) {
       svg.append(el('svg:polyline', {points: pts.map((q) => `${q.x_m},${-q.z_m}`).join(' '),
                                      class: 'path', 'vector-effect': 'non-scaling-stroke'}));

@@ -14,20 +14,11 @@ from __future__ import annotations
 import time
 
 import schemas
-from findme_core.errors import InputError
 from findme_core.methods import hypothesize
 
-from ..runtime import bus
+from ..runtime import authority, bus
 from findme_io.convert import frame_photo_camera, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output
-
-
-def check_frame_key(key: str, frame) -> bus.Key:
-    """The key's session and n must be the frame's own."""
-    k = bus.parse_key(key)
-    if frame.session != k.session or str(frame.index) != (k.parts[0] if k.parts else ""):
-        raise InputError(f"{key} carries frame {frame.index} of session {frame.session!r}")
-    return k
 
 
 class HypothesesHandler(Handler):
@@ -45,15 +36,17 @@ class HypothesesHandler(Handler):
 
     def on_message(self, key, frame):
         t0 = time.perf_counter()
-        k = check_frame_key(key, frame)
+        authority.check(key, frame)   # the key, not the payload, names session and n
+        k = bus.parse_key(key)
+        n = k.index()
         image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
         t1 = time.perf_counter()
         hs = hypothesize(image, cam, self.method, self.max_n, clock=time.perf_counter)
         self.done += 1
-        msg = hypothesis_set_msg(k.session, frame.index, hs, f"{self.method}/findme.v1", cam, prov)
+        msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)
-        return [Output(bus.key(k.session, "hypotheses", frame.index), msg)]
+        return [Output(bus.key(k.session, "hypotheses", n), msg)]
 
     def counters(self):
         return {"hypothesis_sets": self.done}

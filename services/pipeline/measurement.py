@@ -67,17 +67,17 @@ class MeasurementHandler(Handler):
         self.answered = self.built = 0
 
     def on_message(self, key, msg):
-        k = bus.parse_key(key)
+        k = bus.parse_key(key)   # the key names session and n, never the payload
+        n = k.index()
         st = self.sessions.get(k.session)
         if isinstance(msg, schemas.Frame):
-            self._frame(st, msg)
+            self._frame(st, n, msg)
         elif isinstance(msg, schemas.HypothesisSet):
-            st.put(st.hsets, msg.index, msg)
+            st.put(st.hsets, n, msg)
         else:
-            st.waiting[msg.index] = (msg, self.clock())
-        n = msg.index
+            st.waiting[n] = (msg, self.clock())
         if n in st.waiting and self._ready(k.session, st, n, fetch=isinstance(msg, schemas.Selection)):
-            return self._select(k.session, st, st.waiting.pop(n)[0])
+            return self._select(k.session, st, n, st.waiting.pop(n)[0])
         if st.waiting:
             self._waiting.add(k.session)
         return []
@@ -88,10 +88,11 @@ class MeasurementHandler(Handler):
         for kind, table, cls in (("frame", st.frames, schemas.Frame),
                                  ("hypotheses", st.hsets, schemas.HypothesisSet)):
             if n not in table and fetch:
-                data = self.fetch(bus.key(session, kind, n)) if self.fetch else None
-                if data is not None:
-                    msg = schemas.decode(cls, data)
-                    self._frame(st, msg) if kind == "frame" else st.put(st.hsets, n, msg)
+                try:
+                    msg = self.need(bus.key(session, kind, n), cls)
+                except HypothesisError:
+                    return False   # not on the bus (yet)
+                self._frame(st, n, msg) if kind == "frame" else st.put(st.hsets, n, msg)
             if n not in table:
                 return False
         return True
@@ -108,7 +109,7 @@ class MeasurementHandler(Handler):
                 if now - since < self.wait_s:
                     continue
                 if self._ready(session, st, n, fetch=True):
-                    out += self._select(session, st, st.waiting.pop(n)[0])
+                    out += self._select(session, st, n, st.waiting.pop(n)[0])
                     continue
                 del st.waiting[n]
                 err = schemas.Error(session=session, key=bus.key(session, "selection", n),
@@ -122,18 +123,17 @@ class MeasurementHandler(Handler):
         self.sessions.expire(now)
         return out
 
-    def _frame(self, st, f):
-        w, h = image_size(f.image.data, f"frame {f.index}")
+    def _frame(self, st, n, f):
+        w, h = image_size(f.image.data, f"frame {n}")
         cam = frame_camera(f, w, h)
         height = f.camera_height_m if f.HasField("camera_height_m") else None
         sigma = (f.camera_height_sigma_m if f.HasField("camera_height_sigma_m")
                  else DEFAULT_HEIGHT_SIGMA_M)
-        st.put(st.frames, f.index, (cam, height, sigma))
+        st.put(st.frames, n, (cam, height, sigma))
 
-    def _select(self, session, st, sel):
-        n = sel.index
+    def _select(self, session, st, n, sel):
         if n not in st.frames:
-            self._frame(st, self.need(bus.key(session, "frame", n), schemas.Frame))
+            self._frame(st, n, self.need(bus.key(session, "frame", n), schemas.Frame))
         if n not in st.hsets:
             st.put(st.hsets, n, self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet))
         hyps = msg_hypotheses(st.hsets[n])
@@ -180,7 +180,7 @@ class MeasurementHandler(Handler):
                 raise HypothesisError(f"photo {req.index} of session {k.session!r} has no "
                                       "selected hypothesis yet") from None
             st = self.sessions.get(k.session)
-            self._select(k.session, st, sel)
+            self._select(k.session, st, req.index, sel)
         else:
             self.sessions.get(k.session)   # used now
         scene, rank, metric = st.scenes[req.index]

@@ -31,8 +31,7 @@ import numpy as np
 
 import schemas
 from findme_core.errors import FindmeError, HypothesisError
-from findme_core.pair import motion_pair
-from findme_core.scene import Scene
+from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
 from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from findme_io.imageio import decode_image
@@ -96,7 +95,9 @@ class OdometryHandler(Handler):
         return poses, times
 
     def on_message(self, key, msg):
-        k = bus.parse_key(key)
+        k = bus.parse_key(key)   # the key names session and n, never the payload
+        if isinstance(msg, schemas.Error) and k.session not in self.sessions:
+            return []   # about a session this instance holds nothing of: nothing to give up
         st = self.sessions.get(k.session)
         if st.stale:
             st.stale = False
@@ -104,7 +105,7 @@ class OdometryHandler(Handler):
         now = self.clock()
         if isinstance(msg, schemas.Error):
             return self._error(k.session, st, msg, now)
-        n = msg.index
+        n = k.index()
         if n in st.poses or n in st.closed and not isinstance(msg, schemas.Selection):
             return []
         p = st.photo(n, now)
@@ -218,16 +219,16 @@ class OdometryHandler(Handler):
         m = schemas.Motion(session=session, index_a=a, index_b=b, method=f"{self.method}/findme.v1",
                            time_ns=time.time_ns())
         try:
-            ib, cb, sb, hb = self._inputs(session, st, b)
+            pb = self._photo(session, st, b)
             for a in anchors[:3]:         # an anchor no longer on the bus: the next one
                 try:
-                    ia, ca, sa, ha = self._inputs(session, st, a)
+                    pa = self._photo(session, st, a)
                     break
                 except HypothesisError:
                     if a == anchors[:3][-1]:
                         raise
             m.index_a = a
-            res = motion_pair(ia, ib, ca, cb, sa, sb, ha, hb, (self.method,))[self.method]
+            res = motion_photos(pa, pb, (self.method,))[self.method]
             if isinstance(res, FindmeError):
                 raise res
         except FindmeError as e:
@@ -257,8 +258,20 @@ class OdometryHandler(Handler):
         except HypothesisError:
             return 0
 
+    def _photo(self, session, st, n):
+        """Photo n prepared once for all its motions (features, the layouts of its selected
+        hypothesis and the next ranks, its room orientation); held while the photo is open
+        or one of the session's anchors (``odometry_session``)."""
+        p = st.photo(n, self.clock())
+        if p.selection is None:
+            p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
+        if p.prepared is None or p.prepared[0] != p.selection.rank:
+            image, cam, hyps, rank, h = self._inputs(session, st, n)
+            p.prepared = (rank, prepare(image, cam, h, hyps, rank))
+        return p.prepared[1]
+
     def _inputs(self, session, st, n):
-        """(image, camera, scene, camera height) of photo n under its selected hypothesis."""
+        """(image, camera, hypotheses, selected rank, camera height) of photo n."""
         f = self._frame(session, st, n)
         p = st.photos[n]
         if p.hset is None:
@@ -276,8 +289,7 @@ class OdometryHandler(Handler):
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
-        hyp = hyps[sel.rank - 1]
-        return image, cam, Scene(cam, h, hyp.polyline, hyp.kinds), h
+        return image, cam, hyps, sel.rank, h
 
     def _pose_msg(self, session, st, n):
         p = st.poses[n]

@@ -2,10 +2,10 @@
 have poses, which will never come, and which must wait for a lower photo. Pure and small:
 ``odometry.OdometryHandler`` estimates the motions.
 
-Bounded: poses are kept for every posed photo (about 0.3 kB each); message payloads only
-for photos still open (frames of at most ``keep_frames`` of them; older ones are fetched
-again from the bus if they get selected) and for the ``anchors`` most recent posed photos
-(the ones the next photo chains from).
+Bounded: poses are kept for every posed photo (about 0.3 kB each); message payloads and
+prepared photos (features, layouts) only for photos still open (frames of at most
+``keep_frames`` of them; older ones are fetched again from the bus if they get selected)
+and for the ``anchors`` most recent posed photos (the ones the next photo chains from).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ class Photo:
     hset: object | None = None       # HypothesisSet message
     selection: object | None = None  # Selection message
     selected_at: float | None = None
+    prepared: tuple | None = None    # (rank, findme_core.pair prepared photo): its motions' inputs
 
 
 class OdometrySession:

@@ -71,17 +71,18 @@ class SelectionHandler(Handler):
         self.chosen = 0
 
     def on_message(self, key, hset):
-        k = bus.parse_key(key)
+        k = bus.parse_key(key)   # the key names session and n, never the payload
+        n = k.index()
         if not hset.hypotheses:
-            raise HypothesisError(f"photo {hset.index} has no hypothesis to select: {hset.reason}")
+            raise HypothesisError(f"photo {n} has no hypothesis to select: {hset.reason}")
         frame = None
         if isinstance(self.chooser, TerminalChooser):
-            frame = self.need(bus.key(k.session, "frame", hset.index), schemas.Frame)
+            frame = self.need(bus.key(k.session, "frame", n), schemas.Frame)
         rank = self.chooser(hset, frame)
         self.chosen += 1
-        sel = schemas.Selection(session=k.session, index=hset.index, rank=rank,
+        sel = schemas.Selection(session=k.session, index=n, rank=rank,
                                 by=self.chooser.by, time_ns=time.time_ns())
-        return [Output(bus.key(k.session, "selection", hset.index), sel)]
+        return [Output(bus.key(k.session, "selection", n), sel)]
 
     def counters(self):
         return {"selections": self.chosen}

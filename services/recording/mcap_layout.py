@@ -27,6 +27,7 @@ import schemas
 from findme_core.errors import FindmeError
 
 from ..runtime import bus
+from ..runtime.authority import KEY_RULES  # message type -> (key kind, index fields)
 
 VERSION = "findme-recorder/1"
 
@@ -34,20 +35,6 @@ VERSION = "findme-recorder/1"
 CHANNEL = "findme.channel"     # "bus" (key from payload), "bus-exact" (topic = key), "view"
 KIND = "findme.kind"
 
-#: message type -> (key kind, index fields after the kind)
-KEY_RULES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "findme.v1.Frame": ("frame", ("index",)),
-    "findme.v1.HypothesisSet": ("hypotheses", ("index",)),
-    "findme.v1.Selection": ("selection", ("index",)),
-    "findme.v1.Scene": ("scene", ("index",)),
-    "findme.v1.Motion": ("motion", ("index_a", "index_b")),
-    "findme.v1.Pose": ("pose", ("index",)),
-    "findme.v1.Trajectory": ("trajectory", ()),
-    "findme.v1.Plan": ("plan", ()),
-    "findme.v1.Error": ("error", ()),
-    # a MeasureReply published for the record by whoever asked (findme run does)
-    "findme.v1.MeasureReply": ("measured", ("index",)),
-}
 KIND_TYPES = {kind: name for name, (kind, _) in KEY_RULES.items()}
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"

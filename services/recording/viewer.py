@@ -23,7 +23,7 @@ from pathlib import Path
 
 from findme_core.errors import FindmeError, InputError
 
-from ..runtime import bus
+from ..runtime import authority, bus
 from .mcap_layout import parse
 from ..runtime.handler import Handler, Input
 
@@ -167,6 +167,7 @@ class ViewerHandler(Handler):
             return []
         with self._lock:
             try:
+                authority.check(key, msg)   # drawn under its key's session and n only
                 if self._view(session).log(msg, t):
                     self.shown += 1
             except FindmeError as e:  # a message it cannot draw (bad camera, ...): skip it

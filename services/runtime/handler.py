@@ -14,7 +14,7 @@ from findme_core.errors import (BusError, CameraError, FindmeError, GeometryErro
                                 HypothesisError, ImageError, InputError, MotionError,
                                 SchemaError)
 
-from . import bus
+from . import authority, bus
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,9 @@ class Handler:
         data = self.fetch(key) if self.fetch else None
         if data is None:
             raise HypothesisError(f"{key} is not known (not received and not on the bus)")
-        return schemas.decode(cls, data)
+        msg = schemas.decode(cls, data)
+        authority.check(key, msg)
+        return msg
 
     def on_message(self, key: str, msg) -> list[Output]:
         return []
@@ -148,6 +150,7 @@ CODES = [  # most specific first
     (schemas.WrongTypeError, schemas.ErrorCode.ERROR_CODE_WRONG_TYPE),
     (SchemaError, schemas.ErrorCode.ERROR_CODE_MALFORMED),
     (Overloaded, schemas.ErrorCode.ERROR_CODE_OVERLOADED),
+    (authority.KeyAuthorityError, schemas.ErrorCode.ERROR_CODE_FORBIDDEN),
     (ImageError, schemas.ErrorCode.ERROR_CODE_BAD_IMAGE),
     (CameraError, schemas.ErrorCode.ERROR_CODE_BAD_CAMERA),
     (HypothesisError, schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS),

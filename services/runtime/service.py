@@ -33,7 +33,7 @@ import zenoh
 import schemas
 from findme_core.errors import FindmeError, SchemaError
 
-from . import bus, recovery
+from . import authority, bus, recovery
 from .cache import CacheServer, OutputCache
 from .handler import Handler, Input, Output, error_message
 from .inbox import Inbox
@@ -290,6 +290,7 @@ class Service:
         inp = self.handler.inputs[i]
         try:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
+            authority.check(key, msg)
             if self.handler.shard and not self._owns(key, msg):
                 self.inbox.bump("handed_over")   # the instances changed since it came:
                 self.inbox.forget(key)           # its owner sweeps it up
@@ -311,6 +312,7 @@ class Service:
             if query.payload is None:
                 raise SchemaError(f"query on {key} carries no {q.type.DESCRIPTOR.full_name} payload")
             msg = schemas.decode(q.type, query.payload.to_bytes())
+            authority.check(key, msg)
             reply = self.handler.on_query(key, msg)
             query.reply(key, schemas.encode(reply))
             with self._cv:

@@ -22,11 +22,16 @@ a ``selection --auto`` service beside a gateway (two selectors would race).
 
 Limits, enforced whatever the page does: upload bytes (``MAX_UPLOAD_BYTES``, also the
 WebSocket's frame limit: above it the socket is closed with 1009), open sessions
-(``MAX_SESSIONS``), and, in page_input.py and page_session.py, decoded pixels, photos per
-session, pixels per measure query, text message size and measure queries in flight. Every
-refusal is an ``Error`` on the session's ``error`` key (so it is recorded like any other)
-which reaches the page through its subscription. Cross-origin WebSocket upgrades are
-refused (403).
+(``MAX_SESSIONS``) and open pages per client address (``MAX_PAGES_PER_CLIENT``; the next
+one is told why and closed with 1013), a page that sends nothing for ``IDLE_TIMEOUT_S`` is
+closed (1001, "idle"), request headers must be complete within ``HEADER_TIMEOUT_S``
+(slowloris), and, in page_input.py and page_session.py, JSON nesting and number sizes
+(checked before parsing), decoded pixels, photos per session, pixels per measure query,
+text message size and measure queries in flight. Every refusal is an ``Error`` on the
+session's ``error`` key (so it is recorded like any other) which reaches the page through
+its subscription; so does a bug while handling a page's message (INTERNAL), and the socket
+stays open. A WebSocket upgrade from a page of another origin is refused (403): see
+page_guard.py for the allow-list and why comparing Origin with Host is not enough.
 
 The pure parts (page_input.py: ``parse_upload``, ``build_frame``, ``parse_command``;
 page_output.py: ``to_page``) need no bus and no server; ``Gateway`` runs them with aiohttp
@@ -50,6 +55,7 @@ from findme_io.imageio import MAX_PIXELS
 from findme_core.errors import BusError, InputError
 
 from ..runtime import bus
+from .page_guard import ClientPages, OriginPolicy, client_of, served_names
 from .page_input import MAX_HEADER_BYTES, MAX_MEASURE_PIXELS, MAX_UPLOAD_BYTES
 from .page_session import MAX_PHOTOS, PageSession
 from ..runtime.handler import Handler
@@ -58,6 +64,12 @@ from ..runtime.service import Service
 log = logging.getLogger("findme.services.gateway")
 
 MAX_SESSIONS = 100             # open pages at once
+MAX_PAGES_PER_CLIENT = 8       # open pages per client address (one client cannot take all)
+IDLE_TIMEOUT_S = 900.0         # a page that sends nothing for this long is closed
+#: A connection must complete its request headers this long after it opens (or after its
+#: previous response): aiohttp's keepalive_timeout, which also closes a connection that
+#: never completes a request (slow headers). A WebSocket, once open, is not affected.
+HEADER_TIMEOUT_S = 15.0
 WEB_FILES = {"/": ("index.html", "text/html"), "/app.js": ("app.js", "text/javascript"),
              "/style.css": ("style.css", "text/css")}
 WEB_FILES["/plan.js"] = ("plan.js", "text/javascript")   # the floor plan drawing
@@ -89,11 +101,18 @@ class Gateway:
 
     def __init__(self, session: zenoh.Session, host: str = "127.0.0.1", port: int = 8080,
                  ssl_context: ssl.SSLContext | None = None, instance: str | None = None,
-                 max_upload_bytes: int = MAX_UPLOAD_BYTES):
+                 max_upload_bytes: int = MAX_UPLOAD_BYTES, allowed_origins=(),
+                 own_names=None, trusted_proxies=(), max_per_client: int = MAX_PAGES_PER_CLIENT,
+                 idle_timeout: float = IDLE_TIMEOUT_S, header_timeout: float = HEADER_TIMEOUT_S):
         self.session, self.host, self.port, self.ssl = session, host, port, ssl_context
         self.handler = GatewayHandler()
         self.service = Service(self.handler, session, instance=instance)
         self.max_upload = max_upload_bytes
+        self.origins = OriginPolicy(allowed_origins,
+                                    served_names() if own_names is None else own_names)
+        self.trusted = frozenset(trusted_proxies)
+        self.clients = ClientPages(max_per_client)
+        self.idle_timeout, self.header_timeout = idle_timeout, header_timeout
         self.pages: dict[str, PageSession] = {}
         self.url = ""
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -135,7 +154,8 @@ class Gateway:
         for path in WEB_FILES:
             app.router.add_get(path, self._static)
         app.router.add_get("/ws", self._ws)
-        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False,
+                                     keepalive_timeout=self.header_timeout)
         try:
             loop.run_until_complete(self._runner.setup())
             site = web.TCPSite(self._runner, self.host, self.port, ssl_context=self.ssl)
@@ -176,17 +196,29 @@ class Gateway:
 
     async def _ws(self, request: web.Request) -> web.StreamResponse:
         origin = request.headers.get("Origin")
-        if origin is not None and origin.split("://", 1)[-1] != request.host:
-            raise web.HTTPForbidden(text="cross-origin WebSocket refused")
+        if not self.origins.allows(origin, request.headers.get("Host"), request.scheme):
+            log.warning("WebSocket from origin %r (Host %r) refused", origin, request.host)
+            raise web.HTTPForbidden(text=f"WebSocket from origin {origin!r} refused: not an "
+                                         "allowed origin of this server")
+        client = client_of(request.remote, request.headers.get("X-Forwarded-For"), self.trusted)
         ws = web.WebSocketResponse(max_msg_size=self.max_upload + MAX_HEADER_BYTES + 4,
                                    heartbeat=30.0)
         await ws.prepare(request)
-        if len(self.pages) >= MAX_SESSIONS:
+        busy = (f"the server has {MAX_SESSIONS} open sessions" if len(self.pages) >= MAX_SESSIONS
+                else None if self.clients.acquire(client) else
+                f"your address already has {self.clients.limit} pages open; close one")
+        if busy:
             await ws.send_json({"type": "error", "code": "OVERLOADED", "key": "",
-                                "message": f"the server has {MAX_SESSIONS} open sessions; "
-                                           "try again later"})
-            await ws.close(code=WSCloseCode.TRY_AGAIN_LATER)
+                                "message": f"{busy}; try again later"})
+            await ws.close(code=WSCloseCode.TRY_AGAIN_LATER, message=busy.encode()[:120])
             return ws
+        try:
+            return await self._page(ws, request, client)
+        finally:
+            self.clients.release(client)
+
+    async def _page(self, ws: web.WebSocketResponse, request: web.Request, client: str):
+        """One page's session, from its hello to its socket's close."""
         page = PageSession(f"web-{uuid.uuid4().hex[:12]}", ws, self.session, self.service,
                            self.handler.stats, self.max_upload, self._decode)
         self.pages[page.sid] = page
@@ -197,20 +229,34 @@ class Gateway:
         sub = self.session.declare_subscriber(f"{bus.ROOT}/{page.sid}/**",
                                               page.on_sample(loop, inbox))
         pump = asyncio.create_task(page.pump(inbox))
-        log.info("page session %s opened (%s)", page.sid, request.remote)
+        log.info("page session %s opened (%s)", page.sid, client)
         try:
             await ws.send_json({"type": "hello", "session": page.sid, "version": schemas.VERSION,
                                 "services": await asyncio.to_thread(self._services),
                                 "limits": {"max_upload_bytes": self.max_upload,
                                            "max_pixels": MAX_PIXELS, "max_photos": MAX_PHOTOS,
                                            "max_measure_pixels": MAX_MEASURE_PIXELS}})
-            async for m in ws:
-                if m.type == WSMsgType.BINARY:
-                    await page.upload(m.data)
-                elif m.type == WSMsgType.TEXT:
-                    await page.command(m.data)
-                elif m.type == WSMsgType.ERROR:
-                    log.warning("page session %s: %s", page.sid, ws.exception())
+            while True:
+                try:   # the whole wait: heartbeat pongs do not count as the page's activity
+                    async with asyncio.timeout(self.idle_timeout):
+                        m = await ws.receive()
+                except TimeoutError:
+                    await ws.close(code=WSCloseCode.GOING_AWAY,
+                                   message=f"idle for {self.idle_timeout:g} s".encode())
+                    break
+                if m.type in (WSMsgType.CLOSE, WSMsgType.CLOSING, WSMsgType.CLOSED):
+                    break
+                try:
+                    if m.type == WSMsgType.BINARY:
+                        await page.upload(m.data)
+                    elif m.type == WSMsgType.TEXT:
+                        await page.command(m.data)
+                    elif m.type == WSMsgType.ERROR:
+                        log.warning("page session %s: %s", page.sid, ws.exception())
+                except ConnectionError:
+                    break
+                except Exception as e:  # noqa: BLE001 - a bug: the page hears of it, stays open
+                    await page.failed(e)
         finally:
             page.closed = True
             pump.cancel()

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import struct
 import time
 
@@ -47,6 +48,11 @@ MAX_UPLOAD_BYTES = 15 * 1024 * 1024
 MAX_HEADER_BYTES = 16 * 1024
 MAX_TEXT_BYTES = 64 * 1024
 MAX_MEASURE_PIXELS = 64        # per measure query
+#: JSON from a page: nesting (the commands are 3 deep) and characters of one number (a
+#: double needs 24), checked on the raw text BEFORE parsing: Python's parser recurses per
+#: level (RecursionError) and refuses integers over 4300 digits (ValueError).
+MAX_JSON_DEPTH = 8
+MAX_NUMBER_CHARS = 40
 #: 35 mm film diagonal (mm): a "35 mm-equivalent focal length" is relative to it.
 FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)
 CODE = schemas.ErrorCode
@@ -64,6 +70,39 @@ def _bad(message: str, code: int = CODE.ERROR_CODE_MALFORMED) -> GatewayError:
     return GatewayError(code, message)
 
 
+# strings (an unterminated one runs to the end: one pass, no backtracking), brackets, numbers
+_JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"?|[\[{\]}]|-?[0-9][0-9.eE+-]*')
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def loads_bounded(text: str, what: str = "message"):
+    """``json.loads`` of page text whose nesting (``MAX_JSON_DEPTH``) and number literals
+    (``MAX_NUMBER_CHARS``) are checked first; NaN and Infinity are refused.
+
+    Raises:
+        GatewayError: MALFORMED (not JSON, nested too deep) or TOO_LARGE (a huge number).
+    """
+    depth = 0
+    for m in _JSON_TOKENS.finditer(text):
+        t = m.group()
+        if t in "[{":
+            depth += 1
+            if depth > MAX_JSON_DEPTH:
+                raise _bad(f"{what} is nested more than {MAX_JSON_DEPTH} levels deep")
+        elif t in "]}":
+            depth -= 1
+        elif t[0] != '"' and len(t) > MAX_NUMBER_CHARS:
+            raise _bad(f"{what} has a number of {len(t)} characters (at most "
+                       f"{MAX_NUMBER_CHARS})", CODE.ERROR_CODE_TOO_LARGE)
+    try:
+        return json.loads(text, parse_constant=_no_constant)
+    except (ValueError, RecursionError) as e:   # JSONDecodeError is a ValueError
+        raise _bad(f"{what} is not valid JSON ({str(e)[:80]})") from None
+
+
 def parse_upload(data: bytes, max_bytes: int = MAX_UPLOAD_BYTES) -> tuple[dict, bytes]:
     """Split a binary upload ``[u32 big-endian n][n bytes UTF-8 JSON header][image]``."""
     if len(data) < 4:
@@ -72,9 +111,10 @@ def parse_upload(data: bytes, max_bytes: int = MAX_UPLOAD_BYTES) -> tuple[dict, 
     if n > MAX_HEADER_BYTES or 4 + n > len(data):
         raise _bad(f"upload header length {n} is not valid")
     try:
-        header = json.loads(data[4:4 + n].decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        raise _bad("upload header is not valid JSON") from None
+        text = data[4:4 + n].decode("utf-8")
+    except UnicodeDecodeError:
+        raise _bad("upload header is not valid UTF-8 JSON") from None
+    header = loads_bounded(text, "upload header")
     if not isinstance(header, dict):
         raise _bad("upload header must be a JSON object")
     image = data[4 + n:]
@@ -218,10 +258,7 @@ def parse_command(text: str) -> dict:
     if len(text) > MAX_TEXT_BYTES:
         raise _bad(f"message of {len(text)} characters is over the {MAX_TEXT_BYTES} limit",
                    CODE.ERROR_CODE_TOO_LARGE)
-    try:
-        cmd = json.loads(text)
-    except json.JSONDecodeError:
-        raise _bad("message is not valid JSON") from None
+    cmd = loads_bounded(text)
     if not isinstance(cmd, dict) or cmd.get("type") not in ("select", "measure", "ping"):
         raise _bad("message must be a JSON object with type select, measure or ping")
     if cmd["type"] == "ping":

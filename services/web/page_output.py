@@ -9,7 +9,8 @@ top-left pixel), metres (``*_m``, up to scale when not metric), radians (``*_rad
 relative to photo 0 and motions of photo B relative to photo A as in ``schemas``, measured
 points in camera coordinates, gravity in camera axes. Enums become lower-case names (error
 codes upper-case, without their prefix), unset optional fields ``None``, and an error's key
-is given relative to the session (``frame/3``).
+is given relative to the session (``frame/3``). A scene also carries its boundary's walls on
+the floor (``walls_m``, the photo's level frame) for the page's floor map.
 
 Pure: no bus, no server; the message is only read.
 """
@@ -17,6 +18,9 @@ Pure: no bus, no server; the message is only read.
 from __future__ import annotations
 
 import schemas
+from findme_core import layout
+from findme_core.errors import FindmeError
+from findme_io.convert import msg_camera
 
 from ..runtime import bus
 
@@ -35,6 +39,18 @@ def _pose(p) -> dict:
     return {"index": p.index, "x_m": p.x_m, "z_m": p.z_m, "yaw_rad": p.yaw_rad,
             "sigma_x_m": _opt(p, "sigma_x_m"), "sigma_z_m": _opt(p, "sigma_z_m"),
             "sigma_yaw_rad": _opt(p, "sigma_yaw_rad")}
+
+
+def _walls(scene) -> list:
+    """The walls of a Scene's boundary on the floor, [[x0, z0], [x1, z1]] metres in the
+    photo's level frame (``findme_core.layout``), for the page's floor map; [] when the
+    boundary gives none."""
+    try:
+        poly, kinds = schemas.msg_to_polyline(scene.polyline)
+        lay = layout.from_hypothesis(msg_camera(scene.camera), scene.camera_height_m, poly, kinds)
+    except FindmeError:
+        return []
+    return [[[round(float(v), 4) for v in p] for p in w] for w in lay.walls]
 
 
 def _sources(camera) -> dict:
@@ -66,7 +82,8 @@ def to_page(session: str, msg) -> dict | None:
                 "camera_height_m": _opt(msg, "camera_height_m")}
     if name == "Scene":
         return {"type": "scene", "index": msg.index, "rank": msg.rank, "metric": msg.metric,
-                "camera_height_m": msg.camera_height_m, **_sources(msg.camera)}
+                "camera_height_m": msg.camera_height_m, **_sources(msg.camera),
+                "walls_m": _walls(msg)}
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}

@@ -40,7 +40,7 @@ from aiohttp import web
 import schemas
 from findme_core.errors import FindmeError
 
-from ..runtime import bus
+from ..runtime import authority, bus
 from .page_input import CODE, GatewayError, _bad, build_frame, parse_command, parse_upload
 from .page_output import to_page
 from ..runtime.handler import Output
@@ -85,8 +85,9 @@ class PageSession:
                 if k.kind not in FORWARDED:
                     return
                 msg = schemas.decode_any(sample.payload.to_bytes())
+                authority.check(str(sample.key_expr), msg)
             except FindmeError:
-                return  # not a Find Me message: nothing a page can show
+                return  # not a Find Me message of this key: nothing a page can show
             try:
                 loop.call_soon_threadsafe(inbox.put_nowait, msg)
             except RuntimeError:
@@ -129,6 +130,14 @@ class PageSession:
         except (FindmeError, zenoh.ZError) as e:   # no bus: tell the page directly
             log.error("cannot publish the error: %s", e)
             await self.ws.send_json(to_page(self.sid, err))
+
+    async def failed(self, exc: BaseException) -> None:
+        """A bug while handling the page's message: an INTERNAL Error (traceback in the
+        log) reaches the page; its socket stays open."""
+        log.error("%s: page session %s: internal error", self.service.ident, self.sid,
+                  exc_info=exc)
+        await self._refuse(bus.key(self.sid, "gateway"), GatewayError(
+            CODE.ERROR_CODE_INTERNAL, f"internal error: {type(exc).__name__}: {exc}"))
 
     async def _publish(self, key: str, msg, counter: str) -> None:
         """Publish ``msg`` on ``key`` and count it in ``stats[counter]``; refuse on failure."""
@@ -222,7 +231,7 @@ class PageSession:
         req.pixels.extend(schemas.pixels_to_msg(cmd["pixels"]))
         self.in_flight += 1
         try:
-            reply, err = await asyncio.to_thread(self._query, key, schemas.encode(req))
+            reply, err = await asyncio.to_thread(self._query, key, schemas.encode(req), n)
         finally:
             self.in_flight -= 1
         self.stats["measures"] += 1
@@ -242,11 +251,16 @@ class PageSession:
         # else: the measurement service published its Error itself; the page shows that one
         await self.ws.send_json({**done, "error": err})
 
-    def _query(self, key: str, payload: bytes):
+    def _query(self, key: str, payload: bytes, n: int):
         """(MeasureReply, None) or (None, error text) or (None, None) when nobody answered."""
         for r in self.zs.get(key, payload=payload, timeout=MEASURE_TIMEOUT_S):
             if r.ok is not None:
-                return schemas.decode(schemas.MeasureReply, r.ok.payload.to_bytes()), None
+                try:   # a reply about another session or photo is no answer
+                    reply = schemas.decode(schemas.MeasureReply, r.ok.payload.to_bytes())
+                    authority.check(bus.key(self.sid, "measured", n), reply)
+                except FindmeError as e:
+                    return None, str(e)
+                return reply, None
             try:
                 return None, schemas.decode(schemas.Error, r.err.payload.to_bytes()).message
             except FindmeError:

@@ -44,6 +44,23 @@ def test_json_contract_and_accuracy(pair):
     assert abs(out["x_m"] - x) < 0.05 and abs(out["z_m"] - z) < 0.05
     assert abs(out["yaw_deg"] - yaw) < 0.5
     assert 0 < out["sigma_x_m"] < 0.2 and 0 < out["sigma_yaw_deg"] < 2
+    # the evidence: the two photos' layouts registered (rank-1 walls), and the candidates
+    lay = out["layout"]
+    assert lay["hypotheses"] == [1, 1] and lay["samples"] > 20 and lay["walls"]
+    assert all(len(w) == 2 for w in lay["walls"]) and lay["rms_m"] < 0.1
+    assert isinstance(out["alternatives"], list)
+    for alt in out["alternatives"]:
+        assert set(alt) >= {"x_m", "z_m", "yaw_deg", "sigma_x_m", "inliers", "score"}
+        assert alt["score"] <= out["score"]
+
+
+def test_feature_only_method_is_selectable(pair):
+    views, (a, b) = pair
+    out = as_json(run_findme("motion", a, b, *_flags(views), "--camera-height", 1.45, "--json",
+                             "--method", "features"))
+    assert out["method"] == "features" and "layout" not in out and out["alternatives"] == []
+    x, z, yaw = planar_motion(*POSES)
+    assert abs(out["x_m"] - x) < 0.1 and abs(out["yaw_deg"] - yaw) < 1.0
 
 
 def test_paper_method_text_output_and_up_to_scale(pair):

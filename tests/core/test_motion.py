@@ -117,10 +117,12 @@ POSES = [  # (A, B): level, tilted phone-like, sideways, and different heights (
 
 
 # the fit's own covariance, without the model errors the defaults add for real photos
-FIT_ONLY = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0)
+FIT_ONLY = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0,
+                        findme_scale_sigma=0.0, findme_direction_sigma_deg=0.0,
+                        findme_yaw_sigma_deg=0.0)
 
 
-@pytest.mark.parametrize("method", ["findme", "lifted"])
+@pytest.mark.parametrize("method", ["findme", "features", "lifted"])
 @pytest.mark.parametrize("poses", POSES)
 def test_estimators_are_exact_on_noise_free_points(method, poses):
     m, (ca, cb), la, lb = exact_pair(*poses)
@@ -198,7 +200,7 @@ def test_sigma_covers_the_error_with_noisy_pixels():
     assert abs(math.degrees(r.yaw) - yaw) < math.degrees(4 * r.sigma_yaw) + 0.1
 
 
-@pytest.mark.parametrize("method", ["findme", "lifted", "paper"])
+@pytest.mark.parametrize("method", ["findme", "features", "lifted", "paper"])
 def test_model_errors_are_added_along_and_across_the_baseline(method):
     """Defaults = the fit's covariance + (scale_sigma * baseline)^2 along the baseline,
     (direction_sigma * baseline)^2 across it and yaw_sigma^2 on the yaw."""
@@ -210,13 +212,13 @@ def test_model_errors_are_added_along_and_across_the_baseline(method):
     assert (full.x, full.z, full.yaw) == (fit.x, fit.z, fit.yaw)
     base = math.hypot(fit.x, fit.z)
     ux, uz = fit.x / base, fit.z / base
-    along, across = p.scale_sigma * base, math.radians(p.direction_sigma_deg) * base
+    scale, direction_deg, yaw_deg = p.model_errors(method)
+    along, across = scale * base, math.radians(direction_deg) * base
     assert full.sigma_x ** 2 == pytest.approx(fit.sigma_x ** 2 + (along * ux) ** 2
                                               + (across * uz) ** 2)
     assert full.sigma_z ** 2 == pytest.approx(fit.sigma_z ** 2 + (along * uz) ** 2
                                               + (across * ux) ** 2)
-    assert full.sigma_yaw == pytest.approx(math.hypot(fit.sigma_yaw,
-                                                      math.radians(p.yaw_sigma_deg)))
+    assert full.sigma_yaw == pytest.approx(math.hypot(fit.sigma_yaw, math.radians(yaw_deg)))
 
 
 # ---------------------------------------------------------------------------- rendered pair
@@ -252,7 +254,7 @@ def _boundary(view):
 def test_too_few_matches_is_an_error():
     m, (ca, cb), la, lb = exact_pair(*POSES[0])
     few = m.subset(np.arange(5))
-    with pytest.raises(MotionError, match="only 5 feature matches"):
+    with pytest.raises(MotionError, match=r"only 4 distinct feature matches .*plus 1 copies"):
         estimate(few, ca, cb, 1.4, 1.4, la, lb)
 
 

@@ -51,6 +51,17 @@ class Collector:
     def decoded(self, cls, n=1):
         return [schemas.decode(cls, p) for _, p in self.wait(n)]
 
+    def until(self, done, timeout=60.0, what="messages"):
+        """Block until ``done(items)`` ((key, payload) in arrival order); returns them."""
+        with self.cv:
+            assert self.cv.wait_for(lambda: done(self.items), timeout), \
+                f"{what}: not within {timeout:.0f} s; seen {[k for k, _ in self.items]}"
+            return list(self.items)
+
+    def keys(self):
+        with self.cv:
+            return [k for k, _ in self.items]
+
 
 def free_port() -> int:
     with socket.socket() as s:
@@ -58,11 +69,12 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def spawn_findme(*args):
-    """Spawn ``findme ARGS`` (a new interpreter); its stderr lines are collected (and the pipe
-    drained) by a thread into ``proc.lines``, announced on ``proc.new_line`` (Condition)."""
+def spawn_findme(*args, **popen):
+    """Spawn ``findme ARGS`` (a new interpreter; ``popen``: more Popen arguments); its stderr
+    lines are collected (and the pipe drained) by a thread into ``proc.lines``, announced on
+    ``proc.new_line`` (Condition)."""
     proc = subprocess.Popen([sys.executable, "-m", "findme.cli", *map(str, args)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, **popen)
     proc.lines, proc.new_line = [], threading.Condition()
 
     def drain():
@@ -165,3 +177,27 @@ def walk_views(n: int, width: int = 160, height: int = 120):
     room = Room.rectangle(5.0, 6.0, floor_style="wood")
     return [render(room, Pose(-0.3 + 0.04 * i, -1.8 + 0.08 * i, 1.4, yaw_deg=10 - 2 * i,
                               pitch_deg=27), width, height, hfov_deg=70, seed=5) for i in range(n)]
+
+
+COMPOSE = __import__("pathlib").Path(__file__).resolve().parents[2] / "compose"
+
+
+def start_tls_router(tmp, users: dict[str, str]):
+    """compose/router-tls.json5 for real on loopback: certificates made in ``tmp`` (needs
+    the ``cryptography`` package), ``users`` {name: password}; returns (router process,
+    endpoint, TLS settings for a client, path of a service config for the "server" user)."""
+    pytest.importorskip("cryptography", reason="cryptography generates the test certificates")
+    sys.path.insert(0, str(COMPOSE.parent / "tools"))
+    from make_certs import make_certs
+    make_certs(tmp, ("localhost", "127.0.0.1"))
+    (tmp / "users.txt").write_text("".join(f"{u}:{p}\n" for u, p in users.items()))
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    cfg = (COMPOSE / "router-tls.json5").read_text()
+    cfg = cfg.replace("/certs/", f"{tmp}/").replace("tls/0.0.0.0:7447", endpoint)
+    (tmp / "router.json5").write_text(cfg)
+    svc = (COMPOSE / "service-tls.json5").read_text()
+    (tmp / "service.json5").write_text(svc.replace("/certs/", f"{tmp}/")
+                                       .replace("tls/router:7447", endpoint))
+    proc = spawn_findme("router", "--config", tmp / "router.json5")
+    wait_logged(proc, "listening on")
+    return proc, endpoint, {"root_ca_certificate": str(tmp / "ca.pem")}, tmp / "service.json5"

@@ -15,7 +15,7 @@ import zenoh
 from findme.cli import build_parser
 from services.runtime.bus import BusConfig, open_session
 from tests.cli.conftest import run_findme
-from tests.services.conftest import free_port, spawn_findme, wait_logged
+from tests.services.conftest import spawn_findme, start_tls_router, wait_logged
 
 COMPOSE = Path(__file__).resolve().parents[2] / "compose"
 
@@ -103,18 +103,9 @@ def test_zenoh_configs_load(name):
 
 @pytest.fixture
 def tls_router(tmp_path):
-    pytest.importorskip("cryptography", reason="cryptography generates the test certificates")
-    sys.path.insert(0, str(COMPOSE.parent / "tools"))
-    from make_certs import make_certs
-    make_certs(tmp_path, ("localhost", "127.0.0.1"))
-    (tmp_path / "users.txt").write_text("server:change-me-server\nalice:change-me-alice\n")
-    port = free_port()
-    cfg = (COMPOSE / "router-tls.json5").read_text()
-    cfg = cfg.replace("/certs/", f"{tmp_path}/").replace("tls/0.0.0.0:7447", f"tls/127.0.0.1:{port}")
-    (tmp_path / "router.json5").write_text(cfg)
-    proc = spawn_findme("router", "--config", tmp_path / "router.json5")
-    wait_logged(proc, "listening on")
-    yield f"tls/127.0.0.1:{port}", {"root_ca_certificate": str(tmp_path / "ca.pem")}
+    proc, endpoint, tls, _ = start_tls_router(
+        tmp_path, {"server": "change-me-server", "alice": "change-me-alice"})
+    yield endpoint, tls
     proc.terminate()
     proc.wait(10)
 
@@ -173,7 +164,7 @@ def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
         p = run_findme("send", *auth, "--user", "alice", "--password-file", alice_pw,
                        "--wait", "30", check=False)
         assert p.returncode == 0, p.stderr
-        assert "motion 0 -> 1: x +0.385 m" in p.stdout and "session alice-" in p.stdout
+        assert "motion 0 -> 1: x +0.386 m" in p.stdout and "session alice-" in p.stdout
     finally:
         for p in procs:
             p.send_signal(signal.SIGTERM)

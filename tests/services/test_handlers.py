@@ -12,6 +12,7 @@ from findme_core.methods import hypothesize
 from findme_core.scene import Scene
 from services.pipeline.hypotheses import HypothesesHandler
 from services.pipeline.measurement import MeasurementHandler
+from services.runtime.authority import KeyAuthorityError
 from services.runtime.handler import UnknownSession
 from services.pipeline.selection import AutoChooser, SelectionHandler, TerminalChooser
 from tests.services.conftest import frame_of
@@ -41,7 +42,7 @@ def test_hypotheses_handler_matches_the_core(pipeline):
 def test_hypotheses_handler_bad_frames(level_view):
     h = HypothesesHandler()
     f = frame_of(level_view)
-    with pytest.raises(InputError, match="carries frame 0"):
+    with pytest.raises(KeyAuthorityError, match="frame/3 says it belongs on findme/t1/frame/0"):
         h.on_message("findme/t1/frame/3", f)
     f.image.data = b"\xff\xd8\xff" + b"\x00" * 100
     with pytest.raises(ImageError, match="corrupt"):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import schemas
+from findme_core.search import SegKind
 from findme_core.synth import Pose, Room, planar_motion, render
 from services.pipeline.hypotheses import HypothesesHandler
 from services.pipeline.odometry import OdometryHandler
@@ -80,7 +81,11 @@ def test_a_failed_motion_carries_its_error_and_the_chain_goes_on(photos):
     blank.CopyFrom(msgs[1][0])
     import cv2
     blank.image.data = cv2.imencode(".jpg", np.full((480, 640, 3), 128, np.uint8))[1].tobytes()
-    bad = [msgs[0], (blank, msgs[1][1], msgs[1][2]), msgs[2]]
+    floor_only = schemas.HypothesisSet()     # no feature and no wall: nothing in common
+    floor_only.CopyFrom(msgs[1][1])
+    floor_only.hypotheses[0].polyline.CopyFrom(
+        schemas.polyline_to_msg([[0.0, -0.5], [639.0, -0.5]], [SegKind.OPEN]))
+    bad = [msgs[0], (blank, floor_only, msgs[1][2]), msgs[2]]
     out = feed(OdometryHandler(), bad, [0, 1, 2])
     m01 = out["findme/od/motion/0/1"]
     assert m01.error and not m01.HasField("x_m") and "findme/od/pose/1" not in out
@@ -104,3 +109,15 @@ def test_after_instances_change_a_session_takes_the_poses_another_instance_made(
     st = h.sessions.peek("od")
     assert sorted(st.poses) == [0, 1, 2] and st.poses[2].x == 0.5 and not st.stale
     assert st.poses[1].x == out["findme/od/pose/1"].x_m                # its own are kept
+
+
+def test_each_photo_is_prepared_once_for_all_its_motions(photos, monkeypatch):
+    """Photo 1 takes part in motions 0/1 and 1/2: its features and layouts are computed once."""
+    import services.pipeline.odometry as od
+    calls = []
+    real = od.prepare
+    monkeypatch.setattr(od, "prepare", lambda *a, **k: calls.append(a[3]) or real(*a, **k))
+    _, msgs = photos
+    out = feed(OdometryHandler(), msgs, [0, 1, 2])
+    assert not out["findme/od/motion/1/2"].error
+    assert len(calls) == 3

@@ -54,17 +54,16 @@ class App:
         return self.stderr.read_text()[-4000:]
 
 
-@pytest.fixture(scope="module")
-def app(tmp_path_factory):
-    """``findme app`` on a free HTTP port, with its bus listening for the test's own peer."""
-    tmp = tmp_path_factory.mktemp("app")
+def start_app(tmp: Path, **popen) -> App:
+    """``findme app`` on a free HTTP port, with its bus listening for the test's own peer;
+    returns once it has printed its readiness line (``popen``: more Popen arguments)."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     err = tmp / "stderr.txt"
     with open(err, "w") as ef:
         proc = subprocess.Popen(
             [sys.executable, "-m", "findme.cli", "app", "--http", "127.0.0.1:0",
              "--listen", endpoint, "--out", str(tmp / "recordings")],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=ef, text=True)
+            cwd=REPO, stdout=subprocess.PIPE, stderr=ef, text=True, **popen)
     lines: queue.Queue = queue.Queue()
 
     def read():
@@ -84,15 +83,26 @@ def app(tmp_path_factory):
             pytest.fail(f"findme app did not report readiness; stderr:\n{err.read_text()}")
         if "serving " in line:
             url = line.split("serving ", 1)[1].split()[0]
-    a = App(url, endpoint, proc, err, tmp / "recordings")
-    yield a
-    proc.send_signal(signal.SIGTERM)
+    return App(url, endpoint, proc, err, tmp / "recordings")
+
+
+def stop_app(a: App) -> None:
+    """SIGTERM; it must stop cleanly (exit 0) within 20 s."""
+    a.proc.send_signal(signal.SIGTERM)
     try:
-        code = proc.wait(20)
+        code = a.proc.wait(20)
     except subprocess.TimeoutExpired:
-        proc.kill()
+        a.proc.kill()
         pytest.fail(f"findme app did not stop on SIGTERM; stderr:\n{a.log()}")
     assert code == 0, f"findme app exited {code}; stderr:\n{a.log()}"
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    """``findme app`` for the module's tests (see ``start_app``)."""
+    a = start_app(tmp_path_factory.mktemp("app"))
+    yield a
+    stop_app(a)
 
 
 @pytest.fixture(scope="module")

@@ -190,3 +190,22 @@ def test_one_page_sees_only_its_own_session():
     finally:
         gw.stop()
         zs.close()
+
+
+def test_a_scene_carries_its_walls_on_the_floor():
+    """The floor map draws each photo's walls: a scene's boundary as floor segments (metres,
+    the photo's level frame), [] when its boundary or camera gives none."""
+    from findme_core.camera import Camera
+    from findme_core.search import SegKind
+    from findme_io.convert import camera_msg
+    cam = Camera.from_hfov(70, 640, 480)
+    sc = schemas.Scene(session="s", index=0, rank=1, camera=camera_msg(cam), camera_height_m=1.5,
+                       polyline=schemas.polyline_to_msg([[0, 300], [cam.cx, 400], [639, 300]],
+                                                        [SegKind.WALL, SegKind.WALL]))
+    walls = to_page("s", sc)["walls_m"]
+    assert len(walls) == 2 and walls[0][1] == walls[1][0]            # a corner
+    corner = walls[0][1]
+    assert corner[0] == pytest.approx(0.0, abs=1e-3)                # straight ahead,
+    assert corner[1] == pytest.approx(1.5 * cam.fy / (400 - cam.cy), rel=1e-3)  # eq. 2
+    sc.polyline.CopyFrom(schemas.polyline_to_msg([[0, 100], [639, 100]], [SegKind.WALL]))
+    assert to_page("s", sc)["walls_m"] == []                         # above the horizon

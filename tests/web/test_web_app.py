@@ -216,6 +216,19 @@ def test_two_photos_show_the_motion(browser, app, shots):
     want = PAIR["motion"]
     assert math.hypot(x - want["x_m"], z - want["z_m"]) < 0.3, (x, z, want)
     assert abs(yaw - want["yaw_deg"]) < 5, (yaw, want)
+    # both photos' walls on the map, photo 2's registered in photo 1's frame: an end of one
+    # of its walls lies on the line of one of photo 1's
+    page.wait_for_selector('#floor-map .wall[data-index="1"]')
+    walls = page.evaluate("""[...document.querySelectorAll('#floor-map .wall')].map((w) =>
+        [+w.dataset.index, ...['x1', 'y1', 'x2', 'y2'].map((a) => +w.getAttribute(a))])""")
+    first = [w[1:] for w in walls if w[0] == 0]
+    second = [w[1:] for w in walls if w[0] == 1]
+    assert first and second
+
+    def off_line(p, w):
+        (x1, y1, x2, y2), n = w, math.hypot(w[2] - w[0], w[3] - w[1])
+        return abs((x2 - x1) * (y1 - p[1]) - (x1 - p[0]) * (y2 - y1)) / max(n, 1e-9)
+    assert min(off_line(p, w) for v in second for p in (v[:2], v[2:]) for w in first) < 0.15
     close(page)
 
 

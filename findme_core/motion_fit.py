@@ -1,0 +1,167 @@
+"""How well planar motions of photo B in photo A's level frame explain a pair's evidence,
+and their refinement: the scoring half of the ``findme`` estimator (``motion_register``).
+
+A motion is yaw (radians, > 0: B turned right of A) and t = (x, dy, z) (metres), X_A =
+R_y(yaw) X_B + t (DESIGN.md). Its score adds: the matches (MSAC of the epipolar residuals,
+pixels, and of the lifted points' transfer residuals, floor points first), the layouts
+(``register.scores``, the best candidate pair, never below ``layout_floor``), the two
+photos' room orientations (a yaw that agrees with them modulo 90 deg) and a prior on the
+baseline. ``Fit.refine`` is robust Levenberg-Marquardt of (yaw, x, dy, z) on all of them.
+Pure numpy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import register
+from .motion_model import MotionInputs, MotionParams
+from .planar import (_epipolar_terms, _rotate, _spread, epipolar_residuals, known_yaw_terms,
+                     transfer_residuals)
+from .robust import levenberg_marquardt, msac
+
+
+def wrap90(x):
+    """Angle difference modulo a quarter turn, in [-pi/4, pi/4)."""
+    return (np.asarray(x) + np.pi / 4) % (np.pi / 2) - np.pi / 4
+
+
+def known_yaw_score(a, Rb, m, T, pix: float, thr: float):
+    """MSAC score (C,) and inliers (C, M) of C unit baselines T (C, 3) at one yaw (bearings
+    a (M, 3), B's bearings turned into A's frame Rb, m = Rb x a; ``planar.known_yaw_terms``)."""
+    r, front, far = known_yaw_terms(a, Rb, m, T, pix)
+    inl = (r < thr) & (front | far)
+    return msac(np.where(inl, r, thr), thr), inl
+
+
+class Fit:
+    """The evidence of one pair and how motions fit it.
+
+    Args:
+        P: bearings and lifted points of the matches (``MotionInputs``).
+        la, lb: candidate layouts of A and of B, the chosen ones first.
+        orient: (yaw the orientations give modulo 90 deg, their weakest support) or None.
+        depth: the scene's depth scale, metres, or None.
+        params: estimator settings; rp: the layout terms' settings.
+    """
+
+    def __init__(self, P: MotionInputs, la, lb, orient, depth, params: MotionParams,
+                 rp: register.RegisterParams):
+        self.P, self.la, self.lb, self.orient, self.depth = P, la, lb, orient, depth
+        self.p, self.rp, self.dy, self.n = params, rp, P.dy, len(P.a)
+        self.floor_first = None   # decided on the first motions scored
+
+    def features(self, yaw, t3):
+        """(C,) MSAC of the epipolar residuals of all matches and the transfer residuals of
+        the lifted points (pixels over their spread, the spread capped at 3): floor points
+        only once some motion has ``min_floor`` of them agreeing (``self.floor_first``: a
+        wall point is right only when its wall is), else wall points too."""
+        if self.n == 0:
+            return np.zeros(len(yaw))
+        thr, P = self.p.thr_px, self.P
+        score = np.zeros(len(yaw))
+        T = t3 / np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-12)
+        for y in np.unique(yaw):   # candidates come in groups of one yaw
+            k = yaw == y
+            Rb = _rotate(np.array([y]), P.b)[0]
+            score[k] = known_yaw_score(P.a, Rb, np.cross(Rb, P.a), T[k], P.pix, thr)[0]
+        floor, wall, n_floor = np.zeros(len(yaw)), np.zeros(len(yaw)), np.zeros(len(yaw))
+        for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
+            i = np.flatnonzero(L.valid)
+            if len(i):
+                x = (L.points[i], L.sigma[i], rays[i], into_b)
+                sp = np.minimum(_spread(yaw, t3, *x, P.pix), 3.0)
+                rt = transfer_residuals(yaw, t3, *x, P.pix, sp)
+                f = L.floor[i]
+                floor += msac(rt[:, f], thr)
+                wall += msac(rt[:, ~f], thr)
+                n_floor += (rt[:, f] < thr).sum(1)
+        if self.floor_first is None:
+            self.floor_first = bool(n_floor.max(initial=0) >= self.p.min_floor)
+        return score + floor + (0.0 if self.floor_first else wall)
+
+    def layouts(self, yaw, t2):
+        """(C,) best layout score over the candidate layout pairs (a layout that is not the
+        chosen one loses ``rank_penalty`` per step; layouts that disagree add nothing rather
+        than count against: a wrong hypothesis must not outvote the matches), and the pair
+        (i, j) of each."""
+        best, which = np.full(len(yaw), self.p.layout_floor), np.full((len(yaw), 2), -1)
+        for i, la in enumerate(self.la):
+            for j, lb in enumerate(self.lb):
+                s = register.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
+                better = s > best
+                best = np.where(better, s, best)
+                which[better] = (i, j)
+        return best, which
+
+    def orientation(self, yaw):
+        if self.orient is None:
+            return np.zeros(len(yaw))
+        d = wrap90(self.orient[0] - yaw) / (3.0 * np.radians(self.p.orientation_sigma_deg))
+        return self.p.orientation_weight * self.orient[1] * np.maximum(0.0, 1.0 - d * d)
+
+    def baseline(self, t3):
+        """(C,) prior on the baseline: two photos sharing a view are rarely taken more than
+        ``baseline_depths`` times the depth of what they see apart (``self.depth``: the
+        median horizontal distance of the boundary samples and lifted points of the photo
+        that sees farther); beyond, ``baseline_weight`` per unit of the excess ratio."""
+        if self.depth is None:
+            return np.zeros(len(t3))
+        ratio = np.hypot(t3[:, 0], t3[:, 2]) / (self.p.baseline_depths * self.depth)
+        return -self.p.baseline_weight * np.maximum(0.0, ratio - 1.0)
+
+    def score(self, yaw, t3):
+        """(C,) total score of C motions (yaw (C,), t (C, 3)) and their layout pairs."""
+        yaw = np.atleast_1d(np.asarray(yaw, float))
+        t3 = np.atleast_2d(t3)
+        lay, which = self.layouts(yaw, t3[:, [0, 2]])
+        return (self.features(yaw, t3) + lay + self.orientation(yaw)
+                + self.baseline(t3)), which
+
+    def inliers(self, yaw, t3):
+        thr, P = self.p.thr_px, self.P
+        if self.n == 0:
+            return np.zeros(0, bool), np.zeros(0, bool), np.zeros(0, bool)
+        r, front, _, far = _epipolar_terms(P.a, P.b, yaw, t3 / np.linalg.norm(t3), P.pix)
+        e_in = ((r < thr) & (front | far))[0]
+        tin = []
+        for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
+            m = np.zeros(self.n, bool)
+            i = np.flatnonzero(L.valid & (L.floor | (not self.floor_first)))
+            if len(i):
+                x = (L.points[i], L.sigma[i], rays[i], into_b)
+                m[i] = transfer_residuals(yaw, t3, *x, P.pix) < thr
+            tin.append(m)
+        return e_in, tin[0], tin[1]
+
+    def refine(self, yaw: float, t3, pair):
+        """Robust LM of p = (yaw, tx, ty, tz) on the inliers' epipolar and transfer
+        residuals, the layouts' agreeing samples (each wall's samples weighted as ~2
+        independent ones) and the priors on the orientation and on ty = dy."""
+        P = self.P
+        e_in, ta, tb = self.inliers(yaw, t3)
+        ia, ib = np.flatnonzero(ta), np.flatnonzero(tb)
+        ae, be = P.a[e_in], P.b[e_in]
+        lifted = [(P.la.points[ia], P.la.sigma[ia], P.b[ia], True),
+                  (P.lb.points[ib], P.lb.sigma[ib], P.a[ib], False)]
+        spread = [_spread(yaw, t3, *x, P.pix) for x in lifted]
+        lay = (register.residual_terms(self.la[pair[0]], self.lb[pair[1]], yaw, t3[[0, 2]], self.rp)
+               if pair[0] >= 0 else None)   # layouts that add nothing do not pull either
+        sig_o = np.radians(self.p.orientation_sigma_deg)
+        use_o = self.orient is not None and abs(wrap90(self.orient[0] - yaw)) < 3 * sig_o
+
+        def resid(q):
+            y, tq = q[:, 0], q[:, 1:4]
+            parts = [epipolar_residuals(y, tq, ae, be) / P.pix if len(ae) else np.zeros((len(q), 0))]
+            parts += [transfer_residuals(y, tq, *x, P.pix, sp) for x, sp in zip(lifted, spread)
+                      if len(x[0])]
+            if lay is not None:
+                parts.append(lay(y, tq[:, [0, 2]]))
+            if use_o:
+                parts.append((wrap90(self.orient[0] - y) / sig_o)[:, None])
+            parts.append(((tq[:, 1] - self.dy) / (0.02 + 0.03 * np.hypot(tq[:, 0], tq[:, 2])))[:, None])
+            return np.concatenate(parts, 1)
+
+        q, cov = levenberg_marquardt(resid, np.array([yaw, *t3]), n_prior=1 + int(use_o),
+                                     iters=self.p.refine_iters)
+        return q, cov
