@@ -55,7 +55,8 @@ def test_compose_commands_certificates_and_image_files():
     the services connect to and every TLS file they use; the image copies every package
     and its build context leaves out the venv, keys and recordings; certs/ is git-ignored."""
     cmds = _compose_commands()
-    assert set(cmds) == {"router", "hypotheses", "measurement", "odometry", "recorder", "gateway"}
+    assert set(cmds) == {"router", "store", "hypotheses", "measurement", "odometry", "recorder",
+                         "gateway"}
     parser = build_parser()
     for argv in cmds.values():
         assert parser.parse_args(argv).command in ("router", "serve")
