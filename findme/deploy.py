@@ -27,7 +27,8 @@ import schemas
 from findme_core.errors import BusError, InputError
 from services.runtime import bus
 from services.pipeline.capture import CaptureHandler, Lens, publish_frames, sources
-from services.runtime.registry import add_service_args, make_handler, service_names, wait_for_signal
+from services.runtime.registry import (add_service_args, make_handler, service_names,
+                                      service_options, wait_for_signal)
 from services.runtime.service import Group, Service
 
 from .options import add_camera_args, finite_float, floats
@@ -204,7 +205,8 @@ def cmd_serve(args) -> int:
         raise InputError("capture needs --session and at least one photo")
     stop = stop_on_signal()
     session = _open(args)
-    svc = Service(make_handler(args.service, args), session, instance=args.instance).start()
+    svc = Service(make_handler(args.service, args), session, instance=args.instance,
+                  **service_options(args)).start()
     try:
         if args.service == "capture":
             return _serve_capture(args, session, svc)
@@ -276,21 +278,31 @@ def cmd_router(args) -> int:
 
 
 # ------------------------------------------------------------------------------ status
-def service_statuses(session: zenoh.Session, timeout: float = 3.0) -> list:
-    """ServiceStatus of every live service instance (liveliness tokens + status queries)."""
-    tokens = [str(r.ok.key_expr) for r in session.liveliness().get(f"{bus.SERVICES}/**",
-                                                                     timeout=timeout) if r.ok]
-    out = []
-    for tok in sorted(tokens):
-        status = None
-        for r in session.get(tok + "/status", timeout=timeout):
-            if r.ok is not None:
-                status = schemas.decode(schemas.ServiceStatus, r.ok.payload.to_bytes())
-        if status is None:
-            name, inst = tok.split("/")[-2:]
-            status = schemas.ServiceStatus(service=name, instance=inst)
-        out.append(status)
-    return out
+def service_statuses(session: zenoh.Session, timeout: float = 3.0, peers=None) -> list:
+    """ServiceStatus of every live service instance.
+
+    Every instance answers one status query sent to all of them (target ALL, no
+    consolidation); an instance whose liveliness token is up but which does not answer (hung)
+    is listed with its name alone. The tokens come from a liveliness subscriber with history
+    (``peers``, a ``runtime.peers.Peers`` a long-lived caller keeps; else one made here):
+    liveliness queries repeated on one long-lived session sometimes come back empty."""
+    from services.runtime.peers import Peers
+    own = peers is None
+    peers = Peers(session, "*", seed_timeout=timeout) if own else peers
+    try:
+        found = {}
+        for k, payload in bus.get_all(session, f"{bus.SERVICES}/*/*/status", timeout):
+            try:
+                st = schemas.decode(schemas.ServiceStatus, payload)
+            except Exception:  # noqa: BLE001 - a foreign reply on our key: not a service
+                continue
+            found[(st.service, st.instance)] = st
+        for name, inst in peers.all():
+            found.setdefault((name, inst), schemas.ServiceStatus(service=name, instance=inst))
+    finally:
+        if own:
+            peers.close()
+    return [found[k] for k in sorted(found)]
 
 
 def cmd_status(args) -> int:
@@ -313,4 +325,22 @@ def cmd_status(args) -> int:
         up = f"{(now - s.started_ns) / 1e9:.0f} s" if s.started_ns else "?"
         print(f"{s.service:12s} {s.instance:10s} {up:>8s} {s.frames_in:7d} {s.results_out:7d} "
               f"{s.errors:7d} {s.dropped:8d} {s.queue_depth:6d}")
+        detail = delivery_detail(s)
+        if detail:
+            print(f"{'':23s} {detail}")
     return 0
+
+
+#: status counters that say where inputs went (``runtime.inbox``), in this order
+DELIVERY = ("overloaded", "expired", "superseded", "too_large", "deferred", "unreported",
+            "duplicates", "recovered", "handed_over")
+
+
+def delivery_detail(s) -> str:
+    """One line: errors by code and where dropped/recovered inputs went (non-zero only)."""
+    c = dict(s.counters)
+    errs = [f"{k.removeprefix('error_').replace('_', ' ')} {v}" for k, v in sorted(c.items())
+            if k.startswith("error_") and v]
+    other = [f"{k.replace('_', ' ')} {c[k]}" for k in DELIVERY if c.get(k)]
+    return "; ".join(x for x in (("errors: " + ", ".join(errs)) if errs else "",
+                                 ", ".join(other)) if x)

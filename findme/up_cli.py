@@ -3,7 +3,8 @@
     findme up [--listen tcp/127.0.0.1:7447] [--hypotheses 2] [--out recordings]
               [--gateway [--http HOST:PORT] [--https | --tls-cert CERT --tls-key KEY]] [--quiet]
 
-Starts, as child processes of this one: ``router``; ``hypotheses`` x N (they share the
+Starts, as child processes of this one: ``router``; ``store`` (the last minute of messages,
+for a service that restarts); ``hypotheses`` x N (they share the
 frames); ``selection --auto``; ``measurement``; ``odometry``; ``recorder`` (sessions to
 ``--out``); and with ``--gateway`` the phone page's gateway (which then selects for its
 pages and for nobody else, so no ``selection`` service is started: ``findme send`` selects
@@ -12,8 +13,8 @@ findme.cli``), so nothing depends on PATH or an activated virtual environment. T
 logs are forwarded with a ``time name |`` prefix (one line per handled message; ``--quiet``:
 warnings and errors only). Ctrl-C or SIGTERM stops them all (SIGTERM, then SIGKILL after
 5 s); so does the death of any one of them, and the exit status is then its status.
-Once every service is on the bus it says so: ``system | ready: ...`` (send photos then:
-a frame published while a hypotheses instance is still starting can be missed).
+Once every service is on the bus it says so: ``system | ready: ...`` (a frame published
+before, while the store is up, is picked up by a hypotheses instance when it starts).
 
 Process supervision is honcho's (``honcho.manager.Manager``, the Python Foreman); the same
 processes, for foreman/honcho users with the virtual environment on PATH, are in
@@ -63,7 +64,8 @@ def processes(args) -> list[tuple[str, list[str]]]:
         raise InputError(f"--hypotheses must be at least 1, got {args.hypotheses}")
     ep = args.listen
     quiet = ["--quiet"] if args.quiet else []
-    procs = [("router", ["router", "--listen", ep, *quiet])]
+    procs = [("router", ["router", "--listen", ep, *quiet]),
+             ("store", ["serve", "store", "--connect", ep, *quiet])]   # recovery: see README
     procs += [(f"hypotheses{i}", ["serve", "hypotheses", "--connect", ep, "--instance", f"h{i}",
                                   *quiet]) for i in range(1, args.hypotheses + 1)]
     if not args.gateway:

@@ -245,6 +245,32 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
     return Matches(fa.pixels[ia], fb.pixels[ib], ia, ib, ratio[ia], len(fa), len(fb))
 
 
+def distinct(matches: Matches, radius_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The matches that are not near-duplicates of a more distinctive one.
+
+    ORB finds one corner at several pyramid levels, and each copy is matched: the copies
+    are one observation, yet each would count as an inlier of whichever motion it fits
+    (a door frame's corner, five times over, outvoting the room). Two matches are copies
+    when their distances in A and in B add up to less than ``2 * radius_px`` pixels; of a
+    group the one with the lowest ratio is kept (greedy, most distinctive first).
+
+    Returns:
+        (keep (K,) indices of the kept matches, ascending; of (M,) the position in ``keep``
+        of each match's representative).
+    """
+    n = len(matches)
+    if n == 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    d = (np.linalg.norm(matches.ua[:, None] - matches.ua[None], axis=2)
+         + np.linalg.norm(matches.ub[:, None] - matches.ub[None], axis=2))
+    rep = np.full(n, -1)
+    for i in np.argsort(matches.ratio, kind="stable"):
+        if rep[i] < 0:
+            rep[(d[i] < 2.0 * radius_px) & (rep < 0)] = i
+    keep = np.unique(rep)
+    return keep, np.searchsorted(keep, rep)
+
+
 @dataclass(frozen=True)
 class Lifted:
     """3D of matched pixels of one photo under its chosen hypothesis.

@@ -19,12 +19,16 @@ Estimators (``METHODS``):
   t . (R_y b x a) = 0), each scaled by the lifted points' consensus, by a wall of B put on
   a wall of A, and by a 1-D search of the layouts' agreement; and the translations two
   non-parallel walls or a corner fix on their own (textureless walls: no match at all).
-  (3) Every candidate is scored by the matches (MSAC of epipolar and lifted transfer
-  residuals, pixels), the layouts (``register``: boundary samples of each photo on the
-  other's walls, minus samples on floor the other photo sees) and the orientations; the
+  Matches lifted in one photo only give candidates too: placed in the other photo by
+  their height (the level frames share the vertical), each is a 3D-3D correspondence that
+  fixes t at a known yaw (``motion_lifted``: a photo that sees no floor, placed by the other
+  photo's walls). (3) Every candidate is scored by the matches (MSAC of epipolar and
+  lifted transfer residuals, pixels), the layouts (``register``: boundary samples of each
+  photo on the other's walls, minus samples on floor the other photo sees) and the orientations; the
   best distinct ones are refined by robust Levenberg-Marquardt of (yaw, x, dy, z) on all
   three, and ranked. Motions the evidence allows nearly as well (a symmetric room) are the
-  answer's ``alternatives``.
+  answer's ``alternatives``. Near-duplicate matches (one corner at several ORB pyramid
+  levels, ``features.distinct``) count once.
 * ``features`` (``motion_features``): the matches alone (the default before layouts).
 * ``lifted``, ``paper`` (``motion_baselines``): 2-point Kabsch on lifted matches; the
   paper's eqs. 5-8 on the ``features`` RANSAC's verified matches.
@@ -36,9 +40,13 @@ by the robust chi^2 per degree of freedom, plus model errors). Degenerate input 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
+
 from .camera import Camera
 from .errors import InputError
-from .features import Matches
+from .features import Lifted, Matches, distinct
 from .motion_features import Lifter, features_estimate
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result  # noqa: F401
 from .motion_register import Registration
@@ -72,5 +80,26 @@ def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: fl
         raise InputError(f"unknown motion method {method!r}; choose one of {', '.join(METHODS)}")
     if method != "findme":
         return features_estimate(matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, method, params)
-    return Registration(matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts,
-                        orientations, params).run()
+    keep, rep = distinct(matches, params.duplicate_px)   # copies of one corner count once
+    m = Registration(matches.subset(keep), cam_a, cam_b, h_a, h_b, _subset(lift_a, keep),
+                     _subset(lift_b, keep), layouts, orientations, params,
+                     len(matches) - len(keep)).run()
+    return _expanded(m, rep)
+
+
+def _subset(lift: Lifter | None, keep) -> Lifter | None:
+    """The lifter of the kept matches (indices into ``keep``)."""
+    if lift is None:
+        return None
+
+    def sub(idx):
+        L = lift(keep[np.asarray(idx, int)])
+        return Lifted(L.points[keep], L.sigma[keep], L.floor[keep])
+    return sub
+
+
+def _expanded(m: PlanarMotion, rep) -> PlanarMotion:
+    """``m`` (and its alternatives) with inliers over all matches: a copy is an inlier when
+    the match it copies is."""
+    return replace(m, inliers=m.inliers[rep],
+                   alternatives=tuple(_expanded(a, rep) for a in m.alternatives))

@@ -70,6 +70,15 @@ class MotionParams:
             walls mean no common wall.
         alternative_ratio: other refined motions scoring at least this fraction of the best
             are its alternatives.
+        duplicate_px: matches within this many pixels of a more distinctive one (their
+            distances in A and in B add up to less than twice it) are its copies (one corner
+            at several ORB pyramid levels) and count once (``features.distinct``). Dev
+            pairs, success of findme at 4 / 8 / 12 px vs none: zind-pairs-level 10 / 12 /
+            11 of 22 vs 7, zind-pairs-tilted 16 / 14 / 14 vs 15, tum-cabinet-pairs 77 / 80
+            / 79 of 95 vs 81, kitti06-pairs 4 / 3 / 3 of 7 vs 3.
+        lift_min_elev_deg: a match lifted in one photo is placed in the other by its height
+            (``motion_lifted``) only when its bearing there is at least this far from the
+            horizon.
     """
 
     thr_px: float = 3.0
@@ -106,6 +115,8 @@ class MotionParams:
     max_baseline_m: float = 30.0
     min_layout_samples: int = 8
     alternative_ratio: float = 0.8
+    duplicate_px: float = 4.0
+    lift_min_elev_deg: float = 3.0
 
     def model_errors(self, method: str) -> tuple[float, float, float]:
         """(relative scale, direction degrees, yaw degrees) model errors of ``method``."""

@@ -16,7 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import register
+from . import motion_lifted, register
 from .errors import MotionError
 from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error, _scale,
                               check_matches, local_optimisation)
@@ -30,8 +30,8 @@ class Registration:
     ``motion.estimate``."""
 
     def __init__(self, matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts, orientations,
-                 params: MotionParams):
-        self.p, self.m, self.n = params, matches, len(matches)
+                 params: MotionParams, copies: int = 0):
+        self.p, self.m, self.n, self.copies = params, matches, len(matches), copies
         self.feats = self.n >= params.min_matches
         if self.feats:
             check_matches(matches, params)       # identical photos: an error whatever else
@@ -164,6 +164,10 @@ class Registration:
             for la in self.la[:1]:
                 for lb in self.lb[:1]:
                     add(y, register.translations(la, lb, y, d2, self.rp))
+        # matches lifted in one photo only, placed in the other by their height
+        corr = motion_lifted.correspondences(self.P, self.p.lift_min_elev_deg)
+        for y in yaws:
+            add(y, motion_lifted.at_yaw(corr, y))
         if self.la and self.lb:   # the walls alone (one wall fixes one direction only)
             for y in yaws:
                 add(y, register.translations(self.la[0], self.lb[0], y, None, self.rp,
@@ -209,13 +213,26 @@ class Registration:
             o = self._result(*r)
             if not any(self._same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
                 out.append((o, r[3]))
-        best, pair = out[0]
-        if best.n_inliers < self.p.min_inliers:
-            if best.layout is None or best.layout.samples < self.p.min_layout_samples:
-                raise self._refusal(best.n_inliers)
-            self._check_layout_only(best, pair)
-        alts = tuple(o for o, _ in out[1:] if o.score >= self.p.alternative_ratio * best.score)
+        # the best motion the evidence determines: one with too few matches and walls along
+        # one direction only is a family of motions, not an answer (the next one may be)
+        first = None
+        for k, (best, pair) in enumerate(out):
+            try:
+                self._check_determined(best, pair)
+                break
+            except MotionError as e:
+                first = first or e
+        else:
+            raise first
+        alts = tuple(o for o, _ in out[:k] + out[k + 1:]
+                     if o.score >= self.p.alternative_ratio * best.score)
         return _spread_over(replace(best, alternatives=alts))
+
+    def _check_determined(self, m: PlanarMotion, pair) -> None:
+        if m.n_inliers < self.p.min_inliers:
+            if m.layout is None or m.layout.samples < self.p.min_layout_samples:
+                raise self._refusal(m.n_inliers)
+            self._check_layout_only(m, pair)
 
     def _same(self, y1, t1, y2, t2) -> bool:
         dt = np.hypot(t1[0] - t2[0], t1[1] - t2[1])
@@ -236,11 +253,13 @@ class Registration:
         walls = ("the photos' boundaries share no wall" if self.la and self.lb else
                  "a photo has no boundary hypothesis, so its walls are unknown")
         if not self.feats:
-            return MotionError(f"only {self.n} feature matches between the photos ({self.m.n_a} "
-                               f"and {self.m.n_b} keypoints; need {self.p.min_matches}) and "
+            more = f", plus {self.copies} copies of them" if self.copies else ""
+            return MotionError(f"only {self.n} distinct feature matches between the photos "
+                               f"({self.m.n_a} and {self.m.n_b} keypoints{more}; need "
+                               f"{self.p.min_matches}) and "
                                f"{walls}: they show too little in common")
-        return MotionError(f"the photos have no common view: only {k} of {self.n} feature "
-                           f"matches agree on one camera motion and {walls}")
+        return MotionError(f"the photos have no common view: only {k} of {self.n} distinct "
+                           f"feature matches agree on one camera motion and {walls}")
 
     def _check_layout_only(self, m: PlanarMotion, pair) -> None:
         """Without matches, the walls must fix both directions of the translation."""

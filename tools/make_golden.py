@@ -222,9 +222,15 @@ def _index(key: str, payload: bytes) -> int:
 def canonical(raw: Path, dst: Path, spec: Spec) -> int:
     """Rewrite a recording deterministically (module docstring); returns its message count."""
     recs = read_recording(raw)
+    # the trajectory is a session's latest state: odometry publishes it after each batch of
+    # poses, and how selections batch depends on timing, so only the last one is kept
+    last_traj = max((i for i, r in enumerate(recs) if bus.parse_key(r.key).kind == "trajectory"),
+                    default=None)
     keyed = []
     for pos, r in enumerate(recs):
         kind = bus.parse_key(r.key).kind
+        if kind == "trajectory" and pos != last_traj:
+            continue
         rank = KIND_ORDER.index(kind) if kind in KIND_ORDER else len(KIND_ORDER)
         tie = (r.key, _normalised(r.payload, 0)) if kind == "error" else (pos,)
         keyed.append(((_index(r.key, r.payload), rank, tie), r))

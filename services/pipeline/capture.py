@@ -171,11 +171,19 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
                          time_ns=side.get("capture_time_ns") or time.time_ns())
 
 
-def publish_frames(service, session: str, srcs, lens: Lens = Lens()) -> int:
-    """Publish every frame through a running capture ``service``; returns the count."""
+def publish_frames(service, session: str, srcs, lens: Lens = Lens(), window: int = 8) -> int:
+    """Publish every frame through a running capture ``service``, at most ``window`` of them
+    unanswered at once (``runtime.pacer``); returns the count."""
     from ..runtime.handler import Output
+    from ..runtime.pacer import Pacer
+    pacer = Pacer(service.session, session, window)
     n = 0
-    for f in frames(session, srcs, lens):
-        service.publish(Output(bus.key(session, "frame", f.index), f))
-        n += 1
+    try:
+        for f in frames(session, srcs, lens):
+            pacer.wait_room()
+            service.publish(Output(bus.key(session, "frame", f.index), f))
+            pacer.sent(f.index)
+            n += 1
+    finally:
+        pacer.close()
     return n

@@ -3,8 +3,10 @@
     findme/<session>/frame/<n>  ->  findme/<session>/hypotheses/<n>
 
 Several instances share the load (``shard``): each handles the frames that hash to it.
-Frames are never dropped by default; ``policy="latest"`` keeps only the newest ones (live
-video) and counts every frame it skips.
+Every frame is answered: its hypotheses, or an Error naming it (OVERLOADED when its
+session's queue is full, TOO_LARGE, MALFORMED, ...); ``policy="latest"`` keeps only the
+newest ones (live video) and answers each skipped frame OVERLOADED. A frame published
+while no instance was up is picked up from the store when one starts (``runtime.recovery``).
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ class HypothesesHandler(Handler):
     name = "hypotheses"
     cache_keys = ("findme/*/hypotheses/*",)
     shard = True
+    threads = 2     # stateless: a small photo is not held up by a 12 MP one in progress
 
     def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
                  depth: int = 64):
         self.method, self.max_n = method, max_n
-        self.inputs = (Input("findme/*/frame/*", schemas.Frame, policy, depth),)
+        self.inputs = (Input("findme/*/frame/*", schemas.Frame, policy, depth,
+                             answers=("findme/{session}/hypotheses/{n}",), once=True),)
         self.done = 0
 
     def on_message(self, key, frame):

@@ -73,8 +73,8 @@ class _Session:
 class MapperHandler(Handler):
     name = "mapper"
     cache_keys = ("findme/*/plan",)
-    inputs = (Input("findme/*/frame/*", schemas.Frame),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet),
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),   # fetched again if skipped
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection))
     shard = True
 

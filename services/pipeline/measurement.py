@@ -5,11 +5,16 @@
 
 The camera height comes from the selection (if the user gave one there), else the frame,
 else h = 1 (results up to scale, ``metric`` false).
+
+State is bounded and expires: per session at most ``max_photos`` photos (least recently
+used out), a session idle for ``idle_s`` is evicted; anything evicted is rebuilt from the
+bus (selection, hypotheses and frame from the store or the caches) when asked again.
 """
 
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 
 import schemas
 from findme_io.imageio import image_size
@@ -21,56 +26,122 @@ from ..runtime import bus
 from findme_io.convert import (camera_msg, frame_camera, measure_reply_msg, msg_camera,
                                msg_hypotheses, msg_provenance)
 from ..runtime.handler import Handler, Input, Output, UnknownSession
+from ..runtime.sessions import SessionTable
 
 DEFAULT_HEIGHT_SIGMA_M = 0.03
+
+
+class _Photos:
+    """One session's photos: n -> (camera, h, sigma), HypothesisSet, (Scene, rank, metric);
+    at most ``limit`` of each, least recently used out."""
+
+    def __init__(self, limit: int):
+        self.limit = limit
+        self.frames: OrderedDict[int, tuple] = OrderedDict()
+        self.hsets: OrderedDict[int, object] = OrderedDict()
+        self.scenes: OrderedDict[int, tuple] = OrderedDict()
+        self.waiting: dict[int, tuple[object, float]] = {}   # n -> (Selection, since)
+
+    def put(self, table: OrderedDict, n: int, value) -> None:
+        table[n] = value
+        table.move_to_end(n)
+        while len(table) > self.limit:
+            table.popitem(last=False)
 
 
 class MeasurementHandler(Handler):
     name = "measurement"
     cache_keys = ("findme/*/scene/*",)
-    inputs = (Input("findme/*/frame/*", schemas.Frame),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet),
-              Input("findme/*/selection/*", schemas.Selection))
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+              Input("findme/*/selection/*", schemas.Selection,
+                    answers=("findme/{session}/scene/{n}",)))
     queries = (Input("findme/*/measure", schemas.MeasureRequest),)
+    tick_s = 0.5
 
-    def __init__(self):
-        self.frames: dict[tuple[str, int], tuple] = {}   # (session, n) -> (camera, h, sigma)
-        self.hsets: dict[tuple[str, int], object] = {}
-        self.scenes: dict[tuple[str, int], tuple] = {}   # -> (Scene, rank, metric)
-        self.sessions: set[str] = set()
-        self.answered = 0
+    def __init__(self, idle_s: float = 600.0, max_sessions: int = 1000, max_photos: int = 256,
+                 wait_s: float = 5.0, clock=time.monotonic):
+        self.sessions = SessionTable(lambda s: _Photos(max_photos), idle_s, max_sessions, clock)
+        self.wait_s, self.clock = wait_s, clock
+        self._waiting: set[str] = set()   # sessions with a selection waiting for its inputs
+        self.answered = self.built = 0
 
     def on_message(self, key, msg):
         k = bus.parse_key(key)   # the key names session and n, never the payload
-        self.sessions.add(k.session)
+        n = k.index()
+        st = self.sessions.get(k.session)
         if isinstance(msg, schemas.Frame):
-            self._frame(k.session, k.index(), msg)
-            return []
-        if isinstance(msg, schemas.HypothesisSet):
-            self.hsets[(k.session, k.index())] = msg
-            return []
-        return self._select(k.session, k.index(), msg)
+            self._frame(st, n, msg)
+        elif isinstance(msg, schemas.HypothesisSet):
+            st.put(st.hsets, n, msg)
+        else:
+            st.waiting[n] = (msg, self.clock())
+        if n in st.waiting and self._ready(k.session, st, n, fetch=isinstance(msg, schemas.Selection)):
+            return self._select(k.session, st, n, st.waiting.pop(n)[0])
+        if st.waiting:
+            self._waiting.add(k.session)
+        return []
 
-    def _frame(self, session, n, f):
+    def _ready(self, session, st, n, fetch: bool) -> bool:
+        """Frame and hypotheses of photo n are here (``fetch``: asking the bus for missing
+        ones: the bus does not order a selection after the messages it follows)."""
+        for kind, table, cls in (("frame", st.frames, schemas.Frame),
+                                 ("hypotheses", st.hsets, schemas.HypothesisSet)):
+            if n not in table and fetch:
+                try:
+                    msg = self.need(bus.key(session, kind, n), cls)
+                except HypothesisError:
+                    return False   # not on the bus (yet)
+                self._frame(st, n, msg) if kind == "frame" else st.put(st.hsets, n, msg)
+            if n not in table:
+                return False
+        return True
+
+    def tick(self, now):
+        """Selections whose frame or hypotheses did not come within ``wait_s``: answered
+        with an Error naming them."""
+        out = []
+        for session in sorted(self._waiting):
+            st = self.sessions.peek(session)
+            if st is None:
+                continue
+            for n, (sel, since) in sorted(st.waiting.items()):
+                if now - since < self.wait_s:
+                    continue
+                if self._ready(session, st, n, fetch=True):
+                    out += self._select(session, st, n, st.waiting.pop(n)[0])
+                    continue
+                del st.waiting[n]
+                err = schemas.Error(session=session, key=bus.key(session, "selection", n),
+                                    code=schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS,
+                                    message=f"the frame or hypotheses of photo {n} did not come "
+                                            f"within {self.wait_s:g} s", service=self.name,
+                                    time_ns=time.time_ns())
+                out.append(Output(bus.key(session, "error"), err, cache=False))
+            if not st.waiting:
+                self._waiting.discard(session)
+        self.sessions.expire(now)
+        return out
+
+    def _frame(self, st, n, f):
         w, h = image_size(f.image.data, f"frame {n}")
         cam = frame_camera(f, w, h)
         height = f.camera_height_m if f.HasField("camera_height_m") else None
         sigma = (f.camera_height_sigma_m if f.HasField("camera_height_sigma_m")
                  else DEFAULT_HEIGHT_SIGMA_M)
-        self.frames[(session, n)] = (cam, height, sigma)
+        st.put(st.frames, n, (cam, height, sigma))
 
-    def _select(self, session, n, sel):
-        if (session, n) not in self.frames:
-            self._frame(session, n, self.need(bus.key(session, "frame", n), schemas.Frame))
-        if (session, n) not in self.hsets:
-            self.hsets[(session, n)] = self.need(bus.key(session, "hypotheses", n),
-                                                 schemas.HypothesisSet)
-        hyps = msg_hypotheses(self.hsets[(session, n)])
+    def _select(self, session, st, n, sel):
+        if n not in st.frames:
+            self._frame(st, n, self.need(bus.key(session, "frame", n), schemas.Frame))
+        if n not in st.hsets:
+            st.put(st.hsets, n, self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet))
+        hyps = msg_hypotheses(st.hsets[n])
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
-        cam, height, sigma = self.frames[(session, n)]
-        hset = self.hsets[(session, n)]
+        cam, height, sigma = st.frames[n]
+        hset = st.hsets[n]
         prov = msg_provenance(hset.camera) if hset.HasField("camera") else None
         if prov is not None:   # the camera the hypotheses were built with (estimated gravity)
             cam = msg_camera(hset.camera)
@@ -84,7 +155,8 @@ class MeasurementHandler(Handler):
         scene = Scene(cam, height if metric else 1.0, h.polyline, h.kinds,
                       height_sigma=sigma if metric else 0.0, gravity_cov=prov.gravity_cov,
                       boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
-        self.scenes[(session, n)] = (scene, sel.rank, metric)
+        st.put(st.scenes, n, (scene, sel.rank, metric))
+        self.built += 1
         msg = schemas.Scene(session=session, index=n, rank=sel.rank,
                             camera=camera_msg(cam, prov),
                             camera_height_m=scene.height, camera_height_sigma_m=scene.height_sigma,
@@ -96,22 +168,28 @@ class MeasurementHandler(Handler):
         k = bus.parse_key(key)
         if req.session != k.session:
             raise UnknownSession(f"{key} carries a request for session {req.session!r}")
-        if (k.session, req.index) not in self.scenes:
-            # not seen here (e.g. this service restarted): rebuild it from the bus
+        st = self.sessions.peek(k.session)
+        known = st is not None
+        if st is None or req.index not in st.scenes:
+            # not seen here (this service restarted, or evicted it): rebuild it from the bus
             try:
                 sel = self.need(bus.key(k.session, "selection", req.index), schemas.Selection)
             except HypothesisError:
-                if k.session not in self.sessions:
+                if not known:
                     raise UnknownSession(f"session {k.session!r} is not known") from None
                 raise HypothesisError(f"photo {req.index} of session {k.session!r} has no "
                                       "selected hypothesis yet") from None
-            self.sessions.add(k.session)
-            self._select(k.session, req.index, sel)
-        scene, rank, metric = self.scenes[(k.session, req.index)]
+            st = self.sessions.get(k.session)
+            self._select(k.session, st, req.index, sel)
+        else:
+            self.sessions.get(k.session)   # used now
+        scene, rank, metric = st.scenes[req.index]
+        st.scenes.move_to_end(req.index)
         located = scene.locate(schemas.msg_to_pixels(req.pixels))
         self.answered += 1
         return measure_reply_msg(k.session, req.index, rank, metric, located, scene.height,
                                  scene.height_sigma)
 
     def counters(self):
-        return {"scenes": len(self.scenes), "measure_queries": self.answered}
+        return {"scenes": self.built, "sessions": len(self.sessions),
+                "evicted": self.sessions.evicted, "measure_queries": self.answered}

@@ -1,15 +1,23 @@
-"""The odometry service: motion between successive selected photos of a session, and the
-session's trajectory.
+"""The odometry service: motion between selected photos of a session, and the session's
+trajectory.
 
     frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/motion/<m>/<n>,
                                                     findme/<session>/pose/<n>,
                                                     findme/<session>/trajectory
 
-Photo m is the nearest lower photo of the session that has a pose; the first selected
-photo of a session is its origin (the session frame is the level frame of photo 0, or of
-the first photo that was selected). Selections may arrive in any order: a photo waits while
-a lower photo of the session is known (its frame or hypotheses arrived) but not yet done. A motion that cannot be estimated is published with its error
-(no numbers) and the photo gets no pose; later photos chain from the last one that did.
+Photo m is the nearest lower photo of the session that has a pose (the nearest higher one
+for a photo below the origin); the first selected photo of a session is its origin (the
+session frame is the level frame of photo 0, or of the first photo that was selected).
+Selections may arrive in any order: a photo waits while a lower photo of the session is
+open (its frame or hypotheses arrived, no selection yet), at most ``gap_wait_s`` seconds;
+then it chains past it from the last photo that has a pose, and the gap is reported as an
+Error on ``findme/<session>/error`` naming the photo that never got a selection. A photo
+that will never be selected (an Error about its frame or hypotheses, or no hypotheses) is
+not waited for. A motion that cannot be estimated is published with its error (no
+numbers) and the photo gets no pose; later photos chain from the last one that did.
+
+State is bounded (``odometry_session``) and expires: a session idle for ``idle_s`` is
+evicted; when it comes back, its poses are fetched from the bus (the store, the caches).
 Instances share the load by session (``shard``). Same pipeline as ``findme motion``
 (``findme_core.pair``), so the numbers are equal for the same photos.
 """
@@ -19,101 +27,212 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
+
 import schemas
-from findme_io.imageio import decode_image
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
+from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
+from findme_io.imageio import decode_image
 
 from ..runtime import bus
-from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from ..runtime.handler import Handler, Input, Output
+from ..runtime.sessions import SessionTable
+from .odometry_session import OdometrySession
 
-
-class _Session:
-    def __init__(self):
-        self.frames: dict[int, object] = {}       # n -> Frame message
-        self.hsets: dict[int, object] = {}        # n -> HypothesisSet message
-        self.selected: dict[int, object] = {}     # n -> Selection message
-        self.poses: dict[int, PlanarPose] = {}
-        self.photos: dict[int, tuple] = {}        # n -> (rank, height, prepared photo)
-        self.times: dict[int, int] = {}
-        self.failed: set[int] = set()
-        self.origin: int | None = None
+NEVER_SELECTED = {"frame", "hypotheses"}   # an Error about these: the photo gets no selection
+OVERLOADED = schemas.ErrorCode.ERROR_CODE_OVERLOADED
 
 
 class OdometryHandler(Handler):
     name = "odometry"
     cache_keys = ("findme/*/motion/*/*", "findme/*/pose/*", "findme/*/trajectory")
-    inputs = (Input("findme/*/frame/*", schemas.Frame),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet),
-              Input("findme/*/selection/*", schemas.Selection))
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+              Input("findme/*/selection/*", schemas.Selection,
+                    answers=("findme/{session}/pose/{n}", "findme/{session}/motion/*/{n}")),
+              Input("findme/*/error", schemas.Error, state=True))
     shard = True
+    tick_s = 0.5
 
-    def __init__(self, method: str = "findme"):
-        self.method = method
-        self.sessions: dict[str, _Session] = {}
-        self.motions = 0
+    def __init__(self, method: str = "findme", gap_wait_s: float = 5.0, idle_s: float = 600.0,
+                 max_sessions: int = 1000, clock=time.monotonic):
+        self.method, self.gap_wait_s, self.clock = method, gap_wait_s, clock
+        self.sessions = SessionTable(self._open_session, idle_s, max_sessions, clock)
+        self._waiting: set[str] = set()    # sessions with a photo waiting on a lower one
+        self.motions = self.gaps = 0
 
     def shard_key(self, key, msg):
         return bus.parse_key(key).session  # a session's photos stay on one instance
 
+    def peers_changed(self):
+        """Another instance may have chained some sessions meanwhile (this one was cut off,
+        or one came and went): each takes the poses on the bus again when next used."""
+        for _, st in self.sessions.items():
+            st.stale = True
+
+    def _open_session(self, session: str) -> OdometrySession:
+        """A session seen for the first time here: take the poses it already has on the bus
+        (published before this instance restarted, or before the session was evicted)."""
+        st = OdometrySession()
+        st.adopt(*self._bus_poses(session))
+        return st
+
+    def _bus_poses(self, session: str):
+        """(poses, capture times) of a session's photos from the bus."""
+        poses, times = {}, {}
+        if self.fetch_all is None:
+            return poses, times
+        for k, payload in self.fetch_all(bus.key(session, "pose", "*")):
+            try:
+                p = schemas.decode(schemas.Pose, payload)
+            except FindmeError:
+                continue
+            cov = np.diag([p.sigma_x_m ** 2, p.sigma_z_m ** 2, p.sigma_yaw_rad ** 2])
+            poses[p.index] = PlanarPose(p.x_m, 0.0, p.z_m, p.yaw_rad, cov)
+            times[p.index] = p.time_ns
+        return poses, times
+
     def on_message(self, key, msg):
         k = bus.parse_key(key)   # the key names session and n, never the payload
-        st = self.sessions.setdefault(k.session, _Session())
+        if isinstance(msg, schemas.Error) and k.session not in self.sessions:
+            return []   # about a session this instance holds nothing of: nothing to give up
+        st = self.sessions.get(k.session)
+        if st.stale:
+            st.stale = False
+            st.adopt(*self._bus_poses(k.session))
+        now = self.clock()
+        if isinstance(msg, schemas.Error):
+            return self._error(k.session, st, msg, now)
         n = k.index()
+        if n in st.poses or n in st.closed and not isinstance(msg, schemas.Selection):
+            return []
+        p = st.photo(n, now)
         if isinstance(msg, schemas.Frame):
-            st.frames[n] = msg
-            return []
-        if isinstance(msg, schemas.HypothesisSet):
-            st.hsets[n] = msg
-            return []
-        if n not in st.hsets:
-            st.hsets[n] = self.need(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
-        count = len(st.hsets[n].hypotheses)
-        if not 1 <= msg.rank <= count:
-            raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which has "
-                                  f"{count} hypotheses")
-        st.selected[n] = msg
-        return self._advance(k.session, st)
+            p.frame = msg
+        elif isinstance(msg, schemas.HypothesisSet):
+            p.hset = msg
+            if p.selection is not None:
+                self._check_rank(st, n)
+            elif not msg.hypotheses:
+                st.close(n, "dead")      # nothing to select: nobody waits for it
+        else:
+            if n in st.closed:
+                st.closed.pop(n)        # selected after all: it gets a pose now
+                p = st.photo(n, now)
+            p.selection, p.selected_at = msg, now
+            if p.hset is None:          # the bus does not order it after its hypotheses
+                p.hset = self._try(bus.key(k.session, "hypotheses", n), schemas.HypothesisSet)
+            if p.hset is not None:
+                self._check_rank(st, n)
+        return self._advance(k.session, st, now)
 
-    # ------------------------------------------------------------------ chaining
-    def _advance(self, session: str, st: _Session) -> list[Output]:
-        out: list[Output] = []
-        known = set(st.frames) | set(st.hsets) | set(st.selected)
-        if st.origin is None:
-            first = min(m for m in known if not (m in st.hsets and not st.hsets[m].hypotheses))
-            if first not in st.selected:
-                return out   # the session's first photo is not selected yet
-            st.origin = first
-            st.poses[first] = PlanarPose(0.0, 0.0, 0.0, 0.0)
-            st.times[first] = self._frame(session, st, first).capture_time_ns
-            out.append(self._pose_out(session, st, first))
-        for n in sorted(st.selected):
-            if n in st.poses or n in st.failed or n < st.origin:
-                continue
-            # a lower photo that is known but not done yet (e.g. not selected yet) comes
-            # first, unless it can never be selected (no hypotheses)
-            pending = [m for m in known if m < n and m not in st.poses and m not in st.failed
-                       and not (m in st.hsets and not st.hsets[m].hypotheses)]
-            if pending:
-                break
-            done = [m for m in st.poses if m < n]
-            out.extend(self._step(session, st, max(done), n))
-        if out:
-            out.append(Output(bus.key(session, "trajectory"), self._trajectory(session, st)))
+    def _check_rank(self, st, n) -> None:
+        p = st.photos[n]
+        count = len(p.hset.hypotheses)
+        if not 1 <= p.selection.rank <= count:
+            rank = p.selection.rank
+            p.selection = None
+            raise HypothesisError(f"selection of hypothesis {rank} of photo {n}, which has "
+                                  f"{count} hypotheses")
+
+    def _try(self, key, cls):
+        """``need`` that says None instead of raising when nobody has it yet."""
+        try:
+            return self.need(key, cls)
+        except HypothesisError:
+            return None
+
+    def _error(self, session, st, err, now):
+        """A photo that will get no pose is not waited for: an Error about its frame or
+        hypotheses (upstream failed), or this service's own OVERLOADED about its selection
+        (refused while this instance was too busy)."""
+        try:
+            k = bus.parse_key(err.key)
+            n = k.index()
+        except FindmeError:
+            return []
+        ours = err.service.split("/")[0] == self.name
+        final = (k.kind == "selection" and err.code == OVERLOADED) if ours else k.kind in NEVER_SELECTED
+        if k.session == session and final and n not in st.poses:
+            st.close(n, "dead")
+            return self._advance(session, st, now)
+        return []
+
+    def tick(self, now):
+        out = []
+        for session in sorted(self._waiting):
+            st = self.sessions.peek(session)
+            self._waiting.discard(session)
+            if st is not None:
+                out += self._advance(session, st, now)
+        self.sessions.expire(now)
         return out
 
-    def _step(self, session, st, a: int, b: int) -> list[Output]:
+    # ------------------------------------------------------------------ chaining
+    def _advance(self, session: str, st: OdometrySession, now: float) -> list[Output]:
+        out: list[Output] = []
+        for n in st.pending():
+            p, late = st.photos[n], now - st.photos[n].selected_at >= self.gap_wait_s
+            if p.hset is None and late:
+                p.hset = self._try(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
+                if p.hset is None:
+                    st.close(n, "failed")
+                    out.append(self._gap(session, n, None))
+                    continue
+                self._check_rank(st, n)
+            blockers = st.blockers(n)
+            if (blockers or p.hset is None) and not late:
+                self._waiting.add(session)
+                break                     # n waits for a lower photo's selection, or its hypotheses
+            for m in blockers:            # waited long enough: chain past them, say so
+                st.close(m, "dead")
+                self.gaps += 1
+                out.append(self._gap(session, m, n))
+            if st.origin is None:
+                st.times[n] = self._time(session, st, n)
+                st.origin = n
+                st.poses[n] = PlanarPose(0.0, 0.0, 0.0, 0.0)
+                out.append(self._pose_out(session, st, n))
+                continue
+            out.extend(self._step(session, st, n))
+        if out:
+            out.append(Output(bus.key(session, "trajectory"), self._trajectory(session, st)))
+        st.prune()
+        return out
+
+    def _gap(self, session, m, n):
+        """An Error naming photo m: never selected (photo n chains past it), or, n None,
+        selected but its hypotheses never came."""
+        text = (f"photo {m} has no selected hypothesis after {self.gap_wait_s:g} s: photo {n} "
+                "chains past it" if n is not None else
+                f"the hypotheses of photo {m} did not come within {self.gap_wait_s:g} s")
+        err = schemas.Error(session=session, key=bus.key(session, "selection", m),
+                            code=schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS,
+                            message=text, time_ns=time.time_ns(), service=self.name)
+        return Output(bus.key(session, "error"), err, cache=False)
+
+    def _step(self, session, st, b: int) -> list[Output]:
+        anchors = st.anchor(b)
+        a = anchors[0]
         m = schemas.Motion(session=session, index_a=a, index_b=b, method=f"{self.method}/findme.v1",
                            time_ns=time.time_ns())
         try:
-            pa, pb = self._photo(session, st, a), self._photo(session, st, b)
+            pb = self._photo(session, st, b)
+            for a in anchors[:3]:         # an anchor no longer on the bus: the next one
+                try:
+                    pa = self._photo(session, st, a)
+                    break
+                except HypothesisError:
+                    if a == anchors[:3][-1]:
+                        raise
+            m.index_a = a
             res = motion_photos(pa, pb, (self.method,))[self.method]
             if isinstance(res, FindmeError):
                 raise res
         except FindmeError as e:
-            st.failed.add(b)
+            st.close(b, "failed")
             m.error = str(e).splitlines()[0][:500] or type(e).__name__
             return [Output(bus.key(session, "motion", a, b), m)]
         mo = res.motion
@@ -122,42 +241,51 @@ class OdometryHandler(Handler):
         m.inliers, m.matches = mo.n_inliers, res.matches
         cov = [[mo.sigma_x ** 2, 0, 0], [0, mo.sigma_z ** 2, 0], [0, 0, mo.sigma_yaw ** 2]]
         st.poses[b] = compose(st.poses[a], mo.x, mo.z, mo.yaw, mo.dy, cov)
-        st.times[b] = self._frame(session, st, b).capture_time_ns
+        st.times[b] = self._time(session, st, b)
         self.motions += 1
         return [Output(bus.key(session, "motion", a, b), m), self._pose_out(session, st, b)]
 
     def _frame(self, session, st, n):
-        if n not in st.frames:
-            st.frames[n] = self.need(bus.key(session, "frame", n), schemas.Frame)
-        return st.frames[n]
+        p = st.photo(n, self.clock())
+        if p.frame is None:
+            p.frame = self.need(bus.key(session, "frame", n), schemas.Frame)
+        return p.frame
+
+    def _time(self, session, st, n) -> int:
+        """Capture time of photo n (0 when its frame is no longer on the bus)."""
+        try:
+            return self._frame(session, st, n).capture_time_ns
+        except HypothesisError:
+            return 0
 
     def _photo(self, session, st, n):
         """Photo n prepared once for all its motions (features, the layouts of its selected
-        hypothesis and the next ranks, its room orientation); at most the last 4 are kept."""
-        sel = st.selected[n]
-        cached = st.photos.get(n)
-        if cached is not None and cached[0] == sel.rank:
-            return cached[2]
-        image, cam, hyps, rank, h = self._inputs(session, st, n)
-        photo = prepare(image, cam, h, hyps, rank)
-        st.photos[n] = (rank, h, photo)
-        for old in sorted(st.photos)[:-4]:
-            del st.photos[old]
-        return photo
+        hypothesis and the next ranks, its room orientation); held while the photo is open
+        or one of the session's anchors (``odometry_session``)."""
+        p = st.photo(n, self.clock())
+        if p.selection is None:
+            p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
+        if p.prepared is None or p.prepared[0] != p.selection.rank:
+            image, cam, hyps, rank, h = self._inputs(session, st, n)
+            p.prepared = (rank, prepare(image, cam, h, hyps, rank))
+        return p.prepared[1]
 
     def _inputs(self, session, st, n):
         """(image, camera, hypotheses, selected rank, camera height) of photo n."""
         f = self._frame(session, st, n)
-        if n not in st.hsets:
-            st.hsets[n] = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
+        p = st.photos[n]
+        if p.hset is None:
+            p.hset = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
+        if p.selection is None:
+            p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
         image = decode_image(f.image.data, f"frame {n}")
-        hset = st.hsets[n]   # the camera the hypotheses were built with (estimated gravity)
+        hset = p.hset   # the camera the hypotheses were built with (estimated gravity)
         cam = (msg_camera(hset.camera) if hset.HasField("camera")
                else frame_camera(f, image.shape[1], image.shape[0]))
-        sel = st.selected[n]
+        sel = p.selection
         h = (sel.camera_height_m if sel.HasField("camera_height_m") else
              f.camera_height_m if f.HasField("camera_height_m") else 1.0)
-        hyps = msg_hypotheses(st.hsets[n])
+        hyps = msg_hypotheses(p.hset)
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
@@ -183,4 +311,5 @@ class OdometryHandler(Handler):
         return t
 
     def counters(self):
-        return {"sessions": len(self.sessions), "motions": self.motions}
+        return {"sessions": len(self.sessions), "motions": self.motions, "gaps": self.gaps,
+                "evicted": self.sessions.evicted}

@@ -66,7 +66,8 @@ class SelectionHandler(Handler):
 
     def __init__(self, chooser=None):
         self.chooser = chooser or AutoChooser()
-        self.inputs = (Input("findme/*/hypotheses/*", schemas.HypothesisSet),)
+        self.inputs = (Input("findme/*/hypotheses/*", schemas.HypothesisSet,
+                             answers=("findme/{session}/selection/{n}",), once=True),)
         self.chosen = 0
 
     def on_message(self, key, hset):

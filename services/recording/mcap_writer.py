@@ -40,6 +40,40 @@ def recording_path(out_dir: Path, session: str) -> Path:
 
 
 
+class _AppendFile:
+    """The file under a Writer, open only while in use: ``suspend`` closes the handle (after
+    a flush), the next write reopens it for appending. The recorder keeps one file per
+    session however many sessions are live and holds handles for the busiest only."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._f = open(path, "wb")  # noqa: SIM115 - closed in close()/suspend()
+        self._pos = 0
+
+    def write(self, data) -> int:
+        if self._f is None:
+            self._f = open(self.path, "ab")  # noqa: SIM115 - closed in close()/suspend()
+        n = self._f.write(data)
+        self._pos += len(data)
+        return n
+
+    def tell(self) -> int:
+        return self._pos
+
+    def flush(self) -> None:
+        if self._f is not None:
+            self._f.flush()
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+            self._f = None
+
+    @property
+    def is_open(self) -> bool:
+        return self._f is not None
+
+
 class McapRecording:
     """One session's MCAP file: bus messages as they were, plus the view channels.
 
@@ -50,7 +84,8 @@ class McapRecording:
                  chunk_size: int = 4 * 1024 * 1024, views: bool = True,
                  metadata: dict[str, str] | None = None):
         self.path, self.session = Path(path), session
-        self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self.started_ns = time.time_ns()
+        self._file = _AppendFile(self.path)
         self._w = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression])
         self._w.start(profile="", library=VERSION)
         self._w.add_metadata("findme", {"session": session, "schema_version": schemas.VERSION,
@@ -119,6 +154,23 @@ class McapRecording:
         if self.dirty and not self.closed:
             self._w.flush()
             self.dirty = False
+
+    @property
+    def suspended(self) -> bool:
+        return not self._file.is_open
+
+    @property
+    def size(self) -> int:
+        """Bytes written to the file so far."""
+        return self._file.tell()
+
+    def suspend(self) -> None:
+        """Flush and close the file handle; the next flush (or a full chunk) reopens it, for
+        appending to the same file."""
+        if not self.closed:
+            self._w.flush()
+            self.dirty = False
+            self._file.close()
 
     def close(self) -> None:
         """Write the summary (indexes, statistics) and close the file."""

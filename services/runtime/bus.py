@@ -150,6 +150,27 @@ def put(session: zenoh.Session, k: str, payload: bytes,
                 encoding=zenoh.Encoding.APPLICATION_PROTOBUF)
 
 
+def fetch(session: zenoh.Session, key: str, timeout: float = 2.0) -> bytes | None:
+    """The payload of the first reply to a ``get`` of ``key``, or None."""
+    for reply in session.get(key, timeout=timeout):
+        if reply.ok is not None:
+            return reply.ok.payload.to_bytes()
+    return None
+
+
+def get_all(session: zenoh.Session, selector: str, timeout: float = 5.0,
+            payload: bytes | None = None) -> list[tuple[str, bytes]]:
+    """Every reply (key, payload) to ``selector`` from every matching queryable: target ALL
+    and no consolidation (Zenoh would otherwise keep one reply per key, e.g. one Error of
+    many on ``findme/<s>/error``). Error replies are left out."""
+    out = []
+    for r in session.get(selector, target=zenoh.QueryTarget.ALL, timeout=timeout,
+                         consolidation=zenoh.ConsolidationMode.NONE, payload=payload):
+        if r.ok is not None:
+            out.append((str(r.ok.key_expr), r.ok.payload.to_bytes()))
+    return out
+
+
 def wait_alive(session: zenoh.Session, name: str, timeout: float = 60.0) -> None:
     """Until a liveliness token of service ``name`` is on the bus (no polling: a liveliness
     subscriber with history signals it).

@@ -23,13 +23,33 @@ class Input:
 
     key: key expression, e.g. ``findme/*/frame/*``; type: expected message class, or None
     for raw payloads of any type (``on_message`` gets the bytes undecoded: recorder, viewer);
-    policy: "all" (never dropped) or "latest" (newest ``depth`` kept, drops counted).
+    policy: "all" (queued per session; a full queue answers OVERLOADED) or "latest" (the
+    newest ``depth`` of a session kept; each superseded one is answered OVERLOADED).
+    answers: templates of the keys whose presence on the bus shows that the input
+    ``findme/<session>/<kind>/<n>`` was handled, e.g. ``"findme/{session}/hypotheses/{n}"``
+    (the last part must be ``{n}``). An input with answers is one the service must answer
+    (its result, or an Error): a restarted or new instance recovers unanswered ones from the
+    bus.
+    state: the input is state the handler fetches again when it needs it (``need``), e.g.
+    the frames odometry also gets: when queues are full it is skipped and counted as
+    deferred, not answered with an error. Any other input that cannot be queued is answered
+    by an Error (OVERLOADED, TOO_LARGE), or only logged and counted if the handler does not
+    ``report_overload`` (the recorder).
+    once: a key is handled once: a later message on it is dropped as a duplicate even if
+    its payload differs (a result recomputed elsewhere, e.g. by an instance cut off the
+    network that comes back); without it only identical payloads are (a user may change a
+    selection). Only while the key is remembered (``Service(seen_s=...)``, 180 s).
+    max_bytes: larger payloads are refused with TOO_LARGE before they are queued.
     """
 
     key: str
     type: type
     policy: str = "all"
     depth: int = 64
+    answers: tuple[str, ...] = ()
+    state: bool = False
+    once: bool = False
+    max_bytes: int = bus.MAX_MESSAGE_BYTES
 
 
 @dataclass(frozen=True)
@@ -43,6 +63,10 @@ class Output:
 
 class UnknownSession(FindmeError):
     """A message refers to a session this service has never seen."""
+
+
+class Overloaded(FindmeError):
+    """A message was not handled because a queue was full or a newer one superseded it."""
 
 
 class Handler:
@@ -59,6 +83,22 @@ class Handler:
     #: fetch(key) -> payload bytes or None: ask the bus for a message this handler missed
     #: (set by Service; tests set a dict lookup). None = no way to ask.
     fetch = None
+    #: fetch_all(key expression) -> [(key, payload)]: every message the bus still holds
+    #: for a key expression (set by Service). None = no way to ask.
+    fetch_all = None
+    #: worker threads: > 1 only for a handler whose ``on_message`` may run concurrently (no
+    #: shared state; OpenCV and numpy release the GIL): a second photo is not held up by a
+    #: large one in progress
+    threads = 1
+    #: messages a session may have waiting (``Service(fifo_depth=...)`` overrides)
+    queue_depth = 32
+    #: call ``tick`` about every this many seconds (None: never), on the worker thread
+    tick_s: float | None = None
+    #: ``on_message`` is O(1) and never blocks: run it in Zenoh's callback, unqueued (store)
+    inline = False
+    #: publish an Error for each input it could not queue (False: log and count only).
+    #: Raw inputs (``type`` None: the recorder, the viewer) are never reported: observers
+    report_overload = True
 
     def need(self, key: str, cls):
         """A message this handler depends on but has not seen, fetched from the bus.
@@ -79,8 +119,23 @@ class Handler:
     def on_query(self, key: str, msg):
         raise NotImplementedError
 
+    def cached(self, key_expr: str, parameters) -> list[tuple[str, bytes]]:
+        """Messages this handler holds for ``get`` queries on its ``cache_keys``, besides
+        the outputs the Service caches (the store holds everything recent)."""
+        return []
+
+    def tick(self, now: float) -> list[Output]:
+        """Called about every ``tick_s`` seconds (``now``: monotonic seconds) for work that
+        waits on time, e.g. giving up on a photo that never comes."""
+        return []
+
+    def peers_changed(self) -> None:
+        """(sharded handlers) An instance of this service came or went, so the sessions this
+        one owns changed: drop state that another instance may have moved on meanwhile."""
+
     def shard_key(self, key: str, msg) -> str:
-        """What decides which instance handles a message (default: the whole key)."""
+        """What decides which instance handles a message (default: the whole key). Called
+        with ``msg=None`` when the message is not decoded yet: depend on the key only."""
         return key
 
     def counters(self) -> dict[str, int]:
@@ -94,6 +149,7 @@ class Handler:
 CODES = [  # most specific first
     (schemas.WrongTypeError, schemas.ErrorCode.ERROR_CODE_WRONG_TYPE),
     (SchemaError, schemas.ErrorCode.ERROR_CODE_MALFORMED),
+    (Overloaded, schemas.ErrorCode.ERROR_CODE_OVERLOADED),
     (authority.KeyAuthorityError, schemas.ErrorCode.ERROR_CODE_FORBIDDEN),
     (ImageError, schemas.ErrorCode.ERROR_CODE_BAD_IMAGE),
     (CameraError, schemas.ErrorCode.ERROR_CODE_BAD_CAMERA),

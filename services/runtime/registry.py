@@ -27,6 +27,40 @@ def add_service_args(p) -> None:
                      help="selection: show the numbered image and ask in the terminal")
     p.add_argument("--out", default=".", metavar="DIR",
                    help="where selection images (and recordings) are written")
+    d = p.add_argument_group("delivery (every service)")
+    d.add_argument("--queue-depth", type=int, metavar="N",
+                   help="messages a session may have waiting; more are answered OVERLOADED "
+                        "(default 32; recorder 4096)")
+    d.add_argument("--max-wait", type=float, default=10.0, metavar="S",
+                   help="a message that waited longer in the queue is answered OVERLOADED "
+                        "instead of handled (default 10; the recorder and the store keep all)")
+    d.add_argument("--sweep", type=float, default=10.0, metavar="S",
+                   help="seconds between recovery sweeps: unanswered inputs the bus still holds "
+                        "are fetched and handled (default 10; also at start and when an "
+                        "instance comes or goes)")
+    d.add_argument("--idle", type=float, default=600.0, metavar="S",
+                   help="forget a session idle this long: measurement and odometry state, the "
+                        "recorder's open file, cached results (default 600; rebuilt from the "
+                        "bus when it comes back)")
+    d.add_argument("--gap-wait", type=float, default=5.0, metavar="S",
+                   help="odometry: wait this long for a lower photo's selection before "
+                        "chaining past it (default 5)")
+    d.add_argument("--window", type=float, default=60.0, metavar="S",
+                   help="store: hold every message this long for services that missed it "
+                        "(default 60)")
+    d.add_argument("--latch", type=float, default=900.0, metavar="S",
+                   help="store: hold the latest small result of each key this long (default 900)")
+
+
+def service_options(args) -> dict:
+    """Service keyword arguments from the delivery options."""
+    depth = getattr(args, "queue_depth", None)
+    if depth is not None and depth < 1:
+        raise InputError(f"--queue-depth must be at least 1, got {depth}")
+    wait = getattr(args, "max_wait", 10.0)
+    return {"fifo_depth": depth, "sweep_s": getattr(args, "sweep", 10.0),
+            "max_wait_s": wait if wait and wait > 0 else None,
+            "cache_age_s": getattr(args, "idle", 600.0)}
 
 
 def make_handler(name: str, args) -> Handler:
@@ -42,13 +76,17 @@ def make_handler(name: str, args) -> Handler:
         return SelectionHandler(TerminalChooser(args.out) if args.interactive else None)
     if name == "measurement":
         from ..pipeline.measurement import MeasurementHandler
-        return MeasurementHandler()
+        return MeasurementHandler(idle_s=getattr(args, "idle", 600.0))
     if name == "odometry":
         from ..pipeline.odometry import OdometryHandler
-        return OdometryHandler()
+        return OdometryHandler(gap_wait_s=getattr(args, "gap_wait", 5.0),
+                               idle_s=getattr(args, "idle", 600.0))
     if name == "mapper":
         from ..pipeline.mapper import make_mapper
         return make_mapper(args)
+    if name == "store":
+        from .store import make_store
+        return make_store(args)
     if name == "capture":
         from ..pipeline.capture import CaptureHandler
         return CaptureHandler()
@@ -80,7 +118,7 @@ def _extra_services() -> dict:
 
 
 def service_names() -> list[str]:
-    return ["capture", "hypotheses", "selection", "measurement", "odometry", "mapper",
+    return ["capture", "hypotheses", "selection", "measurement", "odometry", "mapper", "store",
             *_extra_services()]
 
 

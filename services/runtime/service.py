@@ -1,32 +1,31 @@
 """Runs a pure handler on the bus: decode, handle, encode, publish; errors, counters,
-liveliness, status, a latched cache of outputs, sharding among instances, shutdown.
+liveliness, status, a latched cache of outputs, sharding, recovery, shutdown.
 
-A *handler* (``handler.Handler``) knows nothing about Zenoh: it declares its inputs and
-queries and turns one decoded message into outputs, so tests drive it directly. ``Service``
-wires it to a session:
+A *handler* (``handler.Handler``) knows nothing about Zenoh, so tests drive it directly;
+``Service`` wires it to a session (delivery: issue 10, README "Delivery"):
 
-* inputs with policy ``"all"`` go through a bounded FIFO; a full FIFO blocks the sender
-  (backpressure), nothing is dropped. Inputs with policy ``"latest"`` keep the newest
-  ``depth`` messages; each one pushed out is counted as dropped.
-* one worker thread handles queries first, then messages in arrival order.
-* any FindmeError becomes an ``Error`` on ``findme/<session>/error`` and a log line; any
-  other exception too (code INTERNAL, with the traceback in the log). The service goes on.
-* outputs marked ``cache`` are kept (bounded) and served to ``get`` queries on the
-  handler's ``cache_keys``, so a service that starts late or restarts can fetch what it
-  missed: nothing lives only in one service's memory.
-* with ``shard`` set, instances of the same service split the work: each handles the
-  messages whose shard key hashes to its rank among the live instances.
+* Zenoh's callbacks never wait: a message is queued in its session's bounded FIFO, served
+  round-robin, or answered at once (OVERLOADED, TOO_LARGE) by a reporter thread
+  (``inbox``). A blocked callback would stall the router's queue to this process until the
+  router closes the link ("Unable to push non droppable network message ... Closing
+  transport!") and everything on it is lost.
+* worker threads (one; ``Handler.threads`` for stateless handlers) handle queries first,
+  then messages, and ``tick`` when the handler asks; any exception becomes an Error on
+  ``findme/<session>/error`` and a log line, and the service goes on.
+* outputs marked ``cache`` are kept (bounded) and served on ``cache_keys`` (``cache``).
+* with ``shard`` set, instances split the work by rendezvous hashing over the live
+  instances (``peers``: a liveliness subscriber with history).
+* a sweeper thread recovers unanswered inputs the bus still holds (``recovery``): at start,
+  when an instance of the service comes or goes, and every ``sweep_s``.
 """
 
 from __future__ import annotations
 
-import hashlib
 import logging
 import threading
 import time
 import traceback
 import uuid
-from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 
 import zenoh
@@ -34,23 +33,20 @@ import zenoh
 import schemas
 from findme_core.errors import FindmeError, SchemaError
 
-from . import authority, bus
+from . import authority, bus, recovery
+from .cache import CacheServer, OutputCache
 from .handler import Handler, Input, Output, error_message
+from .inbox import Inbox
+from .peers import Peers, owner
+from .peers import owner as shard_owner  # noqa: F401 - the name tests and tools use
 
 log = logging.getLogger("findme.services")
 
 
-def shard_owner(shard_key: str, instances) -> str:
-    """The instance (of the live ``instances`` of one service) that handles a message with
-    this shard key: rendezvous hashing (the instance with the highest hash of instance and
-    key), so an instance leaving moves only its own keys. (``crc32(key) % n`` sent frames
-    0-3 of every session to the same one of two instances: crc32 is linear in its input.)"""
-    return max(sorted(instances), key=lambda i: hashlib.blake2b(
-        f"{i}\0{shard_key}".encode(), digest_size=8).digest())
-
-
 @dataclass
 class Counters:
+    """The totals of a status report (kept for callers of ``Service.counters``)."""
+
     frames_in: int = 0
     results_out: int = 0
     errors: int = 0
@@ -58,67 +54,102 @@ class Counters:
 
 
 class Service:
-    """A handler running on a Zenoh session (see the module docstring)."""
+    """A handler running on a Zenoh session (see the module docstring).
+
+    fifo_depth / session_bytes: messages / bytes a session may have waiting (default depth:
+    the handler's ``queue_depth``); max_wait_s: a message that waited longer is answered
+    OVERLOADED instead of handled (None: no limit; observers such as the recorder have none);
+    queue_bytes: bytes all sessions may have waiting; sweep_s: seconds between recovery
+    sweeps (None: none, not even at start); grace_s: a periodic sweep leaves inputs younger
+    than this to their live delivery.
+    """
 
     def __init__(self, handler: Handler, session: zenoh.Session, instance: str | None = None,
-                 fifo_depth: int = 256, cache_bytes: int = 64 * 1024 * 1024,
-                 max_message_bytes: int = bus.MAX_MESSAGE_BYTES):
+                 fifo_depth: int | None = None, cache_bytes: int = 64 * 1024 * 1024,
+                 max_message_bytes: int = bus.MAX_MESSAGE_BYTES, session_bytes: int = 64 << 20,
+                 queue_bytes: int = 512 << 20, sweep_s: float | None = 10.0, grace_s: float = 2.0,
+                 seen_s: float = 180.0, max_wait_s: float | None = 10.0,
+                 cache_age_s: float = 900.0):
         self.handler, self.session = handler, session
         self.instance = instance or uuid.uuid4().hex[:8]
         self.ident = f"{handler.name}/{self.instance}"
-        self.counters = Counters()
+        self.inbox = Inbox(handler, self.ident, fifo_depth or handler.queue_depth, session_bytes,
+                           queue_bytes, seen_s, max_wait_s if handler.report_overload else None)
+        self._cv = self.inbox.cv
+        self.results_out = self.errors = 0
         self.started_ns = time.time_ns()
         self.max_message_bytes = max_message_bytes
-        self._cv = threading.Condition()
-        self._fifo: deque = deque()
-        self._fifo_depth = fifo_depth
-        self._latest = [deque() for _ in handler.inputs]
-        self._queries: deque = deque()
+        self.sweep_s, self.grace_s = sweep_s, grace_s
         self._stop = threading.Event()
-        self._cache: OrderedDict[str, bytes] = OrderedDict()
-        self._cache_bytes, self._cache_limit = 0, cache_bytes
-        self._peers: set[str] = set()
+        self._sweep_now = threading.Event()
+        self._cache = OutputCache(cache_bytes, cache_age_s)
+        self._cache_server = CacheServer(self._cache, handler, self.ident)
+        self._peers: Peers | None = None
+        self._stale = False
         self._decls: list = []
-        self._thread: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
+        if handler.threads > 1 and handler.tick_s is not None:
+            raise ValueError(f"{handler.name}: a handler with ticks has one worker thread")
         self.idle = threading.Event()   # set when nothing is queued or being handled
         self.idle.set()
         handler.fetch = self.fetch
+        handler.fetch_all = self.fetch_all
+
+    @property
+    def counters(self) -> Counters:
+        with self._cv:
+            return Counters(self.inbox.frames_in, self.results_out, self.errors, self.inbox.dropped)
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> "Service":
         s, h = self.session, self.handler
+        if h.shard:
+            self._peers = Peers(s, h.name, on_change=self._peers_changed)
         for i, inp in enumerate(h.inputs):
             self._decls.append(s.declare_subscriber(inp.key, self._on_sample(i)))
         for q in h.queries:
             self._decls.append(s.declare_queryable(q.key, self._on_query(q)))
         for ck in h.cache_keys:
-            self._decls.append(s.declare_queryable(ck, self._on_cache_query))
+            self._decls.append(s.declare_queryable(ck, self._cache_server.on_query))
         base = f"{bus.SERVICES}/{h.name}/{self.instance}"
         self._decls.append(s.declare_queryable(base + "/status", self._on_status))
-        if h.shard:
-            self._peers = {self.instance}
-            self._decls.append(s.liveliness().declare_subscriber(
-                f"{bus.SERVICES}/{h.name}/*", self._on_peer, history=True))
         self._decls.append(s.liveliness().declare_token(base))
-        self._thread = threading.Thread(target=self._work, name=self.ident, daemon=True)
-        self._thread.start()
+        workers = [(f"w{k}" if k else "", self._work) for k in range(max(1, h.threads))]
+        for name, target in workers + [("report", self._report_loop)]:
+            self._threads.append(threading.Thread(target=target, daemon=True,
+                                                  name=f"{self.ident}{'/' + name if name else ''}"))
+        self._threads.append(threading.Thread(target=self._cache_server.run, args=(self._stop,),
+                                              daemon=True, name=f"{self.ident}/cache"))
+        if self.sweep_s is not None and any(inp.answers for inp in h.inputs):
+            self._sweep_now.set()   # the first sweep at once: what was missed while down
+            self._threads.append(threading.Thread(target=recovery.Sweeper(self).run,
+                                                  daemon=True, name=f"{self.ident}/sweep"))
+        for t in self._threads:
+            t.start()
         log.info("%s started", self.ident)
         return self
 
-    def stop(self, timeout: float = 5.0) -> None:
+    def stop(self, timeout: float = 3.0) -> None:
+        """Stop within about ``timeout`` s (after draining, for ``drain_on_stop``): a
+        supervisor (``findme up``) kills what takes longer than 5 s."""
         if self.handler.drain_on_stop:
             self.wait_idle(timeout)
         self._stop.set()
+        self._sweep_now.set()
         with self._cv:
             self._cv.notify_all()
-        if self._thread:
-            self._thread.join(timeout)
+        self._cache_server.wake()
+        deadline = time.monotonic() + timeout   # all threads within ``timeout`` (a sweep
+        for t in self._threads:                  # waiting on a reply is let go: a daemon)
+            t.join(max(0.05, deadline - time.monotonic()))
         for d in reversed(self._decls):
             try:
                 d.undeclare()
             except zenoh.ZError:
                 pass  # the session may already be closed
         self._decls.clear()
+        if self._peers is not None:
+            self._peers.close()
         self.handler.close()
         log.info("%s stopped", self.ident)
 
@@ -128,123 +159,148 @@ class Service:
         wait for the results themselves for that."""
         return self.idle.wait(timeout)
 
-    # ------------------------------------------------------------------ zenoh callbacks
+    # ------------------------------------------------------------------ intake (Zenoh's threads)
     def _on_sample(self, i: int):
-        inp = self.handler.inputs[i]
+        h = self.handler
 
         def cb(sample: zenoh.Sample) -> None:
             if sample.kind != zenoh.SampleKind.PUT:
                 return
-            item = (i, str(sample.key_expr), sample.payload.to_bytes())
-            with self._cv:
-                self.counters.frames_in += 1
-                self.idle.clear()
-                if inp.policy == "latest":
-                    q = self._latest[i]
-                    if len(q) >= inp.depth:
-                        q.popleft()
-                        self.counters.dropped += 1
-                    q.append(item)
-                else:
-                    while len(self._fifo) >= self._fifo_depth and not self._stop.is_set():
-                        self._cv.wait(0.1)  # backpressure: the sender waits
-                    self._fifo.append(item)
-                self._cv.notify_all()
+            key = str(sample.key_expr)
+            if h.inline:
+                self._inline(key, sample.payload.to_bytes())
+            elif h.shard and not self._owns(key):
+                self.inbox.bump("not_mine")
+            else:
+                self.offer(i, key, sample.payload.to_bytes())
         return cb
+
+    def _inline(self, key: str, payload: bytes) -> None:
+        with self._cv:
+            self.inbox.frames_in += 1
+        try:
+            self.handler.on_message(key, payload)
+        except Exception as exc:  # noqa: BLE001 - logged with the traceback; the callback goes on
+            log.error("%s: %s: %s\n%s", self.ident, key, exc, traceback.format_exc())
+            with self._cv:
+                self.errors += 1
+
+    def offer(self, i: int, key: str, payload: bytes, recovered: bool = False) -> bool:
+        """Queue one input, never waiting (``Inbox.offer``); returns whether it was queued."""
+        with self._cv:   # (reentrant) so the worker cannot go idle in between
+            queued = self.inbox.offer(i, key, payload, recovered)
+            if queued:
+                self.idle.clear()
+        return queued
+
+    def _peers_changed(self) -> None:
+        """(Zenoh's thread) An instance came or went: sweep, and let the handler know on
+        the worker thread (its state of sessions it owned before may be stale)."""
+        self._sweep_now.set()
+        self._stale = True
+
+    def _owns(self, key: str, msg=None) -> bool:
+        if self._peers is None:
+            return True
+        peers = self._peers.instances() | {self.instance}
+        if len(peers) == 1:
+            return True
+        return owner(self.handler.shard_key(key, msg), peers) == self.instance
 
     def _on_query(self, q: Input):
         def cb(query: zenoh.Query) -> None:
             with self._cv:
-                self.counters.frames_in += 1
+                self.inbox.frames_in += 1
                 self.idle.clear()
-                self._queries.append((q, query))
+                self.inbox.queries.append((q, query))
                 self._cv.notify_all()
         return cb
 
-    def _on_cache_query(self, query: zenoh.Query) -> None:
-        want = zenoh.KeyExpr(str(query.key_expr))
-        with self._cv:
-            hits = [(k, v) for k, v in self._cache.items() if want.intersects(zenoh.KeyExpr(k))]
-        for k, v in hits:
-            query.reply(k, v)
-
     def _on_status(self, query: zenoh.Query) -> None:
-        query.reply(str(query.key_expr), schemas.encode(self.status()))
+        query.reply(f"{bus.SERVICES}/{self.ident}/status", schemas.encode(self.status()))
 
-    def _on_peer(self, sample: zenoh.Sample) -> None:
-        inst = str(sample.key_expr).rsplit("/", 1)[-1]
-        with self._cv:
-            if sample.kind == zenoh.SampleKind.PUT:
-                self._peers.add(inst)
-            elif inst != self.instance:
-                self._peers.discard(inst)
-
+    # ------------------------------------------------------------------ asking the bus
     def fetch(self, key: str, timeout: float = 2.0) -> bytes | None:
-        """The latest payload of ``key`` from whoever caches it on the bus, or None."""
-        for reply in self.session.get(key, timeout=timeout):
-            if reply.ok is not None:
-                return reply.ok.payload.to_bytes()
-        return None
+        """The latest payload of ``key``: this service's own output, or whoever holds it."""
+        local = self._cache.get(key)
+        return local if local is not None else bus.fetch(self.session, key, timeout)
+
+    def fetch_all(self, key_expr: str, timeout: float = 5.0) -> list[tuple[str, bytes]]:
+        """Every message the bus holds on ``key_expr`` (store and caches), each once."""
+        return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
 
     def status(self):
-        c = self.counters
+        ib = self.inbox
         with self._cv:
-            depth = len(self._fifo) + sum(map(len, self._latest)) + len(self._queries)
+            depth = ib.waiting()
+            more = dict(ib.more, queued_bytes=ib.intake.nbytes, sessions_waiting=ib.intake.sessions)
+            totals = (ib.frames_in, self.results_out, self.errors, ib.dropped)
+        if self._peers is not None:
+            more["peers"] = len(self._peers.instances() | {self.instance})
+        more.update({k: int(v) for k, v in self.handler.counters().items()})
         return schemas.ServiceStatus(
             service=self.handler.name, instance=self.instance, started_ns=self.started_ns,
-            time_ns=time.time_ns(), frames_in=c.frames_in, results_out=c.results_out,
-            errors=c.errors, dropped=c.dropped, queue_depth=depth, version="findme.v1",
-            counters={k: int(v) for k, v in self.handler.counters().items()})
+            time_ns=time.time_ns(), frames_in=totals[0], results_out=totals[1], errors=totals[2],
+            dropped=totals[3], queue_depth=depth, version="findme.v1",
+            counters={k: max(0, int(v)) for k, v in more.items()})
 
-    # ------------------------------------------------------------------ the worker
-    def _next(self):
-        with self._cv:
-            while not self._stop.is_set():
-                if self._queries:
-                    return "query", self._queries.popleft()
-                if self._fifo:
-                    item = self._fifo.popleft()
-                    self._cv.notify_all()
-                    return "msg", item
-                for q in self._latest:
-                    if q:
-                        return "msg", q.popleft()
-                self.idle.set()
-                self._cv.wait(0.5)
-        return None, None
-
+    # ------------------------------------------------------------------ threads
     def _work(self) -> None:
+        done = False
         while True:
-            kind, item = self._next()
+            kind, item = self.inbox.next_work(done, self._stop, self.handler.tick_s, self.idle)
             if kind is None:
                 return
+            if self._stale:
+                self._stale = False
+                self.handler.peers_changed()
             if kind == "query":
                 self._answer(*item)
+            elif kind == "tick":
+                self._tick(item)
             else:
-                self.process(*item)
+                self.process(item.input, item.key, item.payload)
+            done = True
+
+    def _tick(self, now: float) -> None:
+        try:
+            for out in self.handler.tick(now):
+                self.publish(out)
+        except Exception as exc:  # noqa: BLE001 - reported and logged, the service goes on
+            self.report(f"{bus.SERVICES}/{self.ident}", exc)
+
+    def _report_loop(self) -> None:
+        while True:
             with self._cv:
-                if not (self._queries or self._fifo or any(self._latest)):
-                    self.idle.set()
+                while not self.inbox.reports and not self._stop.is_set():
+                    self._cv.wait(0.5)
+                if not self.inbox.reports:
+                    return
+                key, exc = self.inbox.reports.popleft()
+            self.report(key, exc)
 
-    def _mine(self, key: str, msg) -> bool:
-        if not self.handler.shard:
-            return True
-        with self._cv:
-            peers = self._peers | {self.instance}
-        return shard_owner(self.handler.shard_key(key, msg), peers) == self.instance
+    def sweep(self, grace_s: float = 0.0, since_ns: int = 0) -> int:
+        """Fetch and queue what this instance should have handled and nobody answered
+        (``recovery.Sweeper.sweep``); returns how many."""
+        return recovery.Sweeper(self).sweep(grace_s, since_ns)
 
+    # ------------------------------------------------------------------ handling (worker)
     def process(self, i: int, key: str, payload: bytes) -> None:
         """Decode, handle and publish one input (runs on the worker thread)."""
         inp = self.handler.inputs[i]
         try:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
             authority.check(key, msg)
-            if not self._mine(key, msg):
+            if self.handler.shard and not self._owns(key, msg):
+                self.inbox.bump("handed_over")   # the instances changed since it came:
+                self.inbox.forget(key)           # its owner sweeps it up
                 return
             t0 = time.perf_counter()
             outputs = self.handler.on_message(key, msg)
             for out in outputs:
                 self.publish(out)
+            self.inbox.bump("handled")
+            self.inbox.handled(key)
             log.info("%s: %s -> %s (%.0f ms)", self.ident, key,   # one line per message
                      ", ".join(o.key for o in outputs) or "nothing", 1e3 * (time.perf_counter() - t0))
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
@@ -259,7 +315,8 @@ class Service:
             authority.check(key, msg)
             reply = self.handler.on_query(key, msg)
             query.reply(key, schemas.encode(reply))
-            self.counters.results_out += 1
+            with self._cv:
+                self.results_out += 1
             log.info("%s: query %s answered", self.ident, key)
         except Exception as exc:  # noqa: BLE001 - the asker gets the error, the log the reason
             ekey, err = self.report(key, exc)
@@ -273,20 +330,17 @@ class Service:
         if len(payload) > self.max_message_bytes:
             bus.put(self.session, out.key, payload, self.max_message_bytes)  # raises
         if out.cache:
-            with self._cv:
-                old = self._cache.pop(out.key, None)
-                self._cache_bytes += len(payload) - (len(old) if old else 0)
-                self._cache[out.key] = payload
-                while self._cache_bytes > self._cache_limit and len(self._cache) > 1:
-                    _, v = self._cache.popitem(last=False)
-                    self._cache_bytes -= len(v)
+            self._cache.put(out.key, payload)
+        with self._cv:   # counted first: a subscriber in this process hears it during the put
+            self.results_out += 1
         bus.put(self.session, out.key, payload, self.max_message_bytes)
-        self.counters.results_out += 1
 
     def report(self, key: str, exc: BaseException):
         """Publish and log an error about ``key``; returns (error key, Error)."""
-        self.counters.errors += 1
         ekey, err = error_message(key, exc, self.ident)
+        with self._cv:
+            self.errors += 1
+            self.inbox.count("error_" + schemas.ErrorCode.Name(err.code).removeprefix("ERROR_CODE_").lower())
         if isinstance(exc, FindmeError):
             log.warning("%s: %s: %s", self.ident, key, err.message)
         else:

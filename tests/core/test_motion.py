@@ -254,7 +254,7 @@ def _boundary(view):
 def test_too_few_matches_is_an_error():
     m, (ca, cb), la, lb = exact_pair(*POSES[0])
     few = m.subset(np.arange(5))
-    with pytest.raises(MotionError, match="only 5 feature matches"):
+    with pytest.raises(MotionError, match=r"only 4 distinct feature matches .*plus 1 copies"):
         estimate(few, ca, cb, 1.4, 1.4, la, lb)
 
 

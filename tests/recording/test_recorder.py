@@ -184,3 +184,35 @@ def test_trajectory_view_equals_the_plain_encoding():
         (topic, cls, data), = view.derive("findme.v1.Trajectory", tr, 1)
         assert topic == "findme/s/foxglove/trajectory" and cls is PosesInFrame
         assert PosesInFrame.FromString(data) == ref
+
+
+def test_more_live_sessions_than_handles_keep_one_file_each(tmp_path):
+    """With handles for 3 sessions and 5 sessions written in turn, quiet ones are suspended
+    and reopened for appending: one complete file per session, never a ~2 file."""
+    recs = read_recording(PAIR)
+    h = RecorderHandler(tmp_path, max_open=3, views=False)
+    sessions = [f"s{i}" for i in range(5)]
+    for r in recs:
+        for s in sessions:
+            h.on_message(r.key.replace("golden-examples-pair", s), r.payload)
+        h.flush()
+    c = h.counters()
+    assert c["suspends"] > 0 and c["open_handles"] == 3 and c["open_files"] == 5
+    h.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"{s}.mcap" for s in sessions]
+    for s in sessions:
+        back = read_recording(tmp_path / f"{s}.mcap")
+        assert [r.payload for r in back] == [r.payload for r in recs]
+
+
+def test_rotation_only_when_asked_and_said(tmp_path, caplog):
+    recs = read_recording(PAIR)
+    h = RecorderHandler(tmp_path, views=False, rotate_bytes=1)
+    with caplog.at_level("INFO", logger="findme.services.recorder"):
+        for r in recs[:2]:
+            h.on_message(r.key, r.payload)
+            h.flush()
+    h.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["golden-examples-pair.mcap",
+                                                         "golden-examples-pair~2.mcap"]
+    assert "rotating" in caplog.text and h.counters()["rotations"] == 1

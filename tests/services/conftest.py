@@ -93,6 +93,92 @@ def wait_logged(proc, text: str, timeout: float = 60.0) -> None:
             f"no {text!r} from {proc.args[3:]} in {timeout:.0f} s: {''.join(proc.lines)[-2000:]}"
 
 
+class ProcBus:
+    """A router and services, each its own process (``findme router`` / ``findme serve``),
+    and a client session for the test. Waits on log lines and liveliness, never sleeps."""
+
+    def __init__(self):
+        import zenoh  # noqa: F401 - the session below needs it loaded
+        from services.runtime.bus import BusConfig, open_session
+        self.ep = f"tcp/127.0.0.1:{free_port()}"
+        self.router = spawn_findme("router", "--listen", self.ep)
+        wait_logged(self.router, "listening on")
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.client = open_session(BusConfig(mode="client", connect=(self.ep,)))
+
+    def serve(self, name: str, instance: str, *args, wait: bool = True):
+        """Start service ``name`` as instance ``instance`` (its liveliness token is the
+        signal that it is up)."""
+        import zenoh
+        up = threading.Event()
+        sub = self.client.liveliness().declare_subscriber(
+            f"findme/@services/{name}/{instance}",
+            lambda s: s.kind == zenoh.SampleKind.PUT and up.set(), history=True)
+        self.procs[instance] = spawn_findme("serve", name, "--connect", self.ep,
+                                            "--instance", instance, *args)
+        try:
+            if wait:
+                assert up.wait(60), f"{name}/{instance} did not come up: " \
+                                    f"{''.join(self.procs[instance].lines)[-2000:]}"
+        finally:
+            sub.undeclare()
+        return self.procs[instance]
+
+    def kill(self, name: str, instance: str) -> None:
+        """SIGKILL an instance; returns once its liveliness token is gone."""
+        import signal
+
+        import zenoh
+        gone = threading.Event()
+        sub = self.client.liveliness().declare_subscriber(
+            f"findme/@services/{name}/{instance}",
+            lambda s: s.kind == zenoh.SampleKind.DELETE and gone.set())
+        self.procs[instance].send_signal(signal.SIGKILL)
+        self.procs[instance].wait(20)
+        try:
+            assert gone.wait(20), f"{name}/{instance}'s token did not go away"
+        finally:
+            sub.undeclare()
+
+    def status(self, name: str, instance: str):
+        from services.runtime.bus import get_all
+        for _, p in get_all(self.client, f"findme/@services/{name}/{instance}/status", 10):
+            return schemas.decode(schemas.ServiceStatus, p)
+        raise AssertionError(f"no status from {name}/{instance}")
+
+    def wait_status(self, name: str, instance: str, predicate, timeout: float = 30.0):
+        """Ask for the instance's status until ``predicate(status)`` holds (each ask is a
+        round trip to it, paced by a short wait for its reply); returns the status."""
+        import time
+        deadline, st = time.monotonic() + timeout, None
+        pace = threading.Event()
+        while time.monotonic() < deadline:
+            st = self.status(name, instance)
+            if predicate(st):
+                return st
+            pace.wait(0.05)
+        raise AssertionError(f"{name}/{instance} status never matched: {st}")
+
+    def close(self) -> dict:
+        """Stop everything (SIGTERM); returns the exit codes."""
+        import signal
+        self.client.close()
+        procs = {**self.procs, "router": self.router}
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        return {n: p.wait(20) for n, p in procs.items()}
+
+
+def walk_views(n: int, width: int = 160, height: int = 120):
+    """``n`` small rendered photos walking slowly through one room (successive photos
+    overlap, so their motion can be estimated)."""
+    from findme_core.synth import Pose, Room, render
+    room = Room.rectangle(5.0, 6.0, floor_style="wood")
+    return [render(room, Pose(-0.3 + 0.04 * i, -1.8 + 0.08 * i, 1.4, yaw_deg=10 - 2 * i,
+                              pitch_deg=27), width, height, hfov_deg=70, seed=5) for i in range(n)]
+
+
 COMPOSE = __import__("pathlib").Path(__file__).resolve().parents[2] / "compose"
 
 

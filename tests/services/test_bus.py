@@ -49,8 +49,9 @@ def test_malformed_then_good(handler, key, good, zsession, level_view):
                                        by=schemas.SELECTED_BY_USER)}[good]
     zsession.put(key, schemas.encode(wrong_place))
     errs = [schemas.decode(schemas.Error, p) for _, p in errors.wait(3)]
-    codes = [e.code for e in errs]
-    assert codes[:2] == [schemas.ErrorCode.ERROR_CODE_MALFORMED, schemas.ErrorCode.ERROR_CODE_WRONG_TYPE]
+    codes = sorted(e.code for e in errs)       # (hypotheses handles 2 at once: any order)
+    assert schemas.ErrorCode.ERROR_CODE_WRONG_TYPE in codes
+    assert codes.count(schemas.ErrorCode.ERROR_CODE_MALFORMED) >= 1
     assert all(e.key == key and e.session == "t1" and e.message for e in errs)
     good_msg = {"frame": frame, "hset": hs.msg, "selection": GOOD_SELECTION}[good]
     zsession.put(key, schemas.encode(good_msg))
@@ -93,14 +94,34 @@ def test_latest_policy_counts_every_drop(zsession):
     svc.stop()
 
 
-def test_all_policy_never_drops(zsession):
+def test_all_policy_never_drops_silently(zsession):
+    """A session's full queue answers OVERLOADED for each message it cannot take (never
+    blocking the sender, never silent); with room, all are handled and none dropped."""
     g = Gate("all")
-    g.release.set()
     svc = Service(g, zsession, fifo_depth=2).start()
     outs = Collector(zsession, "t/out/*")
+    errors = Collector(zsession, "findme/@errors")
     for i in range(40):
         zsession.put(f"t/in/{i}", schemas.encode(GOOD_SELECTION))
-    assert len(outs.wait(40)) == 40 and svc.status().dropped == 0
+    with svc._cv:
+        assert svc._cv.wait_for(lambda: svc.counters.frames_in == 40, 10)
+    st = svc.status()
+    errs = [schemas.decode(schemas.Error, p) for _, p in errors.wait(st.dropped)]
+    g.release.set()
+    handled = outs.wait(40 - st.dropped)
+    assert svc.wait_idle(10)
+    assert 0 < st.dropped <= 38 and len(handled) + st.dropped == 40
+    assert {e.code for e in errs} == {schemas.ErrorCode.ERROR_CODE_OVERLOADED}
+    assert {e.key for e in errs}.isdisjoint(k.replace("t/out", "t/in") for k, _ in handled)
+    assert svc.status().counters["overloaded"] == st.dropped
+    svc.stop()
+    roomy = Gate("all")
+    roomy.release.set()
+    svc = Service(roomy, zsession, fifo_depth=64).start()
+    outs = Collector(zsession, "t/out/*")
+    for i in range(40):
+        zsession.put(f"t/in/x{i}", schemas.encode(GOOD_SELECTION))
+    assert len(outs.wait(40)) >= 40 and svc.status().dropped == 0
     svc.stop()
 
 
@@ -141,10 +162,9 @@ def test_sharded_instances_split_the_work(zsession):
     a, b = Gate(shard=True), Gate(shard=True)
     a.release.set(), b.release.set()
     sa, sb = Service(a, zsession, instance="a").start(), Service(b, zsession, instance="b").start()
-    with sa._cv:  # each sees the other's liveliness token before work starts
-        assert sa._cv.wait_for(lambda: sa._peers == {"a", "b"}, 5)
-    with sb._cv:
-        assert sb._cv.wait_for(lambda: sb._peers == {"a", "b"}, 5)
+    # each sees the other's liveliness token before work starts
+    assert sa._peers.wait_for(lambda live: live == {"a", "b"}, 5)
+    assert sb._peers.wait_for(lambda live: live == {"a", "b"}, 5)
     outs = Collector(zsession, "t/out/*")
     for i in range(30):
         zsession.put(f"t/in/{i}", schemas.encode(GOOD_SELECTION))

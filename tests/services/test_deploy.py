@@ -55,7 +55,8 @@ def test_compose_commands_certificates_and_image_files():
     the services connect to and every TLS file they use; the image copies every package
     and its build context leaves out the venv, keys and recordings; certs/ is git-ignored."""
     cmds = _compose_commands()
-    assert set(cmds) == {"router", "hypotheses", "measurement", "odometry", "recorder", "gateway"}
+    assert set(cmds) == {"router", "store", "hypotheses", "measurement", "odometry", "recorder",
+                         "gateway"}
     parser = build_parser()
     for argv in cmds.values():
         assert parser.parse_args(argv).command in ("router", "serve")
@@ -163,7 +164,7 @@ def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
         p = run_findme("send", *auth, "--user", "alice", "--password-file", alice_pw,
                        "--wait", "30", check=False)
         assert p.returncode == 0, p.stderr
-        assert "motion 0 -> 1: x +0.385 m" in p.stdout and "session alice-" in p.stdout
+        assert "motion 0 -> 1: x +0.386 m" in p.stdout and "session alice-" in p.stdout
     finally:
         for p in procs:
             p.send_signal(signal.SIGTERM)

@@ -122,7 +122,19 @@ def test_measurement_errors_and_fetch(pipeline):
     bad = schemas.Selection(session="t1", index=0, rank=99, by=schemas.SELECTED_BY_USER)
     with pytest.raises(HypothesisError, match="hypothesis 99 of photo 0"):
         m.on_message("findme/t1/selection/0", bad)
-    m2 = MeasurementHandler()
+    # nobody has them: the selection waits (they may still be on their way: the bus does
+    # not order it after them), then is answered with an Error naming it
+    now = [100.0]
+    m2 = MeasurementHandler(wait_s=5.0, clock=lambda: now[0])
     m2.fetch = {}.get
-    with pytest.raises(HypothesisError, match="is not known"):
-        m2.on_message("findme/t1/selection/0", sel)
+    assert m2.on_message("findme/t1/selection/0", sel) == []
+    assert m2.tick(104.0) == []
+    (err,) = m2.tick(105.5)
+    assert err.key == "findme/t1/error" and err.msg.key == "findme/t1/selection/0"
+    assert "did not come within 5 s" in err.msg.message
+    m3 = MeasurementHandler(clock=lambda: now[0])      # ... or they come: the scene follows
+    m3.fetch = {}.get
+    assert m3.on_message("findme/t1/selection/0", sel) == []
+    assert m3.on_message("findme/t1/frame/0", frame) == []
+    (out,) = m3.on_message("findme/t1/hypotheses/0", hset)
+    assert out.key == "findme/t1/scene/0"

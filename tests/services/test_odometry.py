@@ -93,6 +93,24 @@ def test_a_failed_motion_carries_its_error_and_the_chain_goes_on(photos):
     assert [p.index for p in out["findme/od/trajectory"].poses] == [0, 2]
 
 
+def test_after_instances_change_a_session_takes_the_poses_another_instance_made(photos):
+    """Sharded by session: while this instance was cut off, another one posed photo 2; when
+    the instances change, the session takes the poses on the bus before going on."""
+    _, msgs = photos
+    h = OdometryHandler()
+    out = feed(h, msgs[:2], [0, 1])
+    theirs = schemas.Pose(session="od", index=2, x_m=0.5, z_m=0.9, yaw_rad=-0.4, sigma_x_m=0.01,
+                          sigma_z_m=0.01, sigma_yaw_rad=0.01)
+    bus_poses = [("findme/od/pose/0", schemas.encode(out["findme/od/pose/0"])),
+                 ("findme/od/pose/2", schemas.encode(theirs))]
+    h.fetch_all = lambda pattern: bus_poses if pattern == "findme/od/pose/*" else []
+    h.peers_changed()
+    assert h.on_message("findme/od/frame/2", msgs[2][0]) == []      # posed already: nothing to do
+    st = h.sessions.peek("od")
+    assert sorted(st.poses) == [0, 1, 2] and st.poses[2].x == 0.5 and not st.stale
+    assert st.poses[1].x == out["findme/od/pose/1"].x_m                # its own are kept
+
+
 def test_each_photo_is_prepared_once_for_all_its_motions(photos, monkeypatch):
     """Photo 1 takes part in motions 0/1 and 1/2: its features and layouts are computed once."""
     import services.pipeline.odometry as od

@@ -73,6 +73,8 @@ def test_every_service_refuses_a_payload_of_another_key_on_every_input(name, zse
     sent = []
     for key_expr, cls in inputs_of(h):
         kind = key_expr.split("/")[2]
+        if kind == "error":
+            continue   # no photo number; odometry reads only an Error naming its own session
         good = {"frame": frame, "hypotheses": hs.msg, "selection": schemas.Selection(
             session="alice-1", index=0, rank=1, by=schemas.SELECTED_BY_USER)}[kind]
         for session, n in (("bob-1", 0), ("alice-1", 5)):
@@ -88,8 +90,8 @@ def test_every_service_refuses_a_payload_of_another_key_on_every_input(name, zse
     for e in errs:
         assert any(e.key in e.message and claimed in e.message for _, claimed in sent), e.message
     assert svc.status().errors == len(sent)
-    traces = {"measurement": lambda: (h.frames, h.hsets, h.scenes, h.sessions),
-              "odometry": lambda: (h.sessions,), "hypotheses": lambda: (h.done,),
+    traces = {"measurement": lambda: (len(h.sessions),),
+              "odometry": lambda: (len(h.sessions),), "hypotheses": lambda: (h.done,),
               "selection": lambda: (h.chosen,)}[name]()
     assert not any(traces), traces
     group.stop()
@@ -118,5 +120,6 @@ def test_a_fetched_message_is_held_to_the_key_asked_for(level_view):
     sel = schemas.Selection(session="t1", index=0, rank=1, by=schemas.SELECTED_BY_USER)
     with pytest.raises(KeyAuthorityError, match="findme/t1/frame/3"):
         h.on_message("findme/t1/selection/0", sel)
-    assert not h.frames and not h.scenes
+    st = h.sessions.peek("t1")
+    assert st is None or not (st.frames or st.scenes)
     assert authority.KEY_RULES["findme.v1.Frame"] == ("frame", ("index",))

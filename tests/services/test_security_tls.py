@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import signal
 import threading
+import time
 from importlib import resources
 
 import pytest
@@ -169,7 +170,8 @@ def test_cross_session_poisoning_is_refused(deployment):
     assert err.code == CODE.ERROR_CODE_FORBIDDEN and "bob-1" in err.message
     # bob picks his hypothesis again: the scene is rebuilt from HIS frame
     scenes = bob.keys().count("findme/bob-1/scene/0")
-    sel = schemas.Selection(session="bob-1", index=0, rank=1, by=schemas.SELECTED_BY_USER)
+    sel = schemas.Selection(session="bob-1", index=0, rank=1, by=schemas.SELECTED_BY_USER,
+                            time_ns=time.time_ns())   # a new choice (the same bytes again are a duplicate)
     put(server, "findme/bob-1/selection/0", schemas.encode(sel))
     bob.until(lambda it: [k for k, _ in it].count("findme/bob-1/scene/0") == scenes + 1,
               what="bob's rebuilt scene")

@@ -1,0 +1,93 @@
+"""One session's odometry bookkeeping: which photos are open (seen, not yet resolved), which
+have poses, which will never come, and which must wait for a lower photo. Pure and small:
+``odometry.OdometryHandler`` estimates the motions.
+
+Bounded: poses are kept for every posed photo (about 0.3 kB each); message payloads and
+prepared photos (features, layouts) only for photos still open (frames of at most
+``keep_frames`` of them; older ones are fetched again from the bus if they get selected)
+and for the ``anchors`` most recent posed photos (the ones the next photo chains from).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from findme_core.trajectory import PlanarPose
+
+CLOSED_MEMORY = 1024   # resolved photo numbers remembered per session (not to wait on again)
+
+
+@dataclass
+class Photo:
+    """What odometry holds about photo n while it is open or an anchor."""
+
+    seen: float                      # when it was first heard of (monotonic s)
+    frame: object | None = None      # Frame message
+    hset: object | None = None       # HypothesisSet message
+    selection: object | None = None  # Selection message
+    selected_at: float | None = None
+    prepared: tuple | None = None    # (rank, findme_core.pair prepared photo): its motions' inputs
+
+
+class OdometrySession:
+    def __init__(self, keep_frames: int = 8, anchors: int = 2):
+        self.keep_frames, self.anchors = keep_frames, anchors
+        self.photos: dict[int, Photo] = {}
+        self.poses: dict[int, PlanarPose] = {}
+        self.times: dict[int, int] = {}
+        self.closed: dict[int, str] = {}     # n -> "failed" | "dead" (never selected)
+        self.origin: int | None = None
+        self.stale = False    # another instance may have posed photos since: ask the bus
+
+    def photo(self, n: int, now: float) -> Photo:
+        p = self.photos.get(n)
+        if p is None:
+            p = self.photos[n] = Photo(now)
+        return p
+
+    def is_open(self, n: int) -> bool:
+        """Photo n may still get a pose (heard of, not posed, failed or given up)."""
+        return n in self.photos and n not in self.poses and n not in self.closed
+
+    def close(self, n: int, why: str) -> None:
+        self.closed[n] = why
+        while len(self.closed) > CLOSED_MEMORY:
+            del self.closed[next(iter(self.closed))]
+        self.photos.pop(n, None)
+
+    def pending(self) -> list[int]:
+        """Open photos with a selection, lowest first."""
+        return sorted(n for n, p in self.photos.items() if p.selection is not None and self.is_open(n))
+
+    def blockers(self, n: int) -> list[int]:
+        """Open photos below n without a selection: n waits for them (or gives up)."""
+        return sorted(m for m, p in self.photos.items()
+                      if m < n and p.selection is None and self.is_open(m))
+
+    def anchor(self, n: int) -> list[int]:
+        """Posed photos to chain n from, best first: the nearest below, then above."""
+        below = sorted((m for m in self.poses if m < n), reverse=True)
+        above = sorted(m for m in self.poses if m > n)
+        return below + above
+
+    def prune(self) -> None:
+        """Drop payloads no longer needed: posed photos beyond the newest anchors, and
+        frames of the oldest open photos beyond ``keep_frames``."""
+        posed = sorted(n for n in self.photos if n in self.poses)
+        for n in posed[:max(0, len(posed) - self.anchors)]:
+            del self.photos[n]
+        with_frames = sorted(n for n, p in self.photos.items()
+                             if p.frame is not None and n not in self.poses)
+        for n in with_frames[:max(0, len(with_frames) - self.keep_frames)]:
+            self.photos[n].frame = None
+
+    def adopt(self, poses: dict[int, PlanarPose], times: dict[int, int]) -> None:
+        """Take poses already on the bus that this session does not have (it was handled
+        before a restart or an eviction, or by another instance); the lowest is the origin."""
+        for n, p in poses.items():
+            if n not in self.poses:
+                self.poses[n] = p
+                self.times[n] = times.get(n, 0)
+                self.closed.pop(n, None)
+        if self.poses and self.origin is None:
+            self.origin = min(self.poses)

@@ -1,0 +1,127 @@
+"""The pure parts of delivery, driven directly: per-session round-robin queues and their
+bounds, bounded expiring session state, the store's window and listing, the output cache's
+listing, and rendezvous sharding."""
+
+import pytest
+
+from services.runtime.cache import OutputCache
+from services.runtime.intake import Intake, Item
+from services.runtime.peers import owner
+from services.runtime.sessions import SessionTable
+from services.runtime.store import StoreHandler
+
+
+def item(session, n, size=10, i=0):
+    return Item(i, f"findme/{session}/frame/{n}", b"x" * size, session)
+
+
+def test_sessions_are_served_round_robin():
+    q = Intake(session_depth=8)
+    for n in range(4):
+        assert q.offer(item("a", n))[0]
+    assert q.offer(item("b", 0))[0]
+    order = [(x.session, x.key.rsplit("/", 1)[1]) for x in iter(q.pop, None)]
+    assert order == [("a", "0"), ("b", "0"), ("a", "1"), ("a", "2"), ("a", "3")]
+    assert len(q) == 0 and q.nbytes == 0 and q.sessions == 0
+
+
+def test_a_full_session_is_refused_and_says_why_others_still_fit():
+    q = Intake(session_depth=2, session_bytes=100, total_bytes=250)
+    assert q.offer(item("a", 0))[0] and q.offer(item("a", 1))[0]
+    ok, _, why = q.offer(item("a", 2))
+    assert not ok and "'a' already has 2 messages waiting" in why
+    assert q.offer(item("b", 0, size=150))[0]           # alone, larger than a session's bytes
+    ok, _, why = q.offer(item("b", 1, size=20))
+    assert not ok and "MB waiting (at most" in why       # but not beside another
+    ok, _, why = q.offer(item("c", 0, size=90))
+    assert not ok and "in all sessions" in why           # nor over the total
+
+
+def test_latest_pushes_out_the_oldest_of_its_kind_only():
+    q = Intake(session_depth=8)
+    q.offer(item("a", 0, i=1))                           # another input of the session
+    for n in range(3):
+        ok, gone, _ = q.offer(item("a", 10 + n), latest=2)
+        assert ok
+    assert [g.key for g in gone] == ["findme/a/frame/10"]
+    assert [x.key for x in iter(q.pop, None)] == ["findme/a/frame/0", "findme/a/frame/11",
+                                                  "findme/a/frame/12"]
+
+
+def test_session_table_expires_idle_sessions_and_keeps_at_most_max():
+    now = [0.0]
+    made = []
+    t = SessionTable(lambda s: made.append(s) or {"s": s}, idle_s=10, max_sessions=2,
+                     clock=lambda: now[0])
+    t.get("a"), t.get("b")
+    now[0] = 5
+    t.get("a")                                  # used again: b is the least recent
+    t.get("c")                                  # over max: b goes
+    assert "b" not in t and "a" in t and t.evicted == 1
+    now[0] = 8
+    t.get("a")
+    now[0] = 16
+    assert t.expire() == ["c"] and t.expire() == []      # idle 11 s > 10: c goes, a stays
+    assert t.get("b") == {"s": "b"} and made == ["a", "b", "c", "b"]   # rebuilt when back
+    with pytest.raises(ValueError):
+        SessionTable(dict, idle_s=0)
+
+
+class Params(dict):
+    def get(self, k, default=None):
+        return super().get(k, default)
+
+
+def test_store_holds_a_window_latches_small_state_and_lists():
+    now = [1_000_000_000_000]
+    st = StoreHandler(window_s=60, latch_s=900, latch_bytes=100, clock=lambda: now[0])
+    st.on_message("findme/s/frame/0", b"F" * 500)
+    st.on_message("findme/s/hypotheses/0", b"H")
+    st.on_message("findme/s/error", b"E1")
+    st.on_message("findme/s/error", b"E2")              # every Error kept
+    st.on_message("findme/s/hypotheses/0", b"H2")       # latest per key
+    assert st.cached("findme/s/frame/0", None) == [("findme/s/frame/0", b"F" * 500)]
+    assert [p for _, p in st.cached("findme/s/error", None)] == [b"E1", b"E2"]
+    assert [p for _, p in st.cached("findme/*/hypotheses/*", None)] == [b"H2"]
+    listing = st.cached("findme/s/**", Params(meta=""))
+    assert sorted(k for k, _ in listing) == ["findme/s/error", "findme/s/error", "findme/s/frame/0",
+                                            "findme/s/hypotheses/0"]
+    assert all(p.split()[0] == str(now[0]).encode() for _, p in listing)
+    assert st.cached("findme/s/**", Params(since=str(now[0] + 1))) == []
+    now[0] += 61_000_000_000                             # past the window
+    assert st.cached("findme/s/frame/0", None) == []    # frames are not latched
+    assert st.cached("findme/s/hypotheses/0", None) == [("findme/s/hypotheses/0", b"H2")]
+    assert st.cached("findme/s/error", None) == []
+    now[0] += 900_000_000_000
+    assert st.cached("findme/s/**", None) == []
+
+
+def test_output_cache_lists_with_times_and_keeps_its_bytes_bound():
+    now = [5]
+    c = OutputCache(max_bytes=10, clock=lambda: now[0])
+    c.put("findme/s/pose/0", b"aaaa")
+    now[0] = 6
+    c.put("findme/s/pose/1", b"bbbb")
+    assert c.lookup("findme/s/pose/*", Params(meta="")) == [("findme/s/pose/0", b"5 4"),
+                                                           ("findme/s/pose/1", b"6 4")]
+    assert c.lookup("findme/s/pose/*", Params(since="6")) == [("findme/s/pose/1", b"bbbb")]
+    c.put("findme/s/pose/2", b"cccc")                    # 12 bytes > 10: the oldest goes
+    assert c.get("findme/s/pose/0") is None and len(c) == 2
+
+
+def test_rendezvous_moves_only_the_work_of_the_instance_that_left():
+    keys = [f"findme/s{i}/frame/{j}" for i in range(20) for j in range(10)]
+    three = {k: owner(k, {"a", "b", "c"}) for k in keys}
+    two = {k: owner(k, {"a", "b"}) for k in keys}
+    assert set(three.values()) == {"a", "b", "c"}
+    assert all(two[k] == three[k] for k in keys if three[k] != "c")   # a's and b's stay
+    assert owner("x", ["a"]) == "a"
+
+
+def test_output_cache_forgets_what_is_older_than_its_age():
+    now = [0]
+    c = OutputCache(max_age_s=10, clock=lambda: now[0])
+    c.put("findme/s/pose/0", b"a")
+    now[0] = 11_000_000_000
+    c.put("findme/s/pose/1", b"b")
+    assert c.get("findme/s/pose/0") is None and c.get("findme/s/pose/1") == b"b"
