@@ -3,11 +3,15 @@
     python bench/bench_hypotheses.py [--json OUT.json]
 
 For every 640x480 view of the dev split (../shared/data/findme-eval; falls back to rendered
-synthetic rooms without it): our method, the paper's method (Hough, level camera), and the
-baseline "plain Canny + HoughLinesP" (the paper's first step alone) on the same images,
-interleaved photo by photo in the same run. Reports wall-clock and CPU (thread) time: median,
-p10/p90 and IQR, the ratio to the baseline, and our stages (CPU time). Goal: ours <= 20 ms
-median, p90 <= 30 ms (about 6x the baseline).
+synthetic rooms without it): our method with the view's gravity, our method on the same
+photo without gravity (``photo.hypothesize_without_gravity``: the segments detected once,
+gravity from their vanishing directions, the hypotheses from the same segments, gravity again
+with the boundary), the paper's method (Hough, level camera), and the baseline "plain
+Canny + HoughLinesP" (the paper's first step alone) on the same images, interleaved photo
+by photo in the same run. Reports wall-clock and CPU (thread) time: median, p10/p90 and
+IQR, the ratios to the baseline and of "no gravity" to "with gravity", and the stages of
+both (CPU time). Goal: ours <= 20 ms median, p90 <= 30 ms (about 6x the baseline); a photo
+without gravity little more.
 """
 
 from __future__ import annotations
@@ -22,29 +26,9 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from bench.common import EVAL_DIR, dev_views, fmt, pin_one_core, stats  # noqa: E402
-from findme.evaluate import view_inputs  # noqa: E402
+from bench.common import canny_hough, dev_photos, dev_views, fmt, pin_one_core, stats  # noqa: E402
 from findme_core.methods import hypothesize  # noqa: E402
-
-
-def canny_hough(gray):
-    return cv2.HoughLinesP(cv2.Canny(gray, 50, 150), 1, np.pi / 180, 40, minLineLength=28,
-                           maxLineGap=4)
-
-
-def images():
-    views = dev_views()
-    if views:
-        for vid, meta in views:
-            cam, _, _ = view_inputs(meta)
-            yield vid, cv2.imread(str(EVAL_DIR / "views" / meta["image"])), cam
-        return
-    from findme_core.synth import Pose, Room, render
-    room = Room.rectangle(5.0, 6.0)
-    for i in range(12):
-        v = render(room, Pose(0.2, -1.5, 1.45, yaw_deg=-60 + 10 * i, pitch_deg=5 * (i % 4)),
-                   640, 480, hfov_deg=75.0, seed=i)
-        yield f"synthetic_{i}", v.image, v.camera
+from findme_core.photo import hypothesize_without_gravity  # noqa: E402
 
 
 def timed2(fn, *args, repeat: int = 3):
@@ -65,20 +49,24 @@ def main(argv=None):
     ap.add_argument("--json", metavar="OUT.json")
     a = ap.parse_args(argv)
     how = pin_one_core()
-    names = ("findme (ours)", "paper method", "baseline: Canny + HoughLinesP")
+    names = ("findme (ours)", "findme, no gravity", "paper method",
+             "baseline: Canny + HoughLinesP")
     wall: dict = {k: [] for k in names}
     cpu: dict = {k: [] for k in names}
     parts: dict = {}
+    parts_ng: dict = {}
     totals: list = []
     n = 0
-    for vid, img, cam in images():
+    for vid, img, cam in dev_photos():
         gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
         if n == 0:  # warm up caches and lazy initialisation
             hypothesize(img, cam)
+            hypothesize_without_gravity(img, cam)
             hypothesize(img, cam, "paper")
         runs = ((names[0], hypothesize, (img, cam, "findme", 10)),
-                (names[1], hypothesize, (img, cam, "paper", 10)),
-                (names[2], canny_hough, (gray,)))
+                (names[1], hypothesize_without_gravity, (img, cam, "findme", 10)),
+                (names[2], hypothesize, (img, cam, "paper", 10)),
+                (names[3], canny_hough, (gray,)))
         for name, fn, args in runs:
             w, c, _ = timed2(fn, *args)
             wall[name].append(w)
@@ -88,6 +76,9 @@ def main(argv=None):
         for k, v in hs.timing_ms.items():
             parts.setdefault(k, []).append(v)
         totals.append(sum(hs.timing_ms.values()))
+        hs, _ = hypothesize_without_gravity(img, cam, "findme", 10, clock=time.thread_time)
+        for k, v in hs.timing_ms.items():
+            parts_ng.setdefault(k, []).append(v)
         n += 1
     print(f"hypotheses for {n} 640x480 photos ({'dev split' if dev_views() else 'synthetic'}), "
           f"best of 3 per photo, interleaved, {how}")
@@ -97,17 +88,22 @@ def main(argv=None):
         print(f"-- {kind} time")
         for k, st in res[kind].items():
             print(fmt(k, st))
-    base = names[2]
-    for kind, d in (("wall", wall), ("cpu", cpu)):
-        r = np.asarray(d[names[0]]) / np.maximum(np.asarray(d[base]), 1e-6)
-        res[f"ratio_{kind}"] = {"of_medians": res[kind][names[0]]["median"] / res[kind][base]["median"],
-                                "median_per_photo": float(np.median(r))}
-        print(f"ours / baseline ({kind}): {res[f'ratio_{kind}']['of_medians']:.2f}x of the medians, "
-              f"{res[f'ratio_{kind}']['median_per_photo']:.2f}x median per photo")
+    for key, ours, base in (("", names[0], names[3]), ("_no_gravity", names[1], names[3]),
+                            ("_no_gravity_vs_gravity", names[1], names[0])):
+        for kind, d in (("wall", wall), ("cpu", cpu)):
+            r = np.asarray(d[ours]) / np.maximum(np.asarray(d[base]), 1e-6)
+            res[f"ratio{key}_{kind}"] = {
+                "of_medians": res[kind][ours]["median"] / res[kind][base]["median"],
+                "median_per_photo": float(np.median(r)), "p90_per_photo": float(np.percentile(r, 90))}
+            q = res[f"ratio{key}_{kind}"]
+            print(f"{ours} / {base} ({kind}): {q['of_medians']:.2f}x of the medians, "
+                  f"{q['median_per_photo']:.2f}x median per photo (p90 {q['p90_per_photo']:.2f}x)")
     res["stages_cpu"] = {k: stats(v) for k, v in parts.items()}
-    print("ours by stage, CPU ms (median [p10, p90]): " + ", ".join(
-        f"{k} {s_['median']:.1f} [{s_['p10']:.1f}, {s_['p90']:.1f}]"
-        for k, s_ in res["stages_cpu"].items()))
+    res["stages_cpu_no_gravity"] = {k: stats(v) for k, v in parts_ng.items()}
+    for label, key in (("ours", "stages_cpu"), ("ours without gravity", "stages_cpu_no_gravity")):
+        print(f"{label} by stage, CPU ms (median [p10, p90]): " + ", ".join(
+            f"{k} {s_['median']:.1f} [{s_['p10']:.1f}, {s_['p90']:.1f}]"
+            for k, s_ in res[key].items()))
     res["stages_cpu_total"] = stats(totals)
     print(fmt("sum of the stages (CPU)", res["stages_cpu_total"]))
     if a.json:

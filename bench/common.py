@@ -65,3 +65,29 @@ def dev_views(size=(640, 480)):
         if (k["width"], k["height"]) == size:
             out.append((v, meta))
     return out
+
+
+def dev_photos():
+    """(id, BGR image, Camera) of every 640x480 dev view (the dataset's gravity), or of 12
+    rendered rooms when the dataset is absent."""
+    import cv2
+    from findme.evaluate import view_inputs
+    views = dev_views()
+    if views:
+        for vid, meta in views:
+            cam, _, _ = view_inputs(meta)
+            yield vid, cv2.imread(str(EVAL_DIR / "views" / meta["image"])), cam
+        return
+    from findme_core.synth import Pose, Room, render
+    room = Room.rectangle(5.0, 6.0)
+    for i in range(12):
+        v = render(room, Pose(0.2, -1.5, 1.45, yaw_deg=-60 + 10 * i, pitch_deg=5 * (i % 4)),
+                   640, 480, hfov_deg=75.0, seed=i)
+        yield f"synthetic_{i}", v.image, v.camera
+
+
+def canny_hough(gray):
+    """The baseline: plain Canny + HoughLinesP (the paper's first step alone)."""
+    import cv2
+    return cv2.HoughLinesP(cv2.Canny(gray, 50, 150), 1, np.pi / 180, 40, minLineLength=28,
+                           maxLineGap=4)

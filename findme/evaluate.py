@@ -31,11 +31,11 @@ from tqdm import tqdm
 from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.provenance import Provenance
-from findme_core.methods import METHODS, hypothesize
+from findme_core.methods import METHODS
 from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.scene import Scene, boundary_sigma_px
 
-from findme_io.camera_source import with_gravity
+from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.imageio import read_image
 from findme_core.pair import motion_photos, photo_of
 
@@ -94,7 +94,7 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
         _, h, queries = view_inputs(meta)
         image = read_image(os.path.join(view_dir, meta["image"]))
         cam, prov = view_camera(meta, image, use_gravity)
-        hs = hypothesize(image, cam, method, max_n)
+        hs, cam, prov = hypothesize_photo(image, cam, prov, method, max_n)
         pred = {"hypotheses": [h_.polyline.round(3).tolist() for h_ in hs.hypotheses],
                 "gravity_cam": [round(float(x), 6) for x in cam.gravity],
                 "gravity_source": prov.gravity,
@@ -133,8 +133,9 @@ def pair_inputs(pair_dir, view_dir, pid: str, use_gravity: bool = True) -> tuple
             meta = json.load(f)
         cam, h, _ = view_inputs(meta)
         image = read_image(os.path.join(view_dir, meta["image"]))
-        if not use_gravity:
-            cam, _ = view_camera(meta, image, False)
+        if not use_gravity:   # the gravity the view's own prediction ends with
+            cam, prov = view_camera(meta, image, False)
+            cam = hypothesize_photo(image, cam, prov, max_n=1)[1]
         photos.append((image, cam, h))
     return pair, photos
 

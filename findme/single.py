@@ -11,7 +11,8 @@ import cv2
 import numpy as np
 
 from findme_core.errors import HypothesisError, InputError
-from findme_core.methods import METHODS, hypothesize
+from findme_core.methods import METHODS
+from findme_io.camera_source import hypothesize_photo
 from findme_core.overlay import draw_hypotheses
 from findme_core.scene import Scene, boundary_sigma_px, distances
 from findme_core.search import SegKind
@@ -97,7 +98,8 @@ def cmd_hypotheses(args) -> int:
     t0 = time.perf_counter()
     image, cam, prov = _load(args)
     t1 = time.perf_counter()
-    hs = hypothesize(image, cam, args.method, args.max, clock=time.perf_counter)
+    hs, cam, prov = hypothesize_photo(image, cam, prov, args.method, args.max,
+                                      clock=time.perf_counter)
     out = hypotheses_json(hs, cam, prov)
     out["timing_ms"]["decode_and_camera"] = round(1e3 * (t1 - t0), 3)
     out["timing_ms"]["total"] = round(1e3 * (time.perf_counter() - t0), 3)
@@ -199,7 +201,8 @@ def cmd_locate(args) -> int:
     pixels = read_points(args)
     h, metric = camera_height(args.camera_height)
     image, cam, prov = _load(args)
-    hs = hypothesize(image, cam, args.method, max(args.max, args.hypothesis))
+    hs, cam, prov = hypothesize_photo(image, cam, prov, args.method,
+                                      max(args.max, args.hypothesis))
     if args.hypothesis < 1 or args.hypothesis > len(hs.hypotheses):
         raise HypothesisError(
             f"hypothesis {args.hypothesis} does not exist: this photo has "

@@ -22,7 +22,8 @@ import numpy as np
 from .appearance import FloorLikelihood, RegionStats, to_lab
 from .camera import Camera
 from .errors import InputError
-from .lines import Lines, LineKind, classify, detect_segments, horizon_top_row, merge_collinear
+from .lines import Lines, LineKind, classify, merge_collinear
+from .segments import LSD_SCALE, MIN_SEGMENT_PX, Segments, detect_segments, horizon_top_row
 from .refine import SnapParams, snap_polyline
 from .ranking import IDX, N_ADDITIVE, RANK_WEIGHTS, SEARCH_WEIGHTS, RankWeights, feature_matrix
 from .paths import path_features, path_pieces, path_polyline, path_rows
@@ -65,9 +66,9 @@ class HypothesisSet:
 @dataclass(frozen=True)
 class HypothesisParams:
     segment_method: str = "lsd"
-    lsd_scale: float = 0.5
+    lsd_scale: float = LSD_SCALE
     below_horizon_only: bool = True  # detect lines only below the horizon (less work)
-    min_segment_px: float = 12.0
+    min_segment_px: float = MIN_SEGMENT_PX
     min_line_support_px: float = 25.0
     max_lines: int = 30
     horizon_margin: float = 0.01
@@ -140,15 +141,24 @@ def vertical_in_floor(rows: np.ndarray, verticals: np.ndarray, n_samples: int = 
     return inside.astype(float) @ w
 
 
-def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams):
-    """Detect, merge and classify lines.
+def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams,
+                     segments: Segments | None = None):
+    """Detect (or take from ``segments``), merge and classify lines.
 
+    Args:
+        segments: a whole-image detection of this image (``Segments.detect``), used when it
+            is what ``params`` would detect: then only its part below the horizon is taken.
     Returns:
         (Lines, kinds (N,), indices of floor-candidate lines, indices of vertical lines).
     """
     top = horizon_top_row(camera) if params.below_horizon_only else 0
-    segs = detect_segments(image, params.segment_method, params.min_segment_px,
-                           lsd_scale=params.lsd_scale, top_row=top)
+    H, W = image.shape[:2]
+    if (segments is not None and params.segment_method == "lsd"
+            and segments.fits(W, H, params.lsd_scale, params.min_segment_px)):
+        segs = segments.below(top, params.min_segment_px)
+    else:
+        segs = detect_segments(image, params.segment_method, params.min_segment_px,
+                               lsd_scale=params.lsd_scale, top_row=top)
     lines = merge_collinear(segs)
     kinds = classify(lines, camera, horizon_margin=params.horizon_margin)
     floor = np.isin(kinds, (LineKind.LEFT, LineKind.FRONT, LineKind.RIGHT))
@@ -170,7 +180,7 @@ def _check_image(image: np.ndarray, camera: Camera) -> None:
 
 def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
              params: HypothesisParams = HypothesisParams(), clock=None,
-             debug: dict | None = None) -> HypothesisSet:
+             debug: dict | None = None, segments: Segments | None = None) -> HypothesisSet:
     """All steps for one photo: lines -> candidates -> scored, ranked hypotheses.
 
     Args:
@@ -179,11 +189,13 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         max_n: at most this many hypotheses are returned.
         clock: optional zero-argument function returning seconds, for ``timing_ms``
             (the core reads no clock itself).
+        segments: the image's whole-frame segments when already detected (a photo whose
+            gravity came from them, ``vanishing.estimate_gravity``); else detected here.
     """
     _check_image(image, camera)
     H, W = image.shape[:2]
     t = [clock()] if clock else []
-    lines, kinds, cand, vert = floor_candidates(image, camera, params)
+    lines, kinds, cand, vert = floor_candidates(image, camera, params, segments)
     if clock:
         t.append(clock())
     if len(cand) == 0:
@@ -193,15 +205,16 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     coef = lines.coef[cand]
     lab = to_lab(image)
     top = horizon_top_row(camera) if params.below_horizon_only else 0
-    table = tabulate(EdgeField(image, params.support, color=lab, top_row=top), coef,
-                     params.substeps)
+    field = EdgeField(image, params.support, color=lab, top_row=top)
+    table = tabulate(field, coef, params.substeps)
     if clock:
         t.append(clock())
     sp, w, ws = params.search, params.weights.vector(), params.search_weights.vector()
     rows_t = track_rows(table, H)
     verts = lines.ends[vert]
     stats = RegionStats(lab)
-    F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT)
+    F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT,
+                            texture=field.band_texture)
     ev = events(coef, rows_t, valid, verts, camera, sp)
     if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
         paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],

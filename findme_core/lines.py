@@ -1,5 +1,5 @@
-"""Line segments: detection, merging of collinear segments, and classification in the
-level frame (vertical / above the horizon / floor line grouped left, front, right).
+"""Lines: merging of collinear segments (``segments`` detects them) and classification in
+the level frame (vertical / above the horizon / floor line grouped left, front, right).
 
 Segments and lines are (N, 4) float arrays ``[u1, v1, u2, v2]`` in pixels (pixel-centre
 origin). A merged line also carries its homogeneous image line ``(a, b, c)`` with
@@ -8,17 +8,15 @@ origin). A merged line also carries its homogeneous image line ``(a, b, c)`` wit
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
 from enum import IntEnum
 
-import cv2
 import numpy as np
 
 from .camera import Camera
-from .errors import InputError
-
-SEGMENT_METHODS = ("lsd", "hough")
+from .support import sample_bilinear
+# detection lives in ``segments``; re-exported here, where it was first defined
+from .segments import SEGMENT_METHODS, detect_segments, horizon_top_row  # noqa: F401
 
 
 class LineKind(IntEnum):
@@ -58,80 +56,6 @@ class Lines:
         """(N,) extent length in pixels."""
         d = self.ends[:, 2:] - self.ends[:, :2]
         return np.hypot(d[:, 0], d[:, 1])
-
-
-def _gray(image: np.ndarray) -> np.ndarray:
-    if image.ndim == 3:
-        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-    if image.ndim != 2:
-        raise InputError(f"image must be HxW or HxWx3, got shape {image.shape}")
-    return image
-
-
-_LOCAL = threading.local()  # one LSD per thread and scale: detect() is not re-entrant
-
-
-def _lsd(scale: float):
-    cache = _LOCAL.__dict__.setdefault("lsd", {})
-    if scale not in cache:
-        cache[scale] = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD, scale)
-    return cache[scale]
-
-
-def horizon_top_row(camera: Camera, margin_px: float = 8.0) -> int:
-    """First image row (even, >= 0) at or below which every floor line of ``camera`` lies:
-    ``margin_px`` above the highest point of the horizon in the image; 0 when the horizon
-    does not run across the image with the floor below it (the whole image is searched)."""
-    a, b, c = camera.horizon_line()
-    if b <= 1e-12 or abs(a) > 4 * b:  # floor not below the horizon, or horizon too steep
-        return 0
-    top = min(-(c + a * u) / b for u in (0.0, camera.width - 1.0)) - margin_px
-    return int(np.clip(np.floor(top / 2) * 2, 0, max(camera.height - 2, 0)))
-
-
-def detect_segments(image: np.ndarray, method: str = "lsd", min_length: float = 12.0,
-                    lsd_scale: float = 0.8, border_px: float = 2.5,
-                    top_row: int = 0) -> np.ndarray:
-    """Detect straight segments.
-
-    Args:
-        image: (H, W) or (H, W, 3) uint8 (BGR).
-        method: ``"lsd"`` (OpenCV LSD, sub-pixel) or ``"hough"`` (Canny + HoughLinesP, as the
-            paper).
-        min_length: drop segments shorter than this, pixels.
-        lsd_scale: LSD's internal down-scaling (0.8 is LSD's default; smaller is faster).
-        border_px: segments lying within this distance of one image border are the frame's
-            own edge (dark borders), not scene lines, and are dropped.
-        top_row: detect in rows >= ``top_row`` only (e.g. ``horizon_top_row``: the rows
-            below the horizon, where floor lines are); an even row keeps LSD's sampling grid.
-    Returns:
-        (N, 4) float64 ``[u1, v1, u2, v2]`` in the pixels of the whole image.
-    """
-    gray = _gray(image)
-    h, w = gray.shape
-    top = int(np.clip(top_row, 0, max(h - 1, 0)))
-    if method == "lsd":
-        segs = _lsd(float(lsd_scale)).detect(gray[top:] if top else gray)[0]
-        if segs is not None and top:
-            segs = segs.reshape(-1, 4) + np.array([0, top, 0, top], np.float32)
-    elif method == "hough":
-        edges = cv2.Canny(gray[top:] if top else gray, 50, 150)
-        segs = cv2.HoughLinesP(edges, 1, np.pi / 180, 40, minLineLength=int(min_length) + 8,
-                               maxLineGap=4)
-        if segs is not None:  # Canny marks the pixel before a step: shift to the step itself
-            segs = segs.reshape(-1, 4).astype(float) + np.array([0.5, 0.5 + top, 0.5, 0.5 + top])
-    else:
-        raise InputError(f"unknown segment method {method!r}; choose one of {SEGMENT_METHODS}")
-    if segs is None or len(segs) == 0:
-        return np.zeros((0, 4))
-    segs = np.asarray(segs, dtype=float).reshape(-1, 4)
-    d = segs[:, 2:] - segs[:, :2]
-    keep = np.hypot(d[:, 0], d[:, 1]) >= min_length
-    # edges of the image frame itself (dark borders left by rectification or registration)
-    u, v = segs[:, [0, 2]], segs[:, [1, 3]]
-    m = border_px
-    frame = ((u <= m).all(1) | (u >= w - 1 - m).all(1) | (v <= m).all(1) | (v >= h - 1 - m).all(1))
-    return segs[keep & ~frame]
 
 
 def _fit_lines(pts: np.ndarray, w: np.ndarray, group: np.ndarray, n: int) -> np.ndarray:
@@ -224,6 +148,67 @@ def merge_collinear(segments: np.ndarray, angle_tol_deg: float = 2.0,
         sup = np.bincount(group, sup, n)
     o = np.argsort(-sup, kind="stable")
     return Lines(segs[o], coef[o], sup[o])
+
+
+def snap_to_edges(gray: np.ndarray, lines: Lines, step_px: float = 2.0,
+                  reach_px: int = 2, straight_px: float = 1.0) -> Lines:
+    """The lines refitted to the sub-pixel edge positions of the image along them.
+
+    Every ``step_px`` along a line the image is sampled across it at -reach..reach pixels;
+    the strongest central difference of the line's own polarity there, refined by a
+    parabola, is the edge's position. A line is refitted (weighted total least squares,
+    weights = edge strength) to its positions where the edge is at least half its mean
+    strength, then once more without the positions farther than ``trim_px`` from that fit
+    (a line merged from two nearly collinear edges keeps the one it mostly lies on). Lines
+    detected at a reduced scale (LSD's ``lsd_scale``) so regain full-resolution angles.
+
+    Args:
+        gray: (H, W) float32 grey image.
+        lines: (N) lines in its pixels.
+    Returns:
+        Lines with refitted ``coef`` and ``ends``, and ``support`` scaled by the fraction of
+        the line's positions the final fit kept; a line with fewer than 6 usable positions
+        keeps its old line.
+    """
+    n = len(lines)
+    if n == 0:
+        return lines
+    a, b = lines.ends[:, :2], lines.ends[:, 2:]
+    length = lines.length
+    k = np.maximum((length / step_px).astype(int), 1)
+    idx = np.repeat(np.arange(n), k)
+    t = (np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k) + 0.5) / k[idx]
+    pts = a[idx] + t[:, None] * (b[idx] - a[idx])                       # (P, 2)
+    nrm = lines.coef[idx, :2]
+    off = np.arange(-reach_px - 1, reach_px + 2, dtype=float)          # one more each side
+    prof = sample_bilinear(gray, (pts[:, None, :] + off[None, :, None] * nrm[:, None, :])
+                           .astype(np.float32))
+    d = prof[:, 2:] - prof[:, :-2]                                      # at -reach..reach
+    # the edge's polarity: the sign of the line's mean difference at its own position (a
+    # neighbouring edge of the other polarity, a baseboard's other side, is not taken)
+    sign = np.sign(np.bincount(idx, d[:, reach_px], n))[idx]
+    g = np.maximum(d * sign[:, None], 0.0)
+    j = np.clip(np.argmax(g, axis=1), 1, g.shape[1] - 2)
+    r = np.arange(len(g))
+    g0, g1, g2 = g[r, j - 1], g[r, j], g[r, j + 1]
+    den = g0 - 2 * g1 + g2
+    frac = np.where(den < -1e-6, 0.5 * (g0 - g2) / np.where(den < -1e-6, den, -1.0), 0.0)
+    pos = pts + ((j - reach_px) + np.clip(frac, -0.5, 0.5))[:, None] * nrm
+    mean = np.bincount(idx, g1, n) / k
+    good = g1 >= 0.5 * mean[idx]
+    cnt = np.bincount(idx[good], minlength=n)
+    wgt = g1[good].astype(float)
+    coef = np.where((cnt >= 6)[:, None], _fit_lines(pos[good], wgt, idx[good], np.maximum(n, 1))
+                    if good.any() else lines.coef, lines.coef)
+    # how straight the edge is: a line merged from two nearly collinear edges, or an edge
+    # that bends, is trusted less (support scaled by 1 / (1 + (rms / straight_px)^2))
+    d2 = ((coef[idx[good], :2] * pos[good]).sum(1) + coef[idx[good], 2]) ** 2
+    rms = np.sqrt(np.bincount(idx[good], wgt * d2, n) / np.maximum(np.bincount(idx[good], wgt, n), 1e-12))
+    trust = np.where(cnt >= 6, 1.0 / (1.0 + (rms / straight_px) ** 2), 1.0)
+    # extents: the old ends projected on the new lines
+    foot = lambda p, c: p - (c[:, :2] * p).sum(1, keepdims=True) * c[:, :2] - c[:, 2:] * c[:, :2]  # noqa: E731
+    ends = np.column_stack([foot(a, coef), foot(b, coef)])
+    return Lines(ends, coef, lines.support * trust)
 
 
 def vertical_angle_deg(lines: Lines, camera: Camera) -> np.ndarray:

@@ -9,39 +9,37 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import cv2
 import numpy as np
 
 from . import hypotheses, paper
 from .camera import Camera
 from .errors import InputError
+from .segments import WORK_SIZE, Segments, photo_segments, work_image  # noqa: F401
 
 METHODS = ("findme", "paper")
-WORK_SIZE = 640
 
 
 def hypothesize(image: np.ndarray, camera: Camera, method: str = "findme", max_n: int = 10,
-                work_size: int = WORK_SIZE, clock=None) -> hypotheses.HypothesisSet:
+                work_size: int = WORK_SIZE, clock=None,
+                segments: Segments | None = None) -> hypotheses.HypothesisSet:
     """Ranked hypotheses of one photo by ``method`` ("findme" or "paper").
 
     Args:
         image: (H, W, 3) uint8 BGR, the size of ``camera``.
         max_n: at most this many hypotheses (>= 1).
+        segments: the photo's ``segments.photo_segments`` when already detected (its
+            gravity came from them): then not detected again. Ignored by the paper's method.
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if max_n < 1:
         raise InputError(f"--max must be at least 1, got {max_n}")
     H, W = image.shape[:2]
-    s = min(1.0, work_size / max(H, W))
-    if s < 0.95:
-        small = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
-        cam = camera.scaled(s)
-        cam = Camera(cam.fx, cam.fy, cam.cx, cam.cy, small.shape[1], small.shape[0], cam.gravity)
+    small, cam, s = work_image(image, camera, work_size)
+    if method == "findme":
+        hs = hypotheses.generate(small, cam, max_n, clock=clock, segments=segments)
     else:
-        s, small, cam = 1.0, image, camera
-    gen = hypotheses.generate if method == "findme" else paper.generate
-    hs = gen(small, cam, max_n, clock=clock)
+        hs = paper.generate(small, cam, max_n, clock=clock)
     if s == 1.0:
         return hs
     hyps = []

@@ -42,6 +42,10 @@ class Provenance:
         gravity_cov: (2, 2) tilt covariance, rad^2 (pitch, roll axes).
         notes: what was ignored or assumed, one sentence each (EXIF problems, "level
             assumed: ...").
+        estimate: when gravity was looked for in the image (source "image", or "level"
+            because the image could not tell): the ``vanishing.GravityEstimate`` itself,
+            whose segments and lines the photo's hypotheses reuse
+            (``photo.hypothesize_estimated``); else None.
     """
 
     camera: str = "input"
@@ -49,6 +53,7 @@ class Provenance:
     gravity_cov: np.ndarray = field(
         default_factory=lambda: tilt_cov(math.radians(INPUT_GRAVITY_SIGMA_DEG)))
     notes: tuple[str, ...] = ()
+    estimate: object = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.camera not in CAMERA_SOURCES:

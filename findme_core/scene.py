@@ -13,18 +13,22 @@ Each boundary segment covers an interval of azimuth (angle of the horizontal ray
 atan2(x, z)). A tapped pixel's azimuth selects its segment; it is on the floor if its ray
 meets the floor before the wall, else on the wall. OPEN segments (floor continues past the
 image) have floor but no known wall; NONE segments (no floor in view) have neither.
+
+How far each point may be off (boundary, height, tap, gravity) is ``uncertainty``'s.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from .camera import Camera
 from .errors import GeometryError, HypothesisError
 from .search import SegKind
+# the uncertainty of the points lives in ``uncertainty``; re-exported here, where it began
+from .uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_PX, boundary_sigma_px,  # noqa: F401
+                          distances, point_sigmas)
 
 _PARALLEL = 1e-9
 _ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE = 1, 2, 3, 4, 5, 6
@@ -41,18 +45,6 @@ REASONS = {
     _NOT_FINITE: "the pixel is not finite",
 }
 _SURFACES = {1: "floor", 2: "wall"}
-#: 1-sigma of a chosen boundary's position on real photos, pixels of the ~640 px working
-#: size (the hypotheses' resolution): fitted on the dev split so that 68 % of wall and
-#: non-floor points lie within their 1-sigma (tools/calibrate_sigma.py).
-BOUNDARY_SIGMA_WORK_PX = 34.0
-WORK_SIZE_PX = 640
-
-
-def boundary_sigma_px(width: int, height: int) -> float:
-    """``BOUNDARY_SIGMA_WORK_PX`` in pixels of a ``width`` x ``height`` photo."""
-    return BOUNDARY_SIGMA_WORK_PX * max(width, height) / WORK_SIZE_PX
-
-
 @dataclass(frozen=True)
 class Located:
     """3D position of one tapped pixel.
@@ -196,7 +188,7 @@ class Scene:
 
     def _locate_all(self, pixels):
         """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
-        (``_gravity_jac``)."""
+        (``uncertainty.point_sigmas``)."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         finite = np.isfinite(px).all(1)
@@ -211,68 +203,10 @@ class Scene:
         P = t[:, None] * rays
         P[~ok] = np.nan
 
-        def moved(pieces, r):
-            t2, s2, _ = self._solve(pieces, r)
-            # a floor point stays on the floor (the boundary does not move it)
-            t2 = np.where(surface == 1, np.where(r[:, 1] > 0, self.height / np.maximum(r[:, 1], 1e-300),
-                                                 np.nan), t2)
-            d = np.linalg.norm(t2[:, None] * r - P, axis=1)
-            return np.where(np.isfinite(d), d, np.inf)
-
-        parts = {"height": np.linalg.norm(P, axis=1) * self.height_sigma / self.height,
-                 "boundary": moved(self._pieces_shifted, rays) * (
-                     self.boundary_sigma_px / self._shift_px if self._shift_px > 0 else 0.0),
-                 "pixel": np.hypot(moved(self._pieces, cam.rays_level(pxs + (1.0, 0.0))),
-                                   moved(self._pieces, cam.rays_level(pxs + (0.0, 1.0))))}
-        jac = self._gravity_jac(pxs, P, surface)
-        parts["gravity"] = np.sqrt((jac ** 2).sum((1, 2)))
+        parts, jac = point_sigmas(self, pxs, rays, P, surface)
         sigma = np.sqrt(sum(x * x for x in parts.values()))
         sigma = np.where(ok, sigma, np.inf)
         return P, surface, sigma, parts, reason, jac
-
-    #: tilt step of the numerical derivative in ``_gravity_jac``, radians
-    _TILT_STEP = 1e-3
-
-    def _gravity_jac(self, px, P, surface) -> np.ndarray:
-        """(N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
-        along each principal axis of ``gravity_cov`` (linearised: central differences of
-        the scene rebuilt under gravity tilted by +-``_TILT_STEP``; the point keeps its
-        surface). Zero when gravity is exact."""
-        n = len(px)
-        out = np.zeros((n, 2, 3))
-        evals, evecs = np.linalg.eigh(self.gravity_cov)
-        if n == 0 or not np.any(evals > 0):
-            return out
-        cam = self.camera
-        R = cam.R_level_from_cam
-        x_l, z_l = R[0], R[2]
-        P_cam = P @ R
-        for k in range(2):
-            s = float(np.sqrt(max(evals[k], 0.0)))
-            if s == 0.0:
-                continue
-            e_p, e_r = evecs[:, k]
-            axis = e_p * x_l - e_r * z_l            # dg = axis x g = e_p z_l + e_r x_l
-            moved = []
-            for sign in (1.0, -1.0):
-                w = sign * self._TILT_STEP * axis
-                Rw, _ = cv2.Rodrigues(w.reshape(3, 1))
-                c2 = cam.with_gravity(Rw @ cam.gravity)
-                try:
-                    pieces = self._build(self.polyline, c2)
-                except (HypothesisError, GeometryError):
-                    moved.append(np.full((n, 3), np.nan))
-                    continue
-                rays = c2.rays_level(px)
-                t, s2, _ = self._solve(pieces, rays)
-                t = np.where(surface == 1, np.where(rays[:, 1] > 0,
-                                                    self.height / np.maximum(rays[:, 1], 1e-300),
-                                                    np.nan), t)
-                moved.append((t[:, None] * rays) @ c2.R_level_from_cam)
-            d = (moved[0] - moved[1]) * (s / (2 * self._TILT_STEP))
-            out[:, k] = np.where(np.isfinite(d), d, np.inf)
-        out[~np.isfinite(P_cam).all(1)] = 0.0
-        return out
 
     def locate(self, pixels) -> list[Located]:
         """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
@@ -308,30 +242,3 @@ class Scene:
             raise GeometryError(f"pixel {tuple(np.round(pixel, 2))} is at or above the horizon: "
                                 "its ray never meets the floor")
         return self.camera.R_level_from_cam.T @ (self.height / ray[1] * ray)
-
-
-def distances(points: list[Located], height: float, height_sigma: float):
-    """Distances between consecutive located points (metres) and their 1-sigma.
-
-    Height errors scale every point alike, so that part of a distance's sigma is
-    d * height_sigma / height; a gravity tilt moves every point of the photo together, so
-    its part is the change of the distance along each tilt axis (``Located.gravity_jac``);
-    boundary and pixel parts are taken as independent.
-
-    Returns:
-        list of (distance | None, sigma | None, error | None), len(points) - 1 entries.
-    """
-    out = []
-    for a, b in zip(points[:-1], points[1:]):
-        if a.xyz is None or b.xyz is None:
-            out.append((None, None, "an end point has no 3D position"))
-            continue
-        d = float(np.linalg.norm(b.xyz - a.xyz))
-        grav = 0.0
-        if a.gravity_jac is not None and b.gravity_jac is not None and d > 0:
-            grav = float(np.sum(((b.gravity_jac - a.gravity_jac) @ ((b.xyz - a.xyz) / d)) ** 2))
-        s = np.sqrt((d * height_sigma / height) ** 2 + grav
-                    + a.sigma_parts["boundary"] ** 2 + b.sigma_parts["boundary"] ** 2
-                    + a.sigma_parts["pixel"] ** 2 + b.sigma_parts["pixel"] ** 2)
-        out.append((d, float(s), None))
-    return out

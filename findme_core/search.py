@@ -56,6 +56,10 @@ class SearchParams:
     min_vertical_px: float = 25.0
     horizon_margin: float = 0.01
     far_deg: float = 6.0   # a boundary seen less than this below the horizon is implausibly far
+    smooth_texture: float = 1.0  # ... when the band below it is this smooth (grey levels / px:
+                                 # a counter top, a sill, a wall; camera noise), and not at all
+    ground_texture: float = 2.5  # when it is this textured (ground at a grazing angle: grass,
+                                 # asphalt, paving; a street, where far boundaries are the rule)
 
 
 @dataclass(frozen=True)
@@ -75,7 +79,8 @@ def track_rows(table: SupportTable, height: int) -> np.ndarray:
 
 def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
                  region: np.ndarray | None = None, valid: np.ndarray | None = None,
-                 front: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 front: np.ndarray | None = None,
+                 texture: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cumulative additive features of every track and per-column validity.
 
     Args:
@@ -88,6 +93,12 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
             distance along its base, so a front line just below the horizon means a wall
             implausibly far away (the edge of a counter top or a window sill seen level);
             a receding line's far end approaches the horizon in any room or street.
+        texture: function (rows (K,), columns (K,)) -> (K,) gradient magnitude of the band
+            just below those line rows (``support.EdgeField.band_texture``), asked only
+            where a line is far: a far line with textured ground below it
+            (grass, asphalt, paving: a street, where a far boundary is the rule) does not
+            count as far: farness is scaled from 1 at ``smooth_texture`` (counter tops,
+            sills and the walls below them are smooth) down to 0 at ``ground_texture``.
     Returns:
         F: (len(ADDITIVE), N + 2, W + 1) cumulative sums over column boundaries, in pixels
             (support and length: arc length; outside / top / bottom: columns; region: the
@@ -109,6 +120,12 @@ def track_tables(table: SupportTable, camera: Camera, p: SearchParams,
     far = farness(table.v, camera, p.far_deg)
     if front is not None:
         far[~np.asarray(front, bool)] = 0.0
+    if texture is not None:
+        i, u = np.nonzero(far > 0)
+        if len(i):
+            t = texture(table.v[i, u], u)
+            far[i, u] *= np.clip((p.ground_texture - t) / (p.ground_texture - p.smooth_texture),
+                                 0.0, 1.0)
     F[6, :n, 1:] = np.cumsum(far, axis=1)
     if region is not None:
         F[5, :, 1:] = np.cumsum(region, axis=1)
@@ -221,10 +238,8 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
     """
     n_tracks, W1 = A.shape
     W = W1 - 1
-    left = valid[:, 0].tolist()
-    right = valid[:, -1].tolist()
     order = np.argsort(ev.col, kind="stable")
-    src, dst = ev.src.tolist(), ev.dst.tolist()
+    src = ev.src.tolist()
     # per event, in column order: reward tables at its column before / after it, its cost
     Ai, Aj = A[ev.src, ev.col], A[ev.dst, ev.col]
     cost = np.where(ev.step, step_cost, corner_cost)

@@ -36,6 +36,24 @@ class SupportParams:
     blur_sigma: float = 1.0
 
 
+def sample_bilinear(arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Bilinear samples of a float32 image ``arr`` ((H, W) or (H, W, C)) at (..., 2) pixel
+    positions (border replicated): shape pts.shape[:-1] (+ (C,))."""
+    shape = pts.shape[:-1]
+    flat = pts.reshape(-1, 2)
+    m = len(flat)
+    cols = 1024  # cv2.remap maps must stay under SHRT_MAX columns
+    rows = max(1, -(-m // cols))
+    mx = np.zeros(rows * cols, np.float32)
+    my = np.zeros(rows * cols, np.float32)
+    mx[:m], my[:m] = flat[:, 0], flat[:, 1]
+    out = cv2.remap(arr, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    if arr.ndim == 3:
+        return out.reshape(rows * cols, -1)[:m].reshape(*shape, -1)
+    return out.reshape(-1)[:m].reshape(shape)
+
+
 @dataclass(frozen=True)
 class SupportTable:
     """Cumulative per-column tables for N lines over an image W columns wide.
@@ -83,18 +101,33 @@ class EdgeField:
         if top:
             self.gx[top:top_row] = 0.0
             self.gy[top:top_row] = 0.0
+        self.top_row = max(int(top_row), 0) if top_row > 0 else 0   # derivatives from here down
 
     def sample(self, arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
         """Bilinear samples of ``arr`` at (M, 2) pixel positions (border replicated)."""
-        m = len(pts)
-        cols = 1024  # cv2.remap maps must stay under SHRT_MAX columns
-        rows = max(1, -(-m // cols))
-        mx = np.zeros(rows * cols, np.float32)
-        my = np.zeros(rows * cols, np.float32)
-        mx[:m], my[:m] = pts[:, 0], pts[:, 1]
-        out = cv2.remap(arr, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
-        return out.reshape(rows * cols, -1)[:m] if arr.ndim == 3 else out.reshape(-1)[:m]
+        return sample_bilinear(arr, pts)
+
+    def band_texture(self, rows: np.ndarray, cols: np.ndarray | None = None, offset_px: int = 3,
+                     band_px: int = 24) -> np.ndarray:
+        """Mean gradient magnitude (grey levels per pixel) in the band of rows
+        [row + offset, row + offset + band) below each row: ``rows`` (N, W) at every column,
+        or (K,) at the columns ``cols`` (K,); 0 where the band lies outside the image (rows
+        above the derivatives add nothing)."""
+        r0 = np.clip(np.floor(rows + offset_px), 0, self.height).astype(int)
+        r1 = np.clip(r0 + band_px, 0, self.height)
+        if r0.size == 0:
+            return np.zeros(rows.shape)
+        # a summed-area table of the strip of rows the bands cover (rows above the
+        # derivatives add nothing)
+        lo = max(int(r0.min()), min(self.top_row, self.height))
+        hi = int(r1.max())
+        if hi <= lo:                  # every band below the image or above the derivatives
+            return np.zeros(rows.shape)
+        S = cv2.integral(cv2.magnitude(self.gx[lo:hi], self.gy[lo:hi]), sdepth=cv2.CV_64F)
+        a, b = np.clip(r0 - lo, 0, hi - lo), np.clip(r1 - lo, 0, hi - lo)
+        u = np.broadcast_to(np.arange(self.width), rows.shape) if cols is None else cols
+        total = (S[b, u + 1] - S[b, u]) - (S[a, u + 1] - S[a, u])
+        return np.where(r1 > r0, total / np.maximum(r1 - r0, 1), 0.0)
 
     def evidence(self, pts: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(M,) evidence in [0, 1] of (M, 2) points with (M, 2) unit normals (floor side)."""

@@ -14,9 +14,14 @@ import math
 
 import numpy as np
 
+from dataclasses import replace
+
 from findme_core.camera import DEFAULT_HFOV_DEG, Camera
+from findme_core.hypotheses import HypothesisSet
+from findme_core.methods import hypothesize
+from findme_core.photo import hypothesize_estimated
 from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance, tilt_cov
-from findme_core.vanishing import estimate_gravity
+from findme_core.vanishing import estimate_gravity, level_estimate
 
 from .exif import ExifInfo, focal_px
 
@@ -66,14 +71,38 @@ def with_gravity(camera: Camera, image: np.ndarray | None, gravity=None,
         s = math.radians(INPUT_GRAVITY_SIGMA_DEG) if gravity_sigma_rad is None else gravity_sigma_rad
         return camera.with_gravity(gravity), Provenance(camera_source, "input", tilt_cov(s),
                                                         tuple(notes))
-    if estimate and image is not None:
-        est = estimate_gravity(image, camera)
-    else:
-        from findme_core.vanishing import level_estimate
+    if not (estimate and image is not None):
         est = level_estimate("no gravity given and the image was not used: level assumed")
+        return (camera.with_gravity(est.vector),
+                Provenance(camera_source, est.source, est.cov, tuple(notes) + (est.reason,)))
+    est = estimate_gravity(image, camera)
     extra = (est.reason,) if est.reason else ()
     return (camera.with_gravity(est.vector),
-            Provenance(camera_source, est.source, est.cov, tuple(notes) + extra))
+            Provenance(camera_source, est.source, est.cov, tuple(notes) + extra, est))
+
+
+def hypothesize_photo(image: np.ndarray, camera: Camera, prov: Provenance,
+                      method: str = "findme", max_n: int = 10,
+                      clock=None) -> tuple[HypothesisSet, Camera, Provenance]:
+    """The photo's hypotheses, and its camera and provenance after them.
+
+    A photo whose gravity was estimated from its image (``with_gravity``: ``prov.estimate``)
+    reuses that estimate's segments, and its gravity may be refined jointly with the best
+    boundary (``photo.hypothesize_estimated``): the camera and provenance returned then
+    carry the refined gravity and covariance. Otherwise ``methods.hypothesize`` with
+    ``camera`` as it is.
+
+    Args:
+        image: (H, W, 3) uint8 BGR of ``camera``'s size.
+        camera, prov: from ``with_gravity`` / ``photo_camera`` of this image.
+    """
+    est = prov.estimate
+    if est is None:
+        return hypothesize(image, camera, method, max_n, clock=clock), camera, prov
+    hs, new = hypothesize_estimated(image, camera, est, method, max_n, clock=clock)
+    if new is est:
+        return hs, camera, prov
+    return hs, camera.with_gravity(new.vector), replace(prov, gravity_cov=new.cov, estimate=new)
 
 
 def photo_camera(image: np.ndarray, exif: ExifInfo | None = None, intrinsics=None,

@@ -6,17 +6,9 @@ OpenCV's: ``cv2.imdecode`` is faster on JPEG (bench/bench_decode.py: 0.7 vs 1.4 
 2 (two to four lines per broken file where one is promised) and it reads neither HEIC nor
 EXIF focal lengths.
 
-Bounds, whatever the bytes claim (issue 11):
-
-* bytes: ``max_bytes``; pixels: ``max_pixels``, read from the header BEFORE any pixel is
-  decoded (Pillow's ``open`` is lazy), so memory is at most about 4 bytes x ``max_pixels``
-  for the decoded image plus its converted copy;
-* structure checked before decoding: every PNG chunk must fit in the file (a chunk that
-  claims 4 GB is refused, not read) and a PNG has at most ``MAX_PNG_CHUNKS`` chunks; a JPEG
-  has at most ``MAX_JPEG_SCANS`` scans (each progressive scan is a pass over the whole
-  image, so scans x pixels bounds the time);
-* truncated data is an error (never padded with grey), and only the first frame of an
-  animation or multi-page file is read.
+Bounds, whatever the bytes claim (issue 11): the size, pixel count and structure checks
+made before any decoder runs are ``image_format``'s; truncated data is an error (never
+padded with grey), and only the first frame of an animation or multi-page file is read.
 
 Every refusal is one ``ImageError`` naming the file; the C libraries print nothing and
 Pillow's own warnings (EXIF, decompression bomb) are caught, not printed. EXIF orientation
@@ -37,20 +29,11 @@ import numpy as np
 
 from findme_core.errors import ImageError
 
-#: Largest accepted encoded file and decoded image (a 48 MP phone photo fits).
-MAX_BYTES = 64 * 1024 * 1024
-MAX_PIXELS = 50_000_000
-#: A JPEG scan is one pass over the image; phones write 1 (baseline) to ~10 (progressive).
-MAX_JPEG_SCANS = 64
-#: A PNG's chunks (encoders write 8-64 kB IDAT chunks: a 64 MB file has a few thousand).
-MAX_PNG_CHUNKS = 100_000
+# the checks before decoding live in ``image_format``; re-exported here, where they began
+from .image_format import (_PIL_FORMATS, MAX_BYTES, MAX_JPEG_SCANS, MAX_PIXELS,  # noqa: F401
+                           MAX_PNG_CHUNKS, NAMES, check_encoded, declared_size, sniff)
 
-_HEVC_BRANDS = {b"heic", b"heix", b"hevc", b"hevx", b"heim", b"heis", b"hevm", b"hevs"}
-_AVIF_BRANDS = {b"avif", b"avis"}
-#: Pillow format names accepted for each sniffed kind.
-_PIL_FORMATS = {"jpeg": ("JPEG", "MPO"), "png": ("PNG",), "bmp": ("BMP",), "webp": ("WEBP",),
-                "tiff": ("TIFF",), "heif": ("HEIF",), "avif": ("AVIF", "HEIF")}
-NAMES = "JPEG, PNG, WebP, HEIC/HEIF, AVIF, BMP or TIFF"
+_declared_size = declared_size   # its old name (services/web/page_input imports it)
 
 
 @dataclass(frozen=True)
@@ -68,27 +51,6 @@ class Photo:
     exif: object = field(default=None)
 
 
-def sniff(data: bytes) -> str | None:
-    """The container kind of encoded image bytes from their magic number, or None."""
-    if data.startswith(b"\xff\xd8\xff"):
-        return "jpeg"
-    if data.startswith(b"\x89PNG\r\n\x1a\n"):
-        return "png"
-    if data.startswith(b"RIFF") and data[8:12] == b"WEBP":
-        return "webp"
-    if data.startswith(b"BM"):
-        return "bmp"
-    if data.startswith((b"II*\x00", b"MM\x00*")):
-        return "tiff"
-    if data[4:8] == b"ftyp":   # ISO base media file: the major brand, then compatible ones
-        brands = {data[8:12]} | {data[i:i + 4] for i in range(16, min(len(data), 64), 4)}
-        if data[8:12] in _AVIF_BRANDS or (brands & _AVIF_BRANDS and not brands & _HEVC_BRANDS):
-            return "avif"
-        if brands & (_HEVC_BRANDS | {b"mif1", b"msf1"}):
-            return "heif"
-    return None
-
-
 @functools.cache
 def _pillow():
     """Pillow with the HEIF opener registered (once, on first use: no import-time side
@@ -97,37 +59,6 @@ def _pillow():
     import pillow_heif
     pillow_heif.register_heif_opener(thumbnails=False, depth_images=False, aux_images=False)
     return Image
-
-
-def _check_png(data: bytes, name: str) -> None:
-    """Every chunk must fit in the file: a length field is never trusted for reading."""
-    i, n, end = 8, 0, len(data)
-    first = True
-    while i + 8 <= end:
-        length = int.from_bytes(data[i:i + 4], "big")
-        cid = data[i + 4:i + 8]
-        if first and (cid != b"IHDR" or length != 13):
-            raise ImageError(f"{name}: corrupt PNG: the first chunk is not a 13-byte IHDR")
-        first = False
-        if length > end - i - 12:
-            raise ImageError(f"{name}: corrupt PNG: chunk {cid!r} at byte {i} claims {length} "
-                             f"bytes but the file has {max(0, end - i - 12)} left")
-        n += 1
-        if n > MAX_PNG_CHUNKS:
-            raise ImageError(f"{name}: PNG with more than {MAX_PNG_CHUNKS} chunks refused")
-        if cid == b"IEND":
-            return
-        i += 12 + length
-    if first:
-        raise ImageError(f"{name}: corrupt PNG: no header chunk")
-
-
-def _check_jpeg(data: bytes, name: str) -> None:
-    # 0xFF 0xDA is a start-of-scan marker: entropy-coded data stuffs every 0xFF as FF 00, so
-    # the count is the number of scans (an EXIF thumbnail adds its own one)
-    scans = data.count(b"\xff\xda")
-    if scans > MAX_JPEG_SCANS:
-        raise ImageError(f"{name}: JPEG with {scans} scans refused (at most {MAX_JPEG_SCANS})")
 
 
 def _to_bgr(im) -> np.ndarray:
@@ -176,21 +107,7 @@ def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
             too small, or a structure that would make decoding unbounded.
     """
     from .exif import read_exif
-    if not data:
-        raise ImageError(f"{name}: empty file")
-    if len(data) > max_bytes:
-        raise ImageError(f"{name}: {len(data) / 1e6:.1f} MB is over the {max_bytes / 1e6:.0f} MB limit")
-    kind = sniff(data)
-    if kind is None:
-        raise ImageError(f"{name}: not an image (expected {NAMES})")
-    w, h = _declared_size(data)   # the header's claim, before any parser runs
-    if w * h > max_pixels:
-        raise ImageError(f"{name}: {w}x{h} = {w * h / 1e6:.0f} MP is over the "
-                         f"{max_pixels / 1e6:.0f} MP limit")
-    if kind == "png":
-        _check_png(data, name)
-    elif kind == "jpeg":
-        _check_jpeg(data, name)
+    kind = check_encoded(data, name, max_bytes, max_pixels)
     Image = _pillow()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")   # Pillow's EXIF/bomb warnings: we check ourselves
@@ -288,27 +205,6 @@ def for_bus(data: bytes, name: str = "image") -> tuple[bytes, dict]:
     lens = {} if f is None else {"intrinsics": {"fx": f[0], "fy": f[1], "cx": (W - 1) / 2.0,
                                                 "cy": (H - 1) / 2.0, "width": W, "height": H}}
     return encode_jpeg(photo.image, 95), lens
-
-
-def _declared_size(data: bytes) -> tuple[int, int]:
-    """(width, height) from a PNG or JPEG header, (0, 0) if not found."""
-    if data.startswith(b"\x89PNG") and len(data) >= 24:
-        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
-    if data.startswith(b"\xff\xd8"):
-        i = 2
-        while i + 9 < len(data):
-            if data[i] != 0xFF:
-                i += 1
-                continue
-            marker = data[i + 1]
-            if marker in (0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF):
-                return (int.from_bytes(data[i + 7:i + 9], "big"),
-                        int.from_bytes(data[i + 5:i + 7], "big"))
-            if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:
-                i += 2
-                continue
-            i += 2 + int.from_bytes(data[i + 2:i + 4], "big")
-    return 0, 0
 
 
 def encode_jpeg(image: np.ndarray, quality: int = 90) -> bytes:

@@ -14,9 +14,8 @@ from __future__ import annotations
 import time
 
 import schemas
-from findme_core.methods import hypothesize
-
 from ..runtime import authority, bus
+from findme_io.camera_source import hypothesize_photo
 from findme_io.convert import frame_photo_camera, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output
 
@@ -41,7 +40,8 @@ class HypothesesHandler(Handler):
         n = k.index()
         image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
         t1 = time.perf_counter()
-        hs = hypothesize(image, cam, self.method, self.max_n, clock=time.perf_counter)
+        hs, cam, prov = hypothesize_photo(image, cam, prov, self.method, self.max_n,
+                                          clock=time.perf_counter)
         self.done += 1
         msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)

@@ -132,3 +132,48 @@ def test_detect_below_a_row_keeps_full_image_coordinates(method):
     vert = part[np.abs(part[:, 0] - part[:, 2]) < 3]
     assert len(vert) and np.allclose(vert[:, [0, 2]], 100, atol=3.5)
     assert vert[:, [1, 3]].min() >= 200 and vert[:, [1, 3]].max() == pytest.approx(300, abs=2)
+
+
+def _step_edge(a, b, c, size=(480, 640), lo=60.0, hi=180.0):
+    """Grey image of the step edge a u + b v + c = 0 (a^2 + b^2 = 1): each pixel's value is
+    its area fraction on the bright side (exact for a straight edge, to 1/64 px)."""
+    H, W = size
+    o = (np.arange(8) + 0.5) / 8 - 0.5
+    v, u = np.mgrid[0:H, 0:W].astype(float)
+    frac = np.zeros((H, W))
+    for dy in o:
+        for dx in o:
+            frac += (a * (u + dx) + b * (v + dy) + c) > 0
+    return (lo + (hi - lo) * frac / 64).astype(np.float32)
+
+
+def test_snap_to_edges_recovers_a_subpixel_line():
+    from findme_core.lines import snap_to_edges
+    t = np.radians(8.0)
+    a, b = -np.sin(t), np.cos(t)                 # an edge 8 deg from horizontal
+    c = -(a * 320 + b * 241.3)
+    img = _step_edge(a, b, c)
+    # a detection 0.8 px off and turned by 0.4 deg
+    t2 = t + np.radians(0.4)
+    a2, b2 = -np.sin(t2), np.cos(t2)
+    c2 = -(a2 * 320 + b2 * 242.1)
+    ends = np.array([[60.0, -(c2 + a2 * 60) / b2, 580.0, -(c2 + a2 * 580) / b2]])
+    snapped = snap_to_edges(img, Lines(ends, np.array([[a2, b2, c2]]), np.array([520.0])))
+    na, nb, nc = snapped.coef[0]
+    assert abs(np.degrees(np.arctan2(-na, nb)) - 8.0) < 0.06    # from 0.4 deg off
+    assert abs(na * 320 + nb * 241.3 + nc) < 0.1
+    assert snapped.support[0] > 0.95 * 520          # a straight edge keeps its weight
+
+
+def test_snap_to_edges_trusts_two_edges_merged_into_one_less():
+    from findme_core.lines import snap_to_edges
+    img = _step_edge(0.0, 1.0, -240.0)
+    img[:, 320:] = _step_edge(0.0, 1.0, -242.0)[:, 320:]    # the right half 2 px lower
+    ends = np.array([[20.0, 241.0, 620.0, 241.0]])
+    snapped = snap_to_edges(img, Lines(ends, np.array([[0.0, 1.0, -241.0]]), np.array([600.0])))
+    assert snapped.support[0] < 0.85 * 600     # the fit tilts between them: rms ~0.5 px
+    # too short to refit (fewer than 6 positions): kept as it was
+    short = Lines(np.array([[20.0, 241.0, 28.0, 241.0]]), np.array([[0.0, 1.0, -241.0]]),
+                  np.array([8.0]))
+    assert np.allclose(snap_to_edges(img, short).coef, short.coef)
+    assert len(snap_to_edges(img, Lines(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)))) == 0

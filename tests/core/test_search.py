@@ -93,3 +93,42 @@ def test_only_lines_across_the_view_count_as_far():
     assert valid[:2].all() and valid[-1].all()
     F_all, _ = track_tables(SupportTable(z, z, z, v), cam, SearchParams())
     assert F_all[ADDITIVE.index("far"), 1, -1] == far[0, -1]   # default: every line counts
+
+
+def test_far_is_waived_over_textured_ground():
+    """A front line 2 deg below the horizon counts as far over a smooth band (a counter
+    top, a sill) and not over ground textured like a street's."""
+    from findme_core.search import SearchParams, track_tables
+    from findme_core.support import SupportTable
+    cam, p = _cam(), SearchParams()
+    W = cam.width
+    v = np.full((3, W), cam.cy + cam.fy * math.tan(math.radians(2.0)))
+    z = np.zeros((3, W + 1))
+    tex = np.array([0.5, 5.0, (p.smooth_texture + p.ground_texture) / 2])
+    asked = []
+
+    def texture(rows, cols):   # asked at every far (line, column), line by line
+        asked.append((len(rows), cols[:3].tolist()))
+        return np.repeat(tex, W)
+    F, _ = track_tables(SupportTable(z, z, z, v), cam, p, texture=texture)
+    assert asked == [(3 * W, [0, 1, 2])]
+    far = F[ADDITIVE.index("far"), :3, -1]
+    F0, _ = track_tables(SupportTable(z, z, z, v), cam, p)
+    full = F0[ADDITIVE.index("far"), 0, -1]
+    assert far[0] == pytest.approx(full) and far[1] == 0.0
+    assert far[2] == pytest.approx(0.5 * full)
+
+
+def test_band_texture_is_the_mean_gradient_below_a_row():
+    from findme_core.support import EdgeField, SupportParams
+    rng = np.random.default_rng(0)
+    img = np.full((120, 160, 3), 100, np.uint8)
+    img[60:] = rng.integers(0, 255, (60, 160, 3), dtype=np.uint8)    # texture from row 60
+    f = EdgeField(img, SupportParams())
+    rows = np.array([np.full(160, 20.0), np.full(160, 70.0), np.full(160, 118.0)])
+    t = f.band_texture(rows, offset_px=3, band_px=24)
+    assert np.allclose(f.band_texture(rows[1, :5], np.arange(5)), t[1, :5])
+    mag = np.sqrt(f.gx ** 2 + f.gy ** 2)
+    assert np.allclose(t[1], mag[73:97].mean(0), rtol=1e-5)
+    assert t[0].mean() < 0.2 * t[1].mean()            # rows 23-46: plain grey (blur reach)
+    assert np.allclose(t[2], 0.0)                     # the band is below the image

@@ -39,6 +39,27 @@ def test_hypotheses_handler_matches_the_core(pipeline):
         assert np.array_equal(poly, c.polyline) and np.array_equal(kinds, c.kinds)
 
 
+def test_hypotheses_handler_frame_without_gravity(tilted_view):
+    """A frame without gravity: the service estimates it from the image, the hypotheses
+    reuse that estimate's segments (photo.hypothesize_without_gravity gives the same), and
+    the set's camera says so."""
+    from findme_core.photo import hypothesize_without_gravity
+    frame = frame_of(tilted_view)
+    frame.ClearField("gravity")
+    (out,) = HypothesesHandler().on_message("findme/t1/frame/0", frame)
+    cam = out.msg.camera
+    assert cam.gravity_source == "image" and cam.gravity_sigma_rad > 0
+    g = schemas.msg_to_vec3(cam.gravity)
+    assert np.degrees(np.arccos(np.clip(g @ tilted_view.camera.gravity, -1, 1))) < 0.3
+    image = decode_image(frame.image.data)
+    c = tilted_view.camera
+    from findme_core.camera import Camera
+    core, est = hypothesize_without_gravity(image, Camera(c.fx, c.fy, c.cx, c.cy, c.width, c.height))
+    assert np.allclose(g, est.vector)
+    for m, h in zip(out.msg.hypotheses, core.hypotheses):
+        assert np.array_equal(schemas.msg_to_polyline(m.polyline)[0], h.polyline)
+
+
 def test_hypotheses_handler_bad_frames(level_view):
     h = HypothesesHandler()
     f = frame_of(level_view)
