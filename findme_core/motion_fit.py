@@ -16,8 +16,8 @@ import numpy as np
 
 from . import register
 from .motion_model import MotionInputs, MotionParams
-from .planar import (_epipolar_terms, _rotate, _spread, epipolar_residuals, known_yaw_terms,
-                     transfer_residuals)
+from .planar import (_dot, _epipolar_terms, _norm, _rotate, _spread, epipolar_residuals,
+                     known_yaw_terms, transfer_residuals)
 from .robust import levenberg_marquardt, msac
 
 
@@ -26,12 +26,31 @@ def wrap90(x):
     return (np.asarray(x) + np.pi / 4) % (np.pi / 2) - np.pi / 4
 
 
-def known_yaw_score(a, Rb, m, T, pix: float, thr: float):
+def known_yaw_score(a, Rb, m, T, pix: float, thr: float, ab=None, far=None):
     """MSAC score (C,) and inliers (C, M) of C unit baselines T (C, 3) at one yaw (bearings
-    a (M, 3), B's bearings turned into A's frame Rb, m = Rb x a; ``planar.known_yaw_terms``)."""
-    r, front, far = known_yaw_terms(a, Rb, m, T, pix)
+    a (M, 3), B's bearings turned into A's frame Rb, m = Rb x a, and optionally their
+    a . Rb and no-parallax mask (M,) from ``Turned``; ``planar.known_yaw_terms``)."""
+    r, front, far = known_yaw_terms(a, Rb, m, T, pix, ab, far)
     inl = (r < thr) & (front | far)
     return msac(np.where(inl, r, thr), thr), inl
+
+
+class Turned:
+    """B's bearings b (M, 3) turned into A's level frame at a yaw, with what scoring at that
+    known yaw needs of them, computed once per yaw (the candidates, the directions and the
+    scores of one run share a few yaws): ``turned(yaw)`` -> (Rb (M, 3), m = Rb x a (M, 3),
+    a . Rb (M,), no-parallax mask (M,), as ``planar.known_yaw_terms``)."""
+
+    def __init__(self, a, b, pix: float):
+        self.a, self.b, self.pix, self.memo = a, b, pix, {}
+
+    def __call__(self, yaw):
+        key = float(yaw)
+        if key not in self.memo:
+            Rb = _rotate(np.array([key]), self.b)[0]
+            m = np.cross(Rb, self.a)
+            self.memo[key] = (Rb, m, _dot(self.a, Rb), _norm(m) / self.pix < 1.0)
+        return self.memo[key]
 
 
 class Fit:
@@ -46,8 +65,9 @@ class Fit:
     """
 
     def __init__(self, P: MotionInputs, la, lb, orient, depth, params: MotionParams,
-                 rp: register.RegisterParams):
+                 rp: register.RegisterParams, turned: Turned | None = None):
         self.P, self.la, self.lb, self.orient, self.depth = P, la, lb, orient, depth
+        self.turned = Turned(P.a, P.b, P.pix) if turned is None else turned
         self.p, self.rp, self.dy, self.n = params, rp, P.dy, len(P.a)
         self.floor_first = None   # decided on the first motions scored
 
@@ -63,8 +83,8 @@ class Fit:
         T = t3 / np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-12)
         for y in np.unique(yaw):   # candidates come in groups of one yaw
             k = yaw == y
-            Rb = _rotate(np.array([y]), P.b)[0]
-            score[k] = known_yaw_score(P.a, Rb, np.cross(Rb, P.a), T[k], P.pix, thr)[0]
+            Rb, m, ab, far = self.turned(y)
+            score[k] = known_yaw_score(P.a, Rb, m, T[k], P.pix, thr, ab, far)[0]
         floor, wall, n_floor = np.zeros(len(yaw)), np.zeros(len(yaw)), np.zeros(len(yaw))
         for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
             i = np.flatnonzero(L.valid)

@@ -203,15 +203,15 @@ def _epipolar_terms(a, b, yaw, t, pix):
     return r, ~far & (la > 0) & (lb > 0), ~far & (la < 0) & (lb < 0), far
 
 
-def known_yaw_terms(a, Rb, m, T, pix: float):
+def known_yaw_terms(a, Rb, m, T, pix: float, ab=None, far=None):
     """Epipolar residuals (C, M) in pixels of C unit baselines T (C, 3) at one known yaw, and
     masks: in front of both cameras (C, M), no parallax (M,) (as ``_epipolar_terms``), from
     matrix products: with m = R b x a (M, 3), a . (t x R b) = t . m, |t x v|^2 = 1 - (t . v)^2
     for unit vectors, and the depths of ``depths``. a, Rb: (M, 3) unit bearings of A and of B
-    turned into A's level frame."""
+    turned into A's level frame; ab = a . Rb (M,) and the no-parallax mask (M,) when known."""
     num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
     r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / pix
-    ab = _dot(a, Rb)
+    ab = _dot(a, Rb) if ab is None else ab
     det = np.maximum(1.0 - ab * ab, 1e-12)
     front = ((at - ab * bt) / det > 0) & ((ab * at - bt) / det > 0)
-    return r, front, _norm(m) / pix < 1.0
+    return r, front, (_norm(m) / pix < 1.0) if far is None else far
