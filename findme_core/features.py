@@ -263,8 +263,10 @@ def distinct(matches: Matches, radius_px: float) -> tuple[np.ndarray, np.ndarray
     n = len(matches)
     if n == 0:
         return np.zeros(0, int), np.zeros(0, int)
-    d = (np.linalg.norm(matches.ua[:, None] - matches.ua[None], axis=2)
-         + np.linalg.norm(matches.ub[:, None] - matches.ub[None], axis=2))
+    def dist(u):   # (n, n) pixel distances (the norm over the pair axis, written out)
+        dx, dy = u[:, None, 0] - u[None, :, 0], u[:, None, 1] - u[None, :, 1]
+        return np.sqrt(dx * dx + dy * dy)
+    d = dist(matches.ua) + dist(matches.ub)
     # each match's copies (itself included) as lists: the greedy pass is then plain Python
     ii, jj = np.nonzero(d < 2.0 * radius_px)
     near = np.split(jj, np.searchsorted(ii, np.arange(1, n))) if n > 1 else [jj]

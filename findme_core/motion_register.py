@@ -155,10 +155,13 @@ class Registration:
         if free is not None:   # with equal heights (assumed, not measured), its direction
             # may rise or fall: uneven ground, a hand-held phone
             dirs.append((free[0], free[1][None], free[2][None], self.planar))
+        wall_only = (uses[1][0] & ~uses[0][0]) | (uses[1][1] & ~uses[0][1])
         for y, T, inl, free_dir in dirs:
             for t, e in zip(T, inl):
-                for use in uses:
-                    s = _scale(self.P, y, t, e, use)
+                for k, use in enumerate(uses):
+                    if k == 0 or (e & wall_only).any():
+                        s = _scale(self.P, y, t, e, use)
+                    # else: no wall point among the inliers: the same points, the same s
                     if s is not None:   # the direction's own elevation, and dy = h_A - h_B
                         add(y, s * t[[0, 2]])
                         if free_dir:

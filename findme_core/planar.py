@@ -109,8 +109,9 @@ def solve_gravity_3pt(a: np.ndarray, b: np.ndarray):
     K = np.stack([_cross(np.stack([b[..., 0], z, b[..., 2]], -1), a),
                   _cross(np.stack([b[..., 2], z, -b[..., 0]], -1), a),
                   _cross(np.stack([z, b[..., 1], z], -1), a)], 1)      # (S, kind, point, 3)
-    dets = np.stack([np.sum(K[:, i, 0] * _cross(K[:, j, 1], K[:, k, 2]), -1)
-                     for i, j, k in np.ndindex(3, 3, 3)], 1)
+    # det of every (i, j, k) choice of kinds at once, in np.ndindex(3, 3, 3) order
+    cr = _cross(K[:, :, 1, None, :], K[:, None, :, 2, :])                # (S, j, k, 3)
+    dets = np.sum(K[:, :, 0, None, None, :] * cr[:, None], -1).reshape(len(K), 27)
     coeffs = dets @ _POLY
     ok = np.abs(coeffs[:, 0]) > 1e-9 * np.abs(coeffs).max(1)  # else a root at yaw = pi: skip
     comp = np.zeros((int(ok.sum()), 6, 6))
