@@ -134,6 +134,18 @@ class Fit:
         """(C,) total score of C motions (yaw (C,), t (C, 3)) and their layout pairs."""
         yaw = np.atleast_1d(np.asarray(yaw, float))
         t3 = np.atleast_2d(t3)
+        if len(yaw) > 1:   # candidates repeat (a scale found twice): each scored once
+            _, first, back = np.unique(np.column_stack([yaw, t3]), axis=0, return_index=True,
+                                       return_inverse=True)
+            if len(first) < len(yaw):
+                o = np.sort(first)      # the first of each, in the candidates' order
+                k = np.empty(len(o), int)
+                k[back.ravel()[o]] = np.arange(len(o))
+                total, which = self._score(yaw[o], t3[o])
+                return total[k[back.ravel()]], which[k[back.ravel()]]
+        return self._score(yaw, t3)
+
+    def _score(self, yaw, t3):
         lay, which = self.layouts(yaw, t3[:, [0, 2]])
         return (self.features(yaw, t3) + lay + self.orientation(yaw)
                 + self.baseline(t3)), which
