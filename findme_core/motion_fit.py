@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import register
+from .motion_features import _consensus
 from .motion_model import MotionInputs, MotionParams
 from .planar import (_dot, _epipolar_terms, _norm, _rotate, _spread, epipolar_residuals,
                      known_yaw_terms, transfer_residuals)
@@ -51,6 +52,42 @@ class Turned:
             m = np.cross(Rb, self.a)
             self.memo[key] = (Rb, m, _dot(self.a, Rb), _norm(m) / self.pix < 1.0)
         return self.memo[key]
+
+
+class YawScale:
+    """``motion_features._scale`` of many baseline directions at a few yaws: the terms that
+    depend on the yaw only (the lifted points and rays turned, their dot products, the
+    points' relative sigmas) computed once per yaw; the same arithmetic, the same numbers.
+    ``scale(yaw, t, e_in, use)`` as ``_scale(P, yaw, t, e_in, use)``."""
+
+    def __init__(self, P: MotionInputs, turned: Turned):
+        self.P, self.turned, self.memo = P, turned, {}
+
+    def _terms(self, yaw):
+        key = float(yaw)
+        if key not in self.memo:
+            P, out = self.P, []
+            Rb = self.turned(key)[0]
+            for L, into_b in ((P.la, True), (P.lb, False)):
+                c, v = (L.points, Rb) if into_b else \
+                    (-_rotate(np.atleast_1d(key), L.points)[0], P.a)
+                with np.errstate(invalid="ignore"):   # rows without 3D: NaN, never used
+                    out.append((c, v, np.sum(v * c, 1),
+                                L.sigma / np.linalg.norm(L.points, axis=1)))
+            self.memo[key] = out
+        return self.memo[key]
+
+    def __call__(self, yaw, t, e_in, use) -> float | None:
+        s, sg = [], []
+        for (c, v, vc, rs), u in zip(self._terms(yaw), use):
+            i = np.flatnonzero(e_in & u)
+            tv = v[i] @ t
+            den = np.maximum(1.0 - tv ** 2, 1e-9)
+            si = (c[i] @ t - tv * vc[i]) / den
+            rel = np.hypot(rs[i], 2.0 * self.P.pix / np.sqrt(den))
+            s.append(si)
+            sg.append(rel * np.abs(si) + 1e-3)
+        return _consensus(np.concatenate(s), np.concatenate(sg))
 
 
 class Fit:

@@ -18,11 +18,11 @@ import numpy as np
 
 from . import motion_lifted, register
 from .errors import MotionError
-from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error, _scale,
+from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error,
                               check_matches, local_optimisation)
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result
 from .planar import bearings, rot_y
-from .motion_fit import Fit, Turned, known_yaw_score
+from .motion_fit import Fit, Turned, YawScale, known_yaw_score
 
 
 class Registration:
@@ -155,12 +155,13 @@ class Registration:
         if free is not None:   # with equal heights (assumed, not measured), its direction
             # may rise or fall: uneven ground, a hand-held phone
             dirs.append((free[0], free[1][None], free[2][None], self.planar))
+        scale = YawScale(self.P, self.turned)   # ``_scale`` with its per-yaw terms kept
         wall_only = (uses[1][0] & ~uses[0][0]) | (uses[1][1] & ~uses[0][1])
         for y, T, inl, free_dir in dirs:
             for t, e in zip(T, inl):
                 for k, use in enumerate(uses):
                     if k == 0 or (e & wall_only).any():
-                        s = _scale(self.P, y, t, e, use)
+                        s = scale(y, t, e, use)
                     # else: no wall point among the inliers: the same points, the same s
                     if s is not None:   # the direction's own elevation, and dy = h_A - h_B
                         add(y, s * t[[0, 2]])
