@@ -148,10 +148,19 @@ def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Signed angle (rad, Sampson-like) of each match from its epipolar plane,
     a . (t x R b) / rms(|t x R b|, |t x a|): (M,) for one motion, (C, M) for C yaws (C,)
     and baselines (C, 3)."""
-    T = np.atleast_2d(t)[:, None, :]
-    n1, n2 = _cross(T, _rotate(np.atleast_1d(yaw), b)), _cross(T, a[None])
-    den = np.sqrt(0.5 * (_dot(n1, n1) + _dot(n2, n2)))
-    r = _dot(a[None], n1) / np.maximum(den, 1e-12)
+    # by components, (C, M) each (the arithmetic of _rotate, _cross and _dot, without their
+    # strided (C, M, 3) arrays)
+    T = np.atleast_2d(t)
+    tx, ty, tz = T[:, 0, None], T[:, 1, None], T[:, 2, None]
+    y1 = np.atleast_1d(yaw)
+    c, s = np.cos(y1)[:, None], np.sin(y1)[:, None]
+    ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
+    bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
+    rx, rz = c * bx + s * bz, c * bz - s * bx            # R_y(yaw) b; its y is b's
+    n1x, n1y, n1z = ty * rz - tz * by, tz * rx - tx * rz, tx * by - ty * rx
+    n2x, n2y, n2z = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
+    den = np.sqrt(0.5 * ((n1x * n1x + n1y * n1y + n1z * n1z) + (n2x * n2x + n2y * n2y + n2z * n2z)))
+    r = (ax * n1x + ay * n1y + az * n1z) / np.maximum(den, 1e-12)
     return r[0] if np.ndim(yaw) == 0 else r
 
 
