@@ -174,19 +174,44 @@ def depths(yaw, t, a: np.ndarray, b: np.ndarray):
     return (la[0], lb[0]) if np.ndim(yaw) == 0 else (la, lb)
 
 
+def _turn(yaw, x, y, z, inverse: bool = False):
+    """``_rotate`` by components: R_y(yaw) (or R_y^T) of vectors given as x, y, z arrays that
+    broadcast against (C, 1); returns (x, y, z) (C, N)."""
+    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None] * (-1.0 if inverse else 1.0)
+    return c * x + s * z, y, c * z - s * x
+
+
 def _moved(yaw, t, pts, into_b: bool):
-    """Lifted points (N, 3) of one photo in the other photo's level frame: (C, N, 3)."""
-    T = np.atleast_2d(t)[:, None, :]
-    return _rotate(yaw, pts[None] - T, True) if into_b else _rotate(yaw, pts) + T
+    """Lifted points (N, 3) of one photo in the other photo's level frame: (x, y, z) (C, N)
+    each, for C yaws (C,) and t (C, 3)."""
+    T = np.atleast_2d(t)
+    tx, ty, tz = T[:, 0, None], T[:, 1, None], T[:, 2, None]
+    px, py, pz = pts[:, 0], pts[:, 1], pts[:, 2]
+    if into_b:
+        return _turn(yaw, px - tx, py - ty, pz - tz, True)
+    qx, qy, qz = _turn(yaw, px, py, pz)
+    return qx + tx, qy + ty, qz + tz
+
+
+def _norm3(x, y, z):
+    """``_norm`` by components."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def _cross_norm(x, y, z, rays):
+    """|(x, y, z) x ray| for rays (N, 3) (``_norm(_cross(., rays))`` by components)."""
+    rx, ry, rz = rays[:, 0], rays[:, 1], rays[:, 2]
+    return _norm3(y * rz - z * ry, z * rx - x * rz, x * ry - y * rx)
 
 
 def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float):
     """hypot(1, each point's sigma (N,) along its own ray, seen across the observed ray of
     the other photo, in pixels): (C, N)."""
     y1 = np.atleast_1d(yaw)
-    own = _rotate(y1, pts / np.maximum(_norm(pts), 1e-12)[:, None], into_b)
-    dist = np.maximum(_norm(_moved(y1, t, pts, into_b)), 1e-9)
-    return np.hypot(1.0, sig * _norm(_cross(own, rays[None])) / dist / pix)
+    u = pts / np.maximum(_norm(pts), 1e-12)[:, None]
+    own = _turn(y1, u[:, 0], u[:, 1], u[:, 2], into_b)
+    dist = np.maximum(_norm3(*_moved(y1, t, pts, into_b)), 1e-9)
+    return np.hypot(1.0, sig * _cross_norm(*own, rays) / dist / pix)
 
 
 def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None):
@@ -194,11 +219,12 @@ def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=
     (N, 3) in pixels over their ``_spread`` (computed when None); 1000 for a point behind
     the camera. (N,) for one motion, (C, N) for C."""
     y1 = np.atleast_1d(yaw)
-    Q = _moved(y1, t, pts, into_b)
-    dist = np.maximum(_norm(Q), 1e-9)
+    qx, qy, qz = _moved(y1, t, pts, into_b)
+    dist = np.maximum(_norm3(qx, qy, qz), 1e-9)
     spread = _spread(y1, t, pts, sig, rays, into_b, pix) if spread is None else spread
-    sin_ray = _norm(_cross(Q, rays[None])) / dist
-    r = np.where(_dot(Q, rays[None]) > 0, sin_ray / pix / spread, 1000.0)
+    sin_ray = _cross_norm(qx, qy, qz, rays) / dist
+    front = qx * rays[:, 0] + qy * rays[:, 1] + qz * rays[:, 2]
+    r = np.where(front > 0, sin_ray / pix / spread, 1000.0)
     return r[0] if np.ndim(yaw) == 0 else r
 
 
