@@ -110,6 +110,12 @@ def _full_size(ends, s: float):
     return ends if s == 1.0 else (np.asarray(ends, float) + 0.5) / s - 0.5
 
 
+def photo_lines(hs, image) -> np.ndarray:
+    """(N, 4) the lines ``methods.hypothesize`` found in ``image`` (its ``HypothesisSet``
+    ``hs``, at the working size) in the photo's pixels: what ``line_segments`` detects."""
+    return _full_size(np.asarray(hs.lines.ends, float).reshape(-1, 4), _work_scale(image))
+
+
 def line_segments(image) -> np.ndarray:
     """(N, 4) the photo's merged straight lines [u1, v1, u2, v2] in its pixels, as
     ``methods.hypothesize`` finds them (same working size, detector and settings), for a
@@ -136,7 +142,7 @@ def photo_of(image, camera: Camera, height: float, rank: int = 1,
                               f"{len(hs.hypotheses)} hypotheses"
                               + (f" ({hs.reason})" if hs.reason else ""))
     photo = prepare(image, camera, height, hs.hypotheses, rank,
-                    _full_size(hs.lines.ends, _work_scale(image)), max_layouts,
+                    photo_lines(hs, image), max_layouts,
                     feature_params, clock)
     photo.timing_ms["hypotheses"] = ms
     return photo

@@ -155,7 +155,10 @@ def provenance_text(msg) -> str:
 
 
 def hypothesis_set_msg(session: str, index: int, hs: HypothesisSet, method: str,
-                       camera: Camera | None = None, provenance: Provenance | None = None):
+                       camera: Camera | None = None, provenance: Provenance | None = None,
+                       lines=None):
+    """The bus message of a photo's hypotheses; ``lines``: (N, 4) the photo's lines in its
+    pixels (``pair.photo_lines``), sent so that odometry need not detect them again."""
     m = schemas.HypothesisSet(session=session, index=index, width=hs.width, height=hs.height,
                               reason=hs.reason or "", method=method,
                               timing_ms={k: float(v) for k, v in hs.timing_ms.items()})
@@ -166,7 +169,15 @@ def hypothesis_set_msg(session: str, index: int, hs: HypothesisSet, method: str,
     for i, h in enumerate(hs.hypotheses):
         m.hypotheses.add(rank=i + 1, score=float(h.score), support=float(np.clip(h.support, 0, 1)),
                          polyline=schemas.polyline_to_msg(h.polyline, h.kinds))
+    if lines is not None:
+        m.lines.extend(np.asarray(lines, float).ravel().tolist())
     return m
+
+
+def msg_lines(msg) -> np.ndarray | None:
+    """(N, 4) the lines [u1, v1, u2, v2] a HypothesisSet carries, photo pixels; None when it
+    carries none (the reader detects them)."""
+    return np.asarray(msg.lines, float).reshape(-1, 4) if len(msg.lines) else None
 
 
 def msg_hypotheses(msg) -> list[Hypothesis]:

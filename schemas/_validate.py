@@ -28,6 +28,9 @@ IMAGE_FORMATS = ("jpeg", "png", "webp", "avif")
 
 Problems = list[str]
 
+#: Lines a HypothesisSet may carry (a 12 MP photo has a few hundred merged lines).
+MAX_LINES = 4096
+
 
 def is_valid_session(session: object) -> bool:
     """True when ``session`` is a usable session id (see SESSION_PATTERN)."""
@@ -188,6 +191,13 @@ def _hypothesis_set(m: hypotheses_pb2.HypothesisSet) -> Problems:
         _nonneg(p, f"timing_ms[{k!r}]", v)
     if m.HasField("camera"):
         _camera(p, "camera", m.camera)
+    if len(m.lines) % 4:
+        p.append(f"lines must hold 4 numbers per line (u1, v1, u2, v2), got {len(m.lines)}")
+    if len(m.lines) > 4 * MAX_LINES:
+        p.append(f"lines: at most {MAX_LINES} lines, got {len(m.lines) // 4}")
+    bad = next((i for i, x in enumerate(m.lines) if not math.isfinite(x)), None)
+    if bad is not None:
+        p.append(f"lines[{bad}] must be finite, got {m.lines[bad]!r}")
     return p
 
 

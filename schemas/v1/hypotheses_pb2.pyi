@@ -20,7 +20,7 @@ class Hypothesis(_message.Message):
     def __init__(self, rank: _Optional[int] = ..., score: _Optional[float] = ..., support: _Optional[float] = ..., polyline: _Optional[_Union[_common_pb2.Polyline, _Mapping]] = ...) -> None: ...
 
 class HypothesisSet(_message.Message):
-    __slots__ = ("schema", "session", "index", "width", "height", "hypotheses", "reason", "timing_ms", "method", "camera")
+    __slots__ = ("schema", "session", "index", "width", "height", "hypotheses", "reason", "timing_ms", "method", "camera", "lines")
     class TimingMsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -38,6 +38,7 @@ class HypothesisSet(_message.Message):
     TIMING_MS_FIELD_NUMBER: _ClassVar[int]
     METHOD_FIELD_NUMBER: _ClassVar[int]
     CAMERA_FIELD_NUMBER: _ClassVar[int]
+    LINES_FIELD_NUMBER: _ClassVar[int]
     schema: str
     session: str
     index: int
@@ -48,4 +49,5 @@ class HypothesisSet(_message.Message):
     timing_ms: _containers.ScalarMap[str, float]
     method: str
     camera: _common_pb2.Camera
-    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., hypotheses: _Optional[_Iterable[_Union[Hypothesis, _Mapping]]] = ..., reason: _Optional[str] = ..., timing_ms: _Optional[_Mapping[str, float]] = ..., method: _Optional[str] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ...) -> None: ...
+    lines: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., hypotheses: _Optional[_Iterable[_Union[Hypothesis, _Mapping]]] = ..., reason: _Optional[str] = ..., timing_ms: _Optional[_Mapping[str, float]] = ..., method: _Optional[str] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ..., lines: _Optional[_Iterable[float]] = ...) -> None: ...

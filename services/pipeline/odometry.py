@@ -33,7 +33,7 @@ import schemas
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
-from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
+from findme_io.convert import frame_camera, msg_camera, msg_hypotheses, msg_lines
 from findme_io.imageio import decode_image
 
 from ..runtime import bus
@@ -267,7 +267,8 @@ class OdometryHandler(Handler):
             p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
         if p.prepared is None or p.prepared[0] != p.selection.rank:
             image, cam, hyps, rank, h = self._inputs(session, st, n)
-            p.prepared = (rank, prepare(image, cam, h, hyps, rank))
+            # the hypotheses' own lines when sent (else detected again)
+            p.prepared = (rank, prepare(image, cam, h, hyps, rank, msg_lines(p.hset)))
         return p.prepared[1]
 
     def _inputs(self, session, st, n):

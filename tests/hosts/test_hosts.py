@@ -15,7 +15,8 @@ lan.py), set up as compose/docker-compose.yml sets up its containers and with it
 A two-photo session from the page: its numbers equal ``findme run``'s on the same photos,
 the two hypotheses hosts share the work, the recording is complete. Then the worker's
 cable is pulled while a photo it owns is in flight and plugged back in: no photo is lost
-(this part needs the delivery recovery of issue 10). Every wait is on a signal (a log line,
+(the store and the recovery sweeps: a frame whose owner vanished is handled by another
+instance, or by the owner once it is back). Every wait is on a signal (a log line,
 a liveliness token, a page selector, a bus message). The test's own bus observer reaches
 the router over a Unix socket (no namespace needed). The namespaces share /dev/shm, real
 hosts do not, so Zenoh's shared memory is off everywhere here.
@@ -302,8 +303,8 @@ def test_two_photo_session_across_hosts(lan, deployment, browser, tmp_path):
 
 def test_worker_link_cut_mid_session_loses_no_photo(lan, deployment, browser):
     """The worker's cable is pulled while photo 1 (the worker's by the sharding) is sent,
-    then plugged back in, and photo 2 is sent: every photo gets its pose. Depends on the
-    delivery recovery of issue 10 (a frame whose owner vanished is handled by another)."""
+    then plugged back in, and photo 2 is sent: every photo gets its pose (recovery: a frame whose owner vanished is
+    handled by another instance or by the owner once back)."""
     d = deployment
     page, sid = _session(browser, [None, "wrk"])
     keys = Keys(d["observer"], sid)
@@ -322,8 +323,8 @@ def test_worker_link_cut_mid_session_loses_no_photo(lan, deployment, browser):
     done = keys.wait(trajectory_of_3, 60)
     have = sorted(k.split("/", 2)[2] for k in keys.got)
     keys.sub.undeclare()
-    assert done, ("a photo was lost when the worker's link went down and came back (needs "
-                  f"the delivery recovery of issue 10): the session has {have}")
+    assert done, ("a photo was lost when the worker's link went down and came back "
+                  f"(recovery): the session has {have}")
     page.wait_for_selector('#floor-map[data-poses="3"]')
     assert not page.js_errors, page.js_errors
     page.context.close()

@@ -44,6 +44,7 @@ def sample_messages() -> list[tuple[str, object]]:
         hypotheses=[S.Hypothesis(rank=1, score=12.75, support=0.83, polyline=poly1),
                     S.Hypothesis(rank=2, score=9.5, support=0.61, polyline=poly2)],
         timing_ms={"lines": 24.8, "merge": 1.9, "search": 112.4},
+        lines=[10.5, 300.0, 200.25, 280.0, 400.0, 120.0, 402.5, 460.0],
         camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="exif",
                         gravity_source="image", gravity_sigma_rad=0.0141,
                         gravity_cov_rad2=[0.0002, 0.00001, 0.00001, 0.00018]))

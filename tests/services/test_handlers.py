@@ -39,6 +39,25 @@ def test_hypotheses_handler_matches_the_core(pipeline):
         assert np.array_equal(poly, c.polyline) and np.array_equal(kinds, c.kinds)
 
 
+def test_hypotheses_handler_sends_the_photos_lines_once(pipeline, tilted_view):
+    """With the phone's gravity the set carries the lines the hypotheses were built from
+    (in the photo's pixels, as ``pair.photo_of`` hands them to the motion: the CLI and
+    odometry orient the room with the same lines), so odometry need not detect them again;
+    with gravity estimated (the hypotheses then saw only the lines below the horizon) it
+    carries none and odometry detects the whole photo's (``pair.line_segments``)."""
+    from findme_core.pair import photo_lines
+    from findme_io.convert import msg_lines
+    view, frame, hset, _ = pipeline
+    image = decode_image(frame.image.data)
+    sent = msg_lines(hset)
+    assert sent is not None and len(sent) > 10
+    assert np.array_equal(sent, photo_lines(hypothesize(image, view.camera), image))
+    blind = frame_of(tilted_view)
+    blind.ClearField("gravity")
+    (out,) = HypothesesHandler().on_message("findme/t1/frame/0", blind)
+    assert msg_lines(out.msg) is None and out.msg.hypotheses
+
+
 def test_hypotheses_handler_frame_without_gravity(tilted_view):
     """A frame without gravity: the service estimates it from the image, the hypotheses
     reuse that estimate's segments (photo.hypothesize_without_gravity gives the same), and
