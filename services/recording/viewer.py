@@ -165,11 +165,19 @@ class ViewerHandler(Handler):
         self.views: OrderedDict[str, object] = OrderedDict()   # least recently used first
         self._used: dict[str, float] = {}
         self.where: dict[str, str] = {}
-        self.shown = 0
+        self.shown = self.handled = 0
         self.failed = 0
         self.closed = 0
         self.streams, self.max_sessions, self.on_full = 0, max_sessions, on_full
         self._lock = threading.Lock()
+        self._seen = threading.Condition(self._lock)
+
+    def wait_handled(self, n: int, timeout: float = 30.0) -> bool:
+        """Block until at least ``n`` messages were handled (shown or not drawable; False on
+        timeout): the signal to wait on before stopping, as the recorder's
+        ``wait_recorded``: messages still in flight on the bus are not yet queued."""
+        with self._seen:
+            return self._seen.wait_for(lambda: self.handled >= n, timeout)
 
     def _view(self, session: str):
         v = self.views.get(session)
@@ -211,12 +219,21 @@ class ViewerHandler(Handler):
     def on_message(self, key, payload):
         t = self.clock()
         try:
+            self._show(key, payload, t)
+        finally:
+            with self._seen:
+                self.handled += 1
+                self._seen.notify_all()
+        return []
+
+    def _show(self, key, payload, t) -> None:
+        try:
             session = bus.parse_key(key).session
         except FindmeError:
-            return []
+            return
         msg, _ = parse(payload)
         if msg is None:
-            return []
+            return
         with self._lock:
             try:
                 authority.check(key, msg)   # drawn under its key's session and n only
@@ -225,7 +242,6 @@ class ViewerHandler(Handler):
             except FindmeError as e:  # a message it cannot draw (bad camera, ...): skip it
                 self.failed += 1
                 log.warning("viewer: cannot show %s: %s", key, e)
-        return []
 
     def close(self) -> None:
         with self._lock:

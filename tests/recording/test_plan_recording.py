@@ -63,6 +63,7 @@ def recorded(tmp_path_factory):
             sent += 1
         got = plans.wait_final(len(room.frames))
         assert recorder.wait_recorded(sent + len(got)), recorder.counters()
+        assert viewer.wait_handled(sent + len(got)), viewer.counters()
         plans.sub.undeclare()
     finally:
         group.stop()           # the recorder and viewer finish their files
