@@ -40,7 +40,7 @@ import cv2  # noqa: E402
 
 import schemas  # noqa: E402
 from findme.evaluate import view_inputs  # noqa: E402
-from findme_core.pair import prepare  # noqa: E402
+from findme_core.pair import photo_lines, prepare  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from findme_io.imageio import decode_image  # noqa: E402
 from services.pipeline.hypotheses import HypothesesHandler  # noqa: E402
@@ -134,26 +134,28 @@ class NoPose(Exception):
 def odometry_parts(photos) -> dict[str, float]:
     """CPU ms of what odometry does for a pair, by part, with the core calls its handler
     makes: per photo decode and prepare (features; layouts and the room's orientation from
-    the photo's lines), then matching, lifting and motion of A -> B."""
+    the lines the hypotheses sent), then matching, lifting and motion of A -> B."""
     from findme_core.methods import hypothesize
     from findme_core.pair import motion_photos
     ins = []
     for jpeg, cam, h in photos:        # hypotheses come from their own stage (not timed here)
-        ins.append((jpeg, cam, h, hypothesize(decode_image(jpeg, "bench"), cam, "findme",
-                                              10).hypotheses))
+        img = decode_image(jpeg, "bench")
+        hs = hypothesize(img, cam, "findme", 10)
+        # the lines come with the hypotheses (HypothesisSet.lines), as the handler gets them
+        ins.append((jpeg, cam, h, hs.hypotheses, photo_lines(hs, img)))
     parts = {"decode": [], "features": [], "layout": []}
     ready = []
-    for jpeg, cam, h, hs in ins:
+    for jpeg, cam, h, hs, lines in ins:
         t0 = CPU()
         img = decode_image(jpeg, "bench")
         parts["decode"].append(1e3 * (CPU() - t0))
-        ready.append(prepare(img, cam, h, hs, 1, clock=CPU))
+        ready.append(prepare(img, cam, h, hs, 1, lines, clock=CPU))
         for k in ("features", "layout"):
             parts[k].append(ready[-1].timing_ms[k])
     res = motion_photos(*ready, ("findme",), clock=CPU)["findme"]
     t = getattr(res, "timing_ms", {})
     return {"decode": parts["decode"][1], "features": parts["features"][1],
-            "layout (lines, walls, orientation)": parts["layout"][1],
+            "layout (walls, orientation)": parts["layout"][1],
             "matching": t.get("matching", float("nan")), "lift": t.get("lift", float("nan")),
             "motion": t.get("motion", float("nan")),
             "prepare A": parts["decode"][0] + parts["features"][0] + parts["layout"][0]}

@@ -199,9 +199,11 @@ def _knn(bf, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     (second column inf / -1 when d2 has one row)."""
     idx = np.full((len(d1), 2), -1, int)
     dist = np.full((len(d1), 2), np.inf)
-    for i, pair in enumerate(bf.knnMatch(d1, d2, k=2)):
-        for j, m in enumerate(pair[:2]):
-            idx[i, j], dist[i, j] = m.trainIdx, m.distance
+    found = bf.knnMatch(d1, d2, k=2)
+    for j in range(2):   # (LSH may find fewer than 2)
+        rows = [i for i, pair in enumerate(found) if len(pair) > j]
+        idx[rows, j] = [found[i][j].trainIdx for i in rows]
+        dist[rows, j] = [found[i][j].distance for i in rows]
     return idx, dist
 
 
@@ -261,12 +263,20 @@ def distinct(matches: Matches, radius_px: float) -> tuple[np.ndarray, np.ndarray
     n = len(matches)
     if n == 0:
         return np.zeros(0, int), np.zeros(0, int)
-    d = (np.linalg.norm(matches.ua[:, None] - matches.ua[None], axis=2)
-         + np.linalg.norm(matches.ub[:, None] - matches.ub[None], axis=2))
-    rep = np.full(n, -1)
-    for i in np.argsort(matches.ratio, kind="stable"):
+    def dist(u):   # (n, n) pixel distances (the norm over the pair axis, written out)
+        dx, dy = u[:, None, 0] - u[None, :, 0], u[:, None, 1] - u[None, :, 1]
+        return np.sqrt(dx * dx + dy * dy)
+    d = dist(matches.ua) + dist(matches.ub)
+    # each match's copies (itself included) as lists: the greedy pass is then plain Python
+    ii, jj = np.nonzero(d < 2.0 * radius_px)
+    near = np.split(jj, np.searchsorted(ii, np.arange(1, n))) if n > 1 else [jj]
+    rep = [-1] * n
+    for i in np.argsort(matches.ratio, kind="stable").tolist():
         if rep[i] < 0:
-            rep[(d[i] < 2.0 * radius_px) & (rep < 0)] = i
+            for j in near[i].tolist():
+                if rep[j] < 0:
+                    rep[j] = i
+    rep = np.array(rep)
     keep = np.unique(rep)
     return keep, np.searchsorted(keep, rep)
 

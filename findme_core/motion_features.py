@@ -200,7 +200,12 @@ def _scale(P: MotionInputs, yaw, t, e_in, use) -> float | None:
         rel = np.hypot(L.sigma[i] / np.linalg.norm(pts, axis=1), 2.0 * P.pix / np.sqrt(den))
         s.append(si)
         sg.append(rel * np.abs(si) + 1e-3)
-    s, sg = np.concatenate(s), np.concatenate(sg)
+    return _consensus(np.concatenate(s), np.concatenate(sg))
+
+
+def _consensus(s, sg) -> float | None:
+    """The weighted mean of the scales s (K,) (sigmas sg) that agree with the best supported
+    one (``_scale``); None without a positive one."""
     s, sg = s[s > 0], sg[s > 0]
     if len(s) == 0:
         return None

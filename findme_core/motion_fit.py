@@ -15,9 +15,10 @@ from __future__ import annotations
 import numpy as np
 
 from . import register
+from .motion_features import _consensus
 from .motion_model import MotionInputs, MotionParams
-from .planar import (_epipolar_terms, _rotate, _spread, epipolar_residuals, known_yaw_terms,
-                     transfer_residuals)
+from .planar import (_dot, _epipolar_terms, _norm, _rotate, _spread, epipolar_residuals,
+                     known_yaw_terms, transfer_residuals)
 from .robust import levenberg_marquardt, msac
 
 
@@ -26,12 +27,67 @@ def wrap90(x):
     return (np.asarray(x) + np.pi / 4) % (np.pi / 2) - np.pi / 4
 
 
-def known_yaw_score(a, Rb, m, T, pix: float, thr: float):
+def known_yaw_score(a, Rb, m, T, pix: float, thr: float, ab=None, far=None):
     """MSAC score (C,) and inliers (C, M) of C unit baselines T (C, 3) at one yaw (bearings
-    a (M, 3), B's bearings turned into A's frame Rb, m = Rb x a; ``planar.known_yaw_terms``)."""
-    r, front, far = known_yaw_terms(a, Rb, m, T, pix)
+    a (M, 3), B's bearings turned into A's frame Rb, m = Rb x a, and optionally their
+    a . Rb and no-parallax mask (M,) from ``Turned``; ``planar.known_yaw_terms``)."""
+    r, front, far = known_yaw_terms(a, Rb, m, T, pix, ab, far)
     inl = (r < thr) & (front | far)
     return msac(np.where(inl, r, thr), thr), inl
+
+
+class Turned:
+    """B's bearings b (M, 3) turned into A's level frame at a yaw, with what scoring at that
+    known yaw needs of them, computed once per yaw (the candidates, the directions and the
+    scores of one run share a few yaws): ``turned(yaw)`` -> (Rb (M, 3), m = Rb x a (M, 3),
+    a . Rb (M,), no-parallax mask (M,), as ``planar.known_yaw_terms``)."""
+
+    def __init__(self, a, b, pix: float):
+        self.a, self.b, self.pix, self.memo = a, b, pix, {}
+
+    def __call__(self, yaw):
+        key = float(yaw)
+        if key not in self.memo:
+            Rb = _rotate(np.array([key]), self.b)[0]
+            m = np.cross(Rb, self.a)
+            self.memo[key] = (Rb, m, _dot(self.a, Rb), _norm(m) / self.pix < 1.0)
+        return self.memo[key]
+
+
+class YawScale:
+    """``motion_features._scale`` of many baseline directions at a few yaws: the terms that
+    depend on the yaw only (the lifted points and rays turned, their dot products, the
+    points' relative sigmas) computed once per yaw; the same arithmetic, the same numbers.
+    ``scale(yaw, t, e_in, use)`` as ``_scale(P, yaw, t, e_in, use)``."""
+
+    def __init__(self, P: MotionInputs, turned: Turned):
+        self.P, self.turned, self.memo = P, turned, {}
+
+    def _terms(self, yaw):
+        key = float(yaw)
+        if key not in self.memo:
+            P, out = self.P, []
+            Rb = self.turned(key)[0]
+            for L, into_b in ((P.la, True), (P.lb, False)):
+                c, v = (L.points, Rb) if into_b else \
+                    (-_rotate(np.atleast_1d(key), L.points)[0], P.a)
+                with np.errstate(invalid="ignore"):   # rows without 3D: NaN, never used
+                    out.append((c, v, np.sum(v * c, 1),
+                                L.sigma / np.linalg.norm(L.points, axis=1)))
+            self.memo[key] = out
+        return self.memo[key]
+
+    def __call__(self, yaw, t, e_in, use) -> float | None:
+        s, sg = [], []
+        for (c, v, vc, rs), u in zip(self._terms(yaw), use):
+            i = np.flatnonzero(e_in & u)
+            tv = v[i] @ t
+            den = np.maximum(1.0 - tv ** 2, 1e-9)
+            si = (c[i] @ t - tv * vc[i]) / den
+            rel = np.hypot(rs[i], 2.0 * self.P.pix / np.sqrt(den))
+            s.append(si)
+            sg.append(rel * np.abs(si) + 1e-3)
+        return _consensus(np.concatenate(s), np.concatenate(sg))
 
 
 class Fit:
@@ -46,8 +102,9 @@ class Fit:
     """
 
     def __init__(self, P: MotionInputs, la, lb, orient, depth, params: MotionParams,
-                 rp: register.RegisterParams):
+                 rp: register.RegisterParams, turned: Turned | None = None):
         self.P, self.la, self.lb, self.orient, self.depth = P, la, lb, orient, depth
+        self.turned = Turned(P.a, P.b, P.pix) if turned is None else turned
         self.p, self.rp, self.dy, self.n = params, rp, P.dy, len(P.a)
         self.floor_first = None   # decided on the first motions scored
 
@@ -63,8 +120,8 @@ class Fit:
         T = t3 / np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-12)
         for y in np.unique(yaw):   # candidates come in groups of one yaw
             k = yaw == y
-            Rb = _rotate(np.array([y]), P.b)[0]
-            score[k] = known_yaw_score(P.a, Rb, np.cross(Rb, P.a), T[k], P.pix, thr)[0]
+            Rb, m, ab, far = self.turned(y)
+            score[k] = known_yaw_score(P.a, Rb, m, T[k], P.pix, thr, ab, far)[0]
         floor, wall, n_floor = np.zeros(len(yaw)), np.zeros(len(yaw)), np.zeros(len(yaw))
         for L, rays, into_b in ((P.la, P.b, True), (P.lb, P.a, False)):
             i = np.flatnonzero(L.valid)
@@ -114,6 +171,18 @@ class Fit:
         """(C,) total score of C motions (yaw (C,), t (C, 3)) and their layout pairs."""
         yaw = np.atleast_1d(np.asarray(yaw, float))
         t3 = np.atleast_2d(t3)
+        if len(yaw) > 1:   # candidates repeat (a scale found twice): each scored once
+            _, first, back = np.unique(np.column_stack([yaw, t3]), axis=0, return_index=True,
+                                       return_inverse=True)
+            if len(first) < len(yaw):
+                o = np.sort(first)      # the first of each, in the candidates' order
+                k = np.empty(len(o), int)
+                k[back.ravel()[o]] = np.arange(len(o))
+                total, which = self._score(yaw[o], t3[o])
+                return total[k[back.ravel()]], which[k[back.ravel()]]
+        return self._score(yaw, t3)
+
+    def _score(self, yaw, t3):
         lay, which = self.layouts(yaw, t3[:, [0, 2]])
         return (self.features(yaw, t3) + lay + self.orientation(yaw)
                 + self.baseline(t3)), which

@@ -69,7 +69,8 @@ def correspondences(P: MotionInputs, min_elev_deg: float = 3.0, height_sigma: fl
 def _modes(t, sig, gate: float, k: int, min_support: float, sep_m: float):
     """The k best-supported distinct translations among the votes t (N, 2) (support: MSAC
     of the other votes' distances over their sigma); (K, 2), support (K,)."""
-    d = np.linalg.norm(t[:, None] - t[None], axis=2) / (gate * sig[None])
+    dx, dz = t[:, None, 0] - t[None, :, 0], t[:, None, 1] - t[None, :, 1]
+    d = np.sqrt(dx * dx + dz * dz) / (gate * sig[None])   # (the norm over the pair axis)
     support = np.maximum(0.0, 1.0 - d ** 2).sum(1)
     keep = []
     for i in np.argsort(-support, kind="stable"):

@@ -18,11 +18,11 @@ import numpy as np
 
 from . import motion_lifted, register
 from .errors import MotionError
-from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error, _scale,
+from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error,
                               check_matches, local_optimisation)
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result
-from .planar import _rotate, bearings, rot_y
-from .motion_fit import Fit, known_yaw_score
+from .planar import bearings, rot_y
+from .motion_fit import Fit, Turned, YawScale, known_yaw_score
 
 
 class Registration:
@@ -37,6 +37,7 @@ class Registration:
             check_matches(matches, params)       # identical photos: an error whatever else
         self.a, self.b = bearings(cam_a, matches.ua), bearings(cam_b, matches.ub)
         self.pix = 1.0 / np.sqrt(cam_a.fx * cam_b.fx)
+        self.turned = Turned(self.a, self.b, self.pix)   # per-yaw terms, shared with the Fit
         self.planar, self.dy, self.h = abs(h_a - h_b) < 1e-6, float(h_a - h_b), (h_a, h_b)
         self.lifts = (lift_a, lift_b)
         self.la = list(layouts[0])[:params.max_layouts]
@@ -84,16 +85,17 @@ class Registration:
         """Unit horizontal baseline directions (K, 3) the matches agree on at this yaw, with
         their epipolar inliers (K, M): one match fixes the direction (t . (R b x a) = 0);
         all of them are scored at once (matrix products) and the best distinct ones kept."""
-        a, Rb, p = self.a, _rotate(np.array([yaw]), self.b)[0], self.p
-        m = np.cross(Rb, a)
+        a, p = self.a, self.p
+        Rb, m, ab, far = self.turned(yaw)
         seeds = self.seeds   # the directions of the most distinctive matches are tried
         T = np.column_stack([m[seeds, 2], np.zeros(len(seeds)), -m[seeds, 0]])
         T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
         T = np.vstack([T, -T])
-        score, inl = known_yaw_score(a, Rb, m, T, self.pix, p.thr_px)
-        keep = []
-        for i in np.argsort(-score):
-            if score[i] < max(2.0, 0.3 * score[np.argsort(-score)[0]]) or len(keep) == 3:
+        score, inl = known_yaw_score(a, Rb, m, T, self.pix, p.thr_px, ab, far)
+        keep, order = [], np.argsort(-score)
+        floor = max(2.0, 0.3 * score[order[0]])
+        for i in order:
+            if score[i] < floor or len(keep) == 3:
                 break
             if all(T[i] @ T[j] < np.cos(np.radians(3.0)) for j in keep):
                 keep.append(i)
@@ -138,7 +140,8 @@ class Registration:
             first |= best[1][0]
         self.P = self._lift(first)
         self.depth = self._scene_depth()
-        self.fit = Fit(self.P, self.la, self.lb, self.orient, self.depth, self.p, self.rp)
+        self.fit = Fit(self.P, self.la, self.lb, self.orient, self.depth, self.p, self.rp,
+                       self.turned)
         uses = (self.P.usable(False), self.P.usable(True))   # floor points first
         cy, ct = [], []
 
@@ -152,10 +155,14 @@ class Registration:
         if free is not None:   # with equal heights (assumed, not measured), its direction
             # may rise or fall: uneven ground, a hand-held phone
             dirs.append((free[0], free[1][None], free[2][None], self.planar))
+        scale = YawScale(self.P, self.turned)   # ``_scale`` with its per-yaw terms kept
+        wall_only = (uses[1][0] & ~uses[0][0]) | (uses[1][1] & ~uses[0][1])
         for y, T, inl, free_dir in dirs:
             for t, e in zip(T, inl):
-                for use in uses:
-                    s = _scale(self.P, y, t, e, use)
+                for k, use in enumerate(uses):
+                    if k == 0 or (e & wall_only).any():
+                        s = scale(y, t, e, use)
+                    # else: no wall point among the inliers: the same points, the same s
                     if s is not None:   # the direction's own elevation, and dy = h_A - h_B
                         add(y, s * t[[0, 2]])
                         if free_dir:

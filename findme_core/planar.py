@@ -109,8 +109,9 @@ def solve_gravity_3pt(a: np.ndarray, b: np.ndarray):
     K = np.stack([_cross(np.stack([b[..., 0], z, b[..., 2]], -1), a),
                   _cross(np.stack([b[..., 2], z, -b[..., 0]], -1), a),
                   _cross(np.stack([z, b[..., 1], z], -1), a)], 1)      # (S, kind, point, 3)
-    dets = np.stack([np.sum(K[:, i, 0] * _cross(K[:, j, 1], K[:, k, 2]), -1)
-                     for i, j, k in np.ndindex(3, 3, 3)], 1)
+    # det of every (i, j, k) choice of kinds at once, in np.ndindex(3, 3, 3) order
+    cr = _cross(K[:, :, 1, None, :], K[:, None, :, 2, :])                # (S, j, k, 3)
+    dets = np.sum(K[:, :, 0, None, None, :] * cr[:, None], -1).reshape(len(K), 27)
     coeffs = dets @ _POLY
     ok = np.abs(coeffs[:, 0]) > 1e-9 * np.abs(coeffs).max(1)  # else a root at yaw = pi: skip
     comp = np.zeros((int(ok.sum()), 6, 6))
@@ -147,10 +148,19 @@ def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Signed angle (rad, Sampson-like) of each match from its epipolar plane,
     a . (t x R b) / rms(|t x R b|, |t x a|): (M,) for one motion, (C, M) for C yaws (C,)
     and baselines (C, 3)."""
-    T = np.atleast_2d(t)[:, None, :]
-    n1, n2 = _cross(T, _rotate(np.atleast_1d(yaw), b)), _cross(T, a[None])
-    den = np.sqrt(0.5 * (_dot(n1, n1) + _dot(n2, n2)))
-    r = _dot(a[None], n1) / np.maximum(den, 1e-12)
+    # by components, (C, M) each (the arithmetic of _rotate, _cross and _dot, without their
+    # strided (C, M, 3) arrays)
+    T = np.atleast_2d(t)
+    tx, ty, tz = T[:, 0, None], T[:, 1, None], T[:, 2, None]
+    y1 = np.atleast_1d(yaw)
+    c, s = np.cos(y1)[:, None], np.sin(y1)[:, None]
+    ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
+    bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
+    rx, rz = c * bx + s * bz, c * bz - s * bx            # R_y(yaw) b; its y is b's
+    n1x, n1y, n1z = ty * rz - tz * by, tz * rx - tx * rz, tx * by - ty * rx
+    n2x, n2y, n2z = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
+    den = np.sqrt(0.5 * ((n1x * n1x + n1y * n1y + n1z * n1z) + (n2x * n2x + n2y * n2y + n2z * n2z)))
+    r = (ax * n1x + ay * n1y + az * n1z) / np.maximum(den, 1e-12)
     return r[0] if np.ndim(yaw) == 0 else r
 
 
@@ -164,19 +174,44 @@ def depths(yaw, t, a: np.ndarray, b: np.ndarray):
     return (la[0], lb[0]) if np.ndim(yaw) == 0 else (la, lb)
 
 
+def _turn(yaw, x, y, z, inverse: bool = False):
+    """``_rotate`` by components: R_y(yaw) (or R_y^T) of vectors given as x, y, z arrays that
+    broadcast against (C, 1); returns (x, y, z) (C, N)."""
+    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None] * (-1.0 if inverse else 1.0)
+    return c * x + s * z, y, c * z - s * x
+
+
 def _moved(yaw, t, pts, into_b: bool):
-    """Lifted points (N, 3) of one photo in the other photo's level frame: (C, N, 3)."""
-    T = np.atleast_2d(t)[:, None, :]
-    return _rotate(yaw, pts[None] - T, True) if into_b else _rotate(yaw, pts) + T
+    """Lifted points (N, 3) of one photo in the other photo's level frame: (x, y, z) (C, N)
+    each, for C yaws (C,) and t (C, 3)."""
+    T = np.atleast_2d(t)
+    tx, ty, tz = T[:, 0, None], T[:, 1, None], T[:, 2, None]
+    px, py, pz = pts[:, 0], pts[:, 1], pts[:, 2]
+    if into_b:
+        return _turn(yaw, px - tx, py - ty, pz - tz, True)
+    qx, qy, qz = _turn(yaw, px, py, pz)
+    return qx + tx, qy + ty, qz + tz
+
+
+def _norm3(x, y, z):
+    """``_norm`` by components."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def _cross_norm(x, y, z, rays):
+    """|(x, y, z) x ray| for rays (N, 3) (``_norm(_cross(., rays))`` by components)."""
+    rx, ry, rz = rays[:, 0], rays[:, 1], rays[:, 2]
+    return _norm3(y * rz - z * ry, z * rx - x * rz, x * ry - y * rx)
 
 
 def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float):
     """hypot(1, each point's sigma (N,) along its own ray, seen across the observed ray of
     the other photo, in pixels): (C, N)."""
     y1 = np.atleast_1d(yaw)
-    own = _rotate(y1, pts / np.maximum(_norm(pts), 1e-12)[:, None], into_b)
-    dist = np.maximum(_norm(_moved(y1, t, pts, into_b)), 1e-9)
-    return np.hypot(1.0, sig * _norm(_cross(own, rays[None])) / dist / pix)
+    u = pts / np.maximum(_norm(pts), 1e-12)[:, None]
+    own = _turn(y1, u[:, 0], u[:, 1], u[:, 2], into_b)
+    dist = np.maximum(_norm3(*_moved(y1, t, pts, into_b)), 1e-9)
+    return np.hypot(1.0, sig * _cross_norm(*own, rays) / dist / pix)
 
 
 def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None):
@@ -184,11 +219,12 @@ def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=
     (N, 3) in pixels over their ``_spread`` (computed when None); 1000 for a point behind
     the camera. (N,) for one motion, (C, N) for C."""
     y1 = np.atleast_1d(yaw)
-    Q = _moved(y1, t, pts, into_b)
-    dist = np.maximum(_norm(Q), 1e-9)
+    qx, qy, qz = _moved(y1, t, pts, into_b)
+    dist = np.maximum(_norm3(qx, qy, qz), 1e-9)
     spread = _spread(y1, t, pts, sig, rays, into_b, pix) if spread is None else spread
-    sin_ray = _norm(_cross(Q, rays[None])) / dist
-    r = np.where(_dot(Q, rays[None]) > 0, sin_ray / pix / spread, 1000.0)
+    sin_ray = _cross_norm(qx, qy, qz, rays) / dist
+    front = qx * rays[:, 0] + qy * rays[:, 1] + qz * rays[:, 2]
+    r = np.where(front > 0, sin_ray / pix / spread, 1000.0)
     return r[0] if np.ndim(yaw) == 0 else r
 
 
@@ -203,15 +239,15 @@ def _epipolar_terms(a, b, yaw, t, pix):
     return r, ~far & (la > 0) & (lb > 0), ~far & (la < 0) & (lb < 0), far
 
 
-def known_yaw_terms(a, Rb, m, T, pix: float):
+def known_yaw_terms(a, Rb, m, T, pix: float, ab=None, far=None):
     """Epipolar residuals (C, M) in pixels of C unit baselines T (C, 3) at one known yaw, and
     masks: in front of both cameras (C, M), no parallax (M,) (as ``_epipolar_terms``), from
     matrix products: with m = R b x a (M, 3), a . (t x R b) = t . m, |t x v|^2 = 1 - (t . v)^2
     for unit vectors, and the depths of ``depths``. a, Rb: (M, 3) unit bearings of A and of B
-    turned into A's level frame."""
+    turned into A's level frame; ab = a . Rb (M,) and the no-parallax mask (M,) when known."""
     num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
     r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / pix
-    ab = _dot(a, Rb)
+    ab = _dot(a, Rb) if ab is None else ab
     det = np.maximum(1.0 - ab * ab, 1e-12)
     front = ((at - ab * bt) / det > 0) & ((ab * at - bt) / det > 0)
-    return r, front, _norm(m) / pix < 1.0
+    return r, front, (_norm(m) / pix < 1.0) if far is None else far

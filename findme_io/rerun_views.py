@@ -358,6 +358,12 @@ def blueprint(photos, plan: bool = False):
         collapse_panels=True)
 
 
+#: photos with their own tab in the blueprint: the first ones; later photos are in the 3D view
+#: and the entity tree. Every layout sent stays in the recording stream's memory (0.6 MB
+#: each, measured), so it is sent at most MAX_PHOTO_TABS + 1 times per session.
+MAX_PHOTO_TABS = 8
+
+
 class SessionView:
     """Routes one session's bus messages to the adapters, keeping what they need from
     earlier messages (each photo's camera, how many measurements a photo has)."""
@@ -374,7 +380,7 @@ class SessionView:
         rec.log("world", rr.ViewCoordinates.RDF, static=True)
 
     def update_blueprint(self) -> None:
-        key = (tuple(sorted(self.photos)), self.has_plan)
+        key = (tuple(sorted(self.photos)[:MAX_PHOTO_TABS]), self.has_plan)
         if key != self._blueprint_for:
             self._blueprint_for = key
             self.rec.send_blueprint(blueprint(*key))

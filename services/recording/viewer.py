@@ -14,10 +14,13 @@ from __future__ import annotations
 import logging
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import threading
 import time
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -106,12 +109,17 @@ class Sink:
             self._proc.wait(10)
 
     def attach(self, rec, session: str, blueprint=None) -> str:
-        """Point a recording stream at this sink; returns where it goes (for the user)."""
+        """Point a recording stream at this sink; returns where it goes (for the user).
+        A session shown again after it was closed (idle) goes to ``<session>.<k>.rrd``
+        beside the first file (Rerun merges the files of one recording id when opened)."""
         if self.mode == "rrd":
             p = Path(self.path or ".")
             if p.suffix != ".rrd":
                 p.mkdir(parents=True, exist_ok=True)
                 p = p / f"{session}.rrd"
+                k = 1
+                while p.exists():
+                    p, k = p.with_name(f"{session}.{k}.rrd"), k + 1
             else:
                 p.parent.mkdir(parents=True, exist_ok=True)
             rec.save(str(p), default_blueprint=blueprint)
@@ -130,20 +138,37 @@ def new_recording(session: str):
 
 
 class ViewerHandler(Handler):
-    """Shows every session's messages in Rerun (one recording per session)."""
+    """Shows every session's messages in Rerun (one recording per session).
+
+    A session idle for ``idle_s`` is closed (its file finished), and beyond ``max_open`` the
+    least recently used one is; it opens again (a new file part) if it comes back. Rerun
+    never frees a recording stream made from Python (it is only disconnected: rerun issue
+    #2116; 0.7 MB and a thread each, measured), so after ``max_sessions`` streams the
+    handler calls ``on_full`` once: ``findme serve viewer`` then stops cleanly (every file
+    finished) for its supervisor to start it afresh, as gunicorn's ``max_requests`` does for
+    a leaking worker."""
 
     name = "viewer"
     inputs = (Input(f"{bus.ROOT}/*/**", None),)
     drain_on_stop = True
+    tick_s = 5.0
 
-    def __init__(self, sink: Sink | None = None, clock=time.time_ns):
+    def __init__(self, sink: Sink | None = None, clock=time.time_ns, idle_s: float = 600.0,
+                 max_open: int = 64, monotonic=time.monotonic, max_sessions: int = 1000,
+                 on_full: Callable[[], None] | None = None):
         from findme_io.rerun_views import SessionView  # noqa: F401 - fail early if rerun is missing
+        if idle_s <= 0 or max_open < 1:
+            raise InputError(f"viewer: idle must be > 0 s and max_open >= 1, got {idle_s}, {max_open}")
         self.sink = sink or Sink.default()
-        self.clock = clock
-        self.views: dict[str, object] = {}
+        self.clock, self.monotonic = clock, monotonic
+        self.idle_s, self.max_open = idle_s, max_open
+        self.views: OrderedDict[str, object] = OrderedDict()   # least recently used first
+        self._used: dict[str, float] = {}
         self.where: dict[str, str] = {}
         self.shown = 0
         self.failed = 0
+        self.closed = 0
+        self.streams, self.max_sessions, self.on_full = 0, max_sessions, on_full
         self._lock = threading.Lock()
 
     def _view(self, session: str):
@@ -154,7 +179,34 @@ class ViewerHandler(Handler):
             self.where[session] = self.sink.attach(rec, session)
             v = self.views[session] = SessionView(rec)
             log.info("viewer: session %s -> %s", session, self.where[session])
+            self.streams += 1
+            if self.streams == self.max_sessions and self.on_full is not None:
+                log.warning("viewer: %d recordings made, which Rerun does not free: stopping "
+                            "so that the supervisor starts a fresh viewer", self.streams)
+                self.on_full()
+            while len(self.views) > self.max_open:
+                self._close(next(iter(self.views)), "more than %d open" % self.max_open)
+        self.views.move_to_end(session)
+        self._used[session] = self.monotonic()
         return v
+
+    def _close(self, session: str, why: str) -> None:
+        v = self.views.pop(session)
+        self._used.pop(session, None)
+        self.where.pop(session, None)
+        self.closed += 1
+        try:
+            v.rec.flush()
+            v.rec.disconnect()
+        except Exception as e:  # noqa: BLE001 - closing one must not stop the others
+            log.warning("viewer: closing session %s: %s", session, e)
+        log.info("viewer: session %s closed (%s)", session, why)
+
+    def tick(self, now):
+        with self._lock:
+            for session in [s for s in self.views if now - self._used[s] > self.idle_s]:
+                self._close(session, f"idle for {self.idle_s:g} s")
+        return []
 
     def on_message(self, key, payload):
         t = self.clock()
@@ -177,20 +229,18 @@ class ViewerHandler(Handler):
 
     def close(self) -> None:
         with self._lock:
-            for v in self.views.values():
-                try:
-                    v.rec.flush()
-                    v.rec.disconnect()
-                except Exception as e:  # noqa: BLE001 - closing must not fail the stop
-                    log.warning("viewer: closing a recording: %s", e)
-            self.views.clear()
+            for session in list(self.views):
+                self._close(session, "service stopping")
 
     def counters(self):
-        return {"shown": self.shown, "not_shown": self.failed, "sessions": len(self.views)}
+        return {"shown": self.shown, "not_shown": self.failed, "sessions": len(self.views),
+                "sessions_closed": self.closed, "recordings_made": self.streams}
 
 
 def make_viewer(args) -> ViewerHandler:
     """``findme serve viewer``: a viewer it spawns when there is a display, else ``.rrd``
     files in ``--out`` (default recordings/)."""
     out = getattr(args, "out", None)
-    return ViewerHandler(Sink.default(out if out and out != "." else "recordings"))
+    return ViewerHandler(Sink.default(out if out and out != "." else "recordings"),
+                         idle_s=getattr(args, "idle", 600.0),
+                         on_full=lambda: os.kill(os.getpid(), signal.SIGTERM))

@@ -149,3 +149,48 @@ def test_viewer_servers_bind_localhost_by_default():
         proc.wait(10)
     assert f"127.0.0.1:{port}" in addrs and f"127.0.0.1:{wport}" in addrs
     assert all(a.startswith("127.0.0.1:") for a in addrs), addrs
+
+
+def _tiny_frame(session, n):
+    import cv2
+    import numpy as np
+    from findme_io.convert import make_frame
+    import schemas
+    img = np.random.default_rng(n).integers(0, 255, (60, 80, 3)).astype(np.uint8)
+    f = make_frame(session, n, cv2.imencode(".jpg", img)[1].tobytes(),
+                   intrinsics=(80.0, 80.0, 40.0, 30.0, 80, 60), gravity=(0.0, 1.0, 0.0))
+    return f"findme/{session}/frame/{n}", schemas.encode(f)
+
+
+def test_viewer_bounds_what_sessions_cost(tmp_path):
+    """The layout is sent at most MAX_PHOTO_TABS + 1 times however many photos come (Rerun
+    keeps every layout sent); an idle session is closed, its file finished, and opens a new
+    file part when it comes back; beyond max_open the least recently used one is closed;
+    after max_sessions recordings the service asks to be restarted, once."""
+    from findme_io.rerun_views import MAX_PHOTO_TABS
+    from services.recording.viewer import Sink, ViewerHandler
+    now, full = [0.0], []
+    h = ViewerHandler(Sink("rrd", path=str(tmp_path)), idle_s=60, max_open=2,
+                      monotonic=lambda: now[0], max_sessions=4, on_full=lambda: full.append(1))
+    h.on_message(*_tiny_frame("s1", 0))
+    sent = []
+    rec = h.views["s1"].rec
+    real = rec.send_blueprint
+    rec.send_blueprint = lambda bp: (sent.append(bp), real(bp))
+    for n in range(1, 3 * MAX_PHOTO_TABS):
+        h.on_message(*_tiny_frame("s1", n))
+    assert len(sent) == MAX_PHOTO_TABS - 1     # photos 1..7 changed the tabs, later ones not
+    now[0] = 61.0
+    h.tick(now[0])
+    assert not h.views and h.counters()["sessions_closed"] == 1
+    assert "EncodedImage:blob" in rrd_contents(tmp_path / "s1.rrd")["/world/photo/23/camera/image"]
+    h.on_message(*_tiny_frame("s1", 24))       # back after its close: a second part
+    assert (tmp_path / "s1.1.rrd").exists()
+    h.on_message(*_tiny_frame("s2", 0))
+    h.on_message(*_tiny_frame("s3", 0))        # s1 is the least recently used of 3 > 2 open
+    assert list(h.views) == ["s2", "s3"] and h.counters()["sessions_closed"] == 2
+    assert full == [1] and h.counters()["recordings_made"] == 4
+    h.on_message(*_tiny_frame("s4", 0))
+    assert full == [1]
+    h.close()
+    assert not h.views
