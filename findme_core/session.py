@@ -7,8 +7,10 @@ across spots (``motion.estimate``). Then ``fuse.place`` poses the photos in the 
 of photo 0 and ``floorplan.build`` draws the plan.
 
 Spots: photos with one spot label were taken standing at one place (the page's "new spot",
-or ``findme plan --spots``); without labels, consecutive photos that share a rotation-only
-yaw are one spot and every other photo starts a new one.
+or ``findme plan --spots``); without labels (``auto_spots``), a photo that shares a
+rotation-only yaw with any photo of the current spot (the one before it, or an earlier one
+when the photos in between were left out or the turn came round) joins it, and every other
+photo starts a new one.
 
 Units: metres, radians. Pure: images in, numbers out; no I/O. ``clock`` is injected.
 """
@@ -78,20 +80,32 @@ def relate(photos, spots=None, params: SessionParams = SessionParams()):
     Returns:
         (links, matches {(i, j): (a, b) bearings}, motions) as ``fuse.place`` takes them.
     """
+    return _relate(photos, spots, params)[:3]
+
+
+def _relate(photos, spots, params: SessionParams):
+    """``relate`` plus the spot labels used (given, or ``auto_spots``)."""
     n = len(photos)
-    lab = list(range(n)) if spots is None else list(spots)
-    links, matches, motions = [], {}, []
+    cache = {}
+
+    def match(i, j):
+        if (i, j) not in cache:
+            cache[(i, j)] = features.match(photos[i].features, photos[j].features,
+                                           params.features)
+        return cache[(i, j)]
+
+    lab, links = auto_spots(photos, match) if spots is None else (list(spots), [])
+    matches, motions = {}, []
     for i in range(n):
         for j in range(i + 1, n):
-            same = (j == i + 1) if spots is None else lab[i] == lab[j]
-            m = features.match(photos[i].features, photos[j].features, params.features)
-            if same:
+            m = match(i, j)
+            if lab[i] == lab[j]:
+                if spots is None:   # linked once, by auto_spots
+                    continue
                 r = spot.rotation_yaw(m, photos[i].camera, photos[j].camera)
                 if r is not None:
                     links.append(fuse.Link(i, j, r.yaw, r.sigma))
-                    continue
-                if spots is not None:
-                    continue
+                continue
             if len(m) < 8:
                 continue
             matches[(i, j)] = (planar.bearings(photos[i].camera, m.ua),
@@ -100,9 +114,45 @@ def relate(photos, spots=None, params: SessionParams = SessionParams()):
                 mo = _motion(photos[i], photos[j], m)
                 if mo is not None:
                     motions.append(fuse.Link(i, j, mo.yaw, mo.sigma_yaw, (mo.x, mo.z)))
-    if spots is None:   # one spot per chain of links
-        links = [k for k in links if k.j == k.i + 1]
-    return links, matches, motions
+    return links, matches, motions, lab
+
+
+def auto_spots(photos, match) -> tuple[list[int], list]:
+    """(spot label per photo (N,), the rotation ``fuse.Link`` s that joined them), capture
+    order. Photo j joins the current spot when it
+    shares a rotation-only yaw (``spot.rotation_yaw``) with one of the spot's photos (the
+    latest first); else, when it shares one with a photo of the spot before, the current
+    spot was part of that one's turn (a gap of left-out views: no overlap across it) and
+    both are one spot again; else it starts a new spot. ``match(i, j)`` gives the
+    matches of photos i < j.
+
+    Every photo of the spot counts, not only the one before: a turn that skips views (too
+    little floor, a blurred photo) or comes round to its first photo still overlaps some
+    photo of it; rotation-only consensus refuses photos taken at another spot (parallax).
+    """
+    def turned(members, j):   # the link to the latest photo of ``members`` j turned from
+        for i in reversed(members):
+            r = spot.rotation_yaw(match(i, j), photos[i].camera, photos[j].camera)
+            if r is not None:
+                return fuse.Link(i, j, r.yaw, r.sigma)
+        return None
+
+    lab, links, cur, prev = [], [], [], []
+    for j in range(len(photos)):
+        k = turned(cur, j) if cur else None
+        if k is None and prev:
+            k = turned(prev, j)
+            if k is not None:
+                for i in cur:
+                    lab[i] = lab[prev[0]]
+                cur, prev = prev + cur, []
+        if k is None:
+            prev, cur = cur, []
+        else:
+            links.append(k)
+        cur.append(j)
+        lab.append(lab[cur[0]] if len(cur) > 1 else (max(lab) + 1 if lab else 0))
+    return lab, links
 
 
 def _motion(pa: Photo, pb: Photo, m):
@@ -130,8 +180,10 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     if not photos:
         raise GeometryError("a plan needs at least one photo")
     t0 = clock()
-    links, matches, motions = relations if relations is not None else relate(photos, spots,
-                                                                              params)
+    if relations is None:
+        links, matches, motions, spots = _relate(photos, spots, params)
+    else:
+        links, matches, motions = relations
     t1 = clock()
     layouts = [p.layout for p in photos]
     pl = fuse.place(layouts, links, spots, matches, motions, params.fuse)

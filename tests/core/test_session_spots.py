@@ -1,0 +1,67 @@
+"""Spots found from the photos (``session.auto_spots``) on a room the project renders: a
+turn with a gap of left-out views is still one spot, and a photo taken elsewhere is not.
+
+The zind-rooms sessions drop views that see too little floor, so a turn's consecutive
+photos need not overlap; before, only consecutive photos were compared and such a spot was
+split in two, each part placed on its own (dev: zr_r10's p17 turn flipped by 180 deg).
+"""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from findme_core import features, session
+from findme_core.room import Pose, Room
+from findme_core.synth import render
+
+H = 1.4
+
+
+def _photos(poses):
+    out = []
+    for p in poses:
+        v = render(Room.rectangle(5.0, 4.0), p, 640, 480, hfov_deg=70.0, supersample=1)
+        out.append(SimpleNamespace(camera=v.camera, features=features.detect(v.image)))
+    return out
+
+
+def _match(photos):
+    return lambda i, j: features.match(photos[i].features, photos[j].features)
+
+
+@pytest.fixture(scope="module")
+def turn_with_gaps():
+    # spot A: 0, 50, then 180 (overlaps neither), then 330 (overlaps only the first photo);
+    # spot B, 1.8 m away: two overlapping photos
+    a = [Pose(-0.8, -0.5, H, y, 25.0, 0.0) for y in (0.0, 50.0, 180.0, 330.0)]
+    b = [Pose(1.0, 0.6, H, y, 25.0, 0.0) for y in (100.0, 150.0)]
+    return _photos(a + b), a + b
+
+
+def test_a_turn_with_gaps_is_one_spot(turn_with_gaps):
+    photos, poses = turn_with_gaps
+    lab, links = session.auto_spots(photos, _match(photos))
+    assert lab == [0, 0, 0, 0, 1, 1]
+    # the links found are the true turns (the 180 deg photo is joined by the spot's end)
+    for k in links:
+        true = math.radians(poses[k.j].yaw_deg - poses[k.i].yaw_deg)
+        assert abs(np.angle(np.exp(1j * (k.yaw - true)))) < math.radians(0.5)
+    assert {(k.i, k.j) for k in links} == {(0, 1), (0, 3), (4, 5)}
+
+
+def test_only_consecutive_photos_would_split_it(turn_with_gaps):
+    # the photos' overlaps: 0-1, 0-3 and 4-5 only (what makes the test above a real test)
+    photos, _ = turn_with_gaps
+    from findme_core import spot
+    m = _match(photos)
+    turned = {(i, j) for i in range(6) for j in range(i + 1, 6)
+              if spot.rotation_yaw(m(i, j), photos[i].camera, photos[j].camera) is not None}
+    assert turned == {(0, 1), (0, 3), (4, 5)}
+
+
+def test_no_photo_and_one_photo():
+    assert session.auto_spots([], None) == ([], [])
+    photos = _photos([Pose(0.0, 0.0, H, 0.0, 25.0, 0.0)])
+    assert session.auto_spots(photos, _match(photos)) == ([0], [])
