@@ -141,3 +141,20 @@ def test_run_into_a_closed_pipe_is_quiet(tmp_path):
     err = run.stderr.read().decode()
     assert run.wait(timeout=120) == 0, err
     assert all(head) and "Error" not in err and "Traceback" not in err, err
+
+
+def test_one_blas_thread_per_process_set_before_numpy(monkeypatch):
+    """``findme`` sets one BLAS thread per process (its idle threads spin: twice the CPU
+    per photo, measured) unless the user chose; it can only do so before numpy is imported,
+    which importing the command does not do."""
+    import subprocess
+    import sys
+    from findme import cli
+    code = "import sys, findme.cli; print('numpy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "4")
+    cli.one_thread_per_process()
+    import os
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "4"
