@@ -143,10 +143,12 @@ class ViewerHandler(Handler):
     A session idle for ``idle_s`` is closed (its file finished), and beyond ``max_open`` the
     least recently used one is; it opens again (a new file part) if it comes back. Rerun
     never frees a recording stream made from Python (it is only disconnected: rerun issue
-    #2116; 0.7 MB and a thread each, measured), so after ``max_sessions`` streams the
-    handler calls ``on_full`` once: ``findme serve viewer`` then stops cleanly (every file
-    finished) for its supervisor to start it afresh, as gunicorn's ``max_requests`` does for
-    a leaking worker."""
+    #2116; 0.7 MB and a thread each, measured), so closing finishes files but frees no
+    memory, and ``max_open`` defaults to ``max_sessions`` (a smaller one would only make
+    sessions that come and go open new streams: the bus fuzz's 100 sessions through 64 open
+    made 1,000). After ``max_sessions`` streams the handler calls ``on_full`` once:
+    ``findme serve viewer`` then stops cleanly (every file finished) for its supervisor to
+    start it afresh, as gunicorn's ``max_requests`` does for a leaking worker."""
 
     name = "viewer"
     inputs = (Input(f"{bus.ROOT}/*/**", None),)
@@ -154,9 +156,10 @@ class ViewerHandler(Handler):
     tick_s = 5.0
 
     def __init__(self, sink: Sink | None = None, clock=time.time_ns, idle_s: float = 600.0,
-                 max_open: int = 64, monotonic=time.monotonic, max_sessions: int = 1000,
-                 on_full: Callable[[], None] | None = None):
+                 max_open: int | None = None, monotonic=time.monotonic,
+                 max_sessions: int = 1000, on_full: Callable[[], None] | None = None):
         from findme_io.rerun_views import SessionView  # noqa: F401 - fail early if rerun is missing
+        max_open = max_sessions if max_open is None else max_open
         if idle_s <= 0 or max_open < 1:
             raise InputError(f"viewer: idle must be > 0 s and max_open >= 1, got {idle_s}, {max_open}")
         self.sink = sink or Sink.default()
