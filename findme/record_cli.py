@@ -127,7 +127,7 @@ def cmd_view(args) -> int:
 
 def view_recording(recs: list[Recorded], sink) -> tuple[str, int]:
     """Log a recording's bus messages through the Rerun adapters into ``sink``."""
-    from findme_io.rerun_views import SessionView, blueprint
+    from findme_io.rerun_session import SessionView, blueprint
     from services.recording.viewer import new_recording
     if not recs:
         raise RecordingError("the recording holds no Find Me messages")

@@ -1,6 +1,6 @@
 """Rerun adapters: ``log_*(rec, path, msg)`` functions that show Find Me bus messages in a
-Rerun recording, a ``SessionView`` that routes a session's messages to them, and the
-blueprint that lays a session out.
+Rerun recording (``rerun_session.SessionView`` routes a session's messages to them, and
+``rerun_session.blueprint`` lays a session out).
 
 The algorithms stay in ``findme_core``; this module only converts their results into
 Rerun archetypes. Rerun is imported lazily (the CLI starts fast without it).
@@ -20,7 +20,7 @@ Frames (DESIGN.md conventions) and where data changes frame:
   space. Bus pixels have (0, 0) at the CENTRE of the top-left pixel, Rerun's 2D space at
   its top-left CORNER, so 2D positions are logged at (u + 0.5, v + 0.5).
 * ``plan`` = the floor plan seen from above, 2D (x, -z) metres: forward is up
-  (``log_plan``; also in 3D under ``world/photo/<origin>/plan``).
+  (``rerun_plan.log_plan``; also in 3D under ``world/photo/<origin>/plan``).
 * ``log`` = text: motions, errors.
 
 Timelines: ``photo`` (sequence: the photo index n of the message) and ``bus_time``
@@ -274,163 +274,6 @@ def log_motion(rec, path: str, motion) -> None:
         level="INFO"))
 
 
-PLAN_WALL_RGBA = (26, 79, 156, 255)
-PLAN_MISSING_RGBA = (192, 57, 43, 200)
-PLAN_OPENING_RGBA = (245, 166, 35, 255)
-PLAN_CAMERA_RGBA = (46, 125, 50, 255)
-
-
-def log_plan(rec, path: str, plan) -> None:
-    """A floor plan (``path`` = plan): top-down 2D at ``path`` (x right, forward z UP: 2D
-    (x, -z), metres) and in 3D on the floor (y = h) of the plan frame, the level frame of
-    photo ``origin_index`` (``world/photo/<origin>/plan``). Walls with their lengths as
-    labels (seen: blue; not seen: thin red, "(not seen)"; openings orange), each placed
-    photo's position and heading, numbered; a plan without an outline only clears them."""
-    rr = _rr()
-    h = plan.camera_height_m or 1.0
-    unit = "m" if plan.metric else "h"
-    world = f"{photo_path(plan.origin_index)}/plan"
-    groups = {"walls": ([], [], PLAN_WALL_RGBA, 0.04), "missing": ([], [], PLAN_MISSING_RGBA, 0.02),
-              "openings": ([], [], PLAN_OPENING_RGBA, 0.06)}
-    for w in plan.walls:
-        g = {schemas.WALL_KIND_MISSING: "missing", schemas.WALL_KIND_OPENING: "openings"}.get(
-            w.kind, "walls")
-        a, b = np.array([w.a.x_m, w.a.z_m]), np.array([w.b.x_m, w.b.z_m])
-        groups[g][0].append(np.array([a, b]))
-        groups[g][1].append(f"{w.length_m:.2f} {unit} ± {w.sigma_m:.2f}"
-                            + (" (not seen)" if g == "missing" else ""))
-        u = (b - a) / max(w.length_m, 1e-9)
-        for o in w.openings:
-            groups["openings"][0].append(np.array([a + o.from_m * u, a + o.to_m * u]))
-            groups["openings"][1].append(f"opening {o.to_m - o.from_m:.2f} {unit}")
-    for name, (segs, labels, rgba, radius) in groups.items():
-        if not segs:
-            rec.log(f"{path}/{name}", rr.Clear(recursive=False))
-            rec.log(f"{world}/{name}", rr.Clear(recursive=False))
-            continue
-        flat = [np.column_stack([s[:, 0], -s[:, 1]]) for s in segs]
-        rec.log(f"{path}/{name}", rr.LineStrips2D(flat, colors=[rgba], radii=[radius],
-                                                  labels=labels, show_labels=True))
-        up = [np.column_stack([s[:, 0], np.full(2, h), s[:, 1]]) for s in segs]
-        rec.log(f"{world}/{name}", rr.LineStrips3D(up, colors=[rgba], radii=[radius / 2],
-                                                   labels=labels, show_labels=True))
-    cams = [q for q in plan.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
-    if not cams:
-        rec.log(f"{path}/cameras", rr.Clear(recursive=False))
-        rec.log(f"{world}/cameras", rr.Clear(recursive=False))
-        return
-    xz = np.array([(q.x_m, q.z_m) for q in cams])
-    fwd = 0.35 * np.array([(math.sin(q.yaw_rad), math.cos(q.yaw_rad)) for q in cams])
-    labels = [str(q.index + 1) for q in cams]
-    rec.log(f"{path}/cameras", rr.Arrows2D(origins=xz * [1, -1], vectors=fwd * [1, -1],
-                                           colors=[PLAN_CAMERA_RGBA], radii=[0.02],
-                                           labels=labels, show_labels=True))
-    rec.log(f"{world}/cameras", rr.Arrows3D(
-        origins=np.column_stack([xz[:, 0], np.full(len(xz), h), xz[:, 1]]),
-        vectors=np.column_stack([fwd[:, 0], np.zeros(len(xz)), fwd[:, 1]]),
-        colors=[PLAN_CAMERA_RGBA], labels=labels, show_labels=True))
-
-
 def log_error(rec, path: str, err) -> None:
     rr = _rr()
     rec.log(path, rr.TextLog(f"{err.key}: {err.message} ({err.service})", level="ERROR"))
-
-
-def blueprint(photos, plan: bool = False):
-    """Photos in tabs on the left (each with its hypotheses, chosen boundary and taps), the
-    room in 3D (session frame), the floor plan top-down (once there is one) and the log on
-    the right."""
-    import rerun.blueprint as rrb
-    photos = sorted(set(photos)) or [0]
-    tabs = [rrb.Spatial2DView(name=f"photo {n}", origin=f"{photo_path(n)}/camera/image")
-            for n in photos]
-    right = [rrb.Spatial3DView(name="room (level frame of photo 0: x right, y down, z forward)",
-                               origin="world")]
-    if plan:
-        right.append(rrb.Spatial2DView(name="floor plan (top-down: x right, forward up; m)",
-                                       origin="plan"))
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Tabs(*tabs, active_tab=len(tabs) - 1),
-            rrb.Vertical(*right, rrb.TextLogView(name="log", origin="log"),
-                         row_shares=[4] * len(right) + [1]),
-            column_shares=[3, 2]),
-        collapse_panels=True)
-
-
-#: photos with their own tab in the blueprint: the first ones; later photos are in the 3D view
-#: and the entity tree. Every layout sent stays in the recording stream's memory (0.6 MB
-#: each, measured), so it is sent at most MAX_PHOTO_TABS + 1 times per session.
-MAX_PHOTO_TABS = 8
-
-
-class SessionView:
-    """Routes one session's bus messages to the adapters, keeping what they need from
-    earlier messages (each photo's camera, how many measurements a photo has)."""
-
-    def __init__(self, rec):
-        self.rec = rec
-        self.photos: set[int] = set()
-        self.cameras: dict[int, object] = {}
-        self.measures: dict[int, int] = {}
-        self.has_plan = False
-        self.logged = 0
-        self._blueprint_for: tuple = ()
-        rr = _rr()
-        rec.log("world", rr.ViewCoordinates.RDF, static=True)
-
-    def update_blueprint(self) -> None:
-        key = (tuple(sorted(self.photos)[:MAX_PHOTO_TABS]), self.has_plan)
-        if key != self._blueprint_for:
-            self._blueprint_for = key
-            self.rec.send_blueprint(blueprint(*key))
-
-    def log(self, msg, t_ns: int | None = None) -> bool:
-        """Show one message; False when it is of a type this view does not draw."""
-        name = msg.DESCRIPTOR.full_name.rsplit(".", 1)[1]
-        rec = self.rec
-        if name == "Frame":
-            n = msg.index
-            _set_time(rec, n, t_ns or msg.capture_time_ns)
-            if n == 0:
-                rec.log(photo_path(0), _rr().Transform3D(translation=[0.0, 0.0, 0.0]))
-            cam = camera_of(msg)
-            self.cameras[n] = cam
-            log_frame(rec, photo_path(n), msg, cam)
-            self.photos.add(n)
-            self.update_blueprint()
-        elif name == "HypothesisSet":
-            _set_time(rec, msg.index, t_ns)
-            log_hypotheses(rec, f"{photo_path(msg.index)}/camera/image", msg)
-            if msg.HasField("camera"):
-                log_sources(rec, photo_path(msg.index), msg.index, msg.camera)
-        elif name == "Scene":
-            _set_time(rec, msg.index, t_ns)
-            log_boundary(rec, photo_path(msg.index), msg)
-        elif name == "MeasureReply":
-            _set_time(rec, msg.index, t_ns)
-            k = self.measures.get(msg.index, 0)
-            self.measures[msg.index] = k + 1
-            log_measure(rec, photo_path(msg.index), msg, k)
-        elif name == "Pose":
-            _set_time(rec, msg.index, t_ns)
-            log_pose(rec, photo_path(msg.index), msg)
-        elif name == "Trajectory":
-            _set_time(rec, max((p.index for p in msg.poses), default=0), t_ns)
-            log_trajectory(rec, "world/trajectory", msg)
-        elif name == "Motion":
-            _set_time(rec, msg.index_b, t_ns)
-            log_motion(rec, "log", msg)
-        elif name == "Plan":
-            _set_time(rec, msg.up_to_index, t_ns)
-            log_plan(rec, "plan", msg)
-            self.has_plan = True
-            self.update_blueprint()
-        elif name == "Error":
-            _set_time(rec, None, t_ns)
-            log_error(rec, "log", msg)
-        else:
-            return False
-        self.logged += 1
-        return True
-

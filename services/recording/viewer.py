@@ -158,7 +158,7 @@ class ViewerHandler(Handler):
     def __init__(self, sink: Sink | None = None, clock=time.time_ns, idle_s: float = 600.0,
                  max_open: int | None = None, monotonic=time.monotonic,
                  max_sessions: int = 1000, on_full: Callable[[], None] | None = None):
-        from findme_io.rerun_views import SessionView  # noqa: F401 - fail early if rerun is missing
+        from findme_io.rerun_session import SessionView  # noqa: F401 - fail early
         max_open = max_sessions if max_open is None else max_open
         if idle_s <= 0 or max_open < 1:
             raise InputError(f"viewer: idle must be > 0 s and max_open >= 1, got {idle_s}, {max_open}")
@@ -185,7 +185,7 @@ class ViewerHandler(Handler):
     def _view(self, session: str):
         v = self.views.get(session)
         if v is None:
-            from findme_io.rerun_views import SessionView
+            from findme_io.rerun_session import SessionView
             rec = new_recording(session)
             self.where[session] = self.sink.attach(rec, session)
             v = self.views[session] = SessionView(rec)

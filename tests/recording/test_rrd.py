@@ -167,7 +167,7 @@ def test_viewer_bounds_what_sessions_cost(tmp_path):
     keeps every layout sent); an idle session is closed, its file finished, and opens a new
     file part when it comes back; beyond max_open the least recently used one is closed;
     after max_sessions recordings the service asks to be restarted, once."""
-    from findme_io.rerun_views import MAX_PHOTO_TABS
+    from findme_io.rerun_session import MAX_PHOTO_TABS
     from services.recording.viewer import Sink, ViewerHandler
     now, full = [0.0], []
     h = ViewerHandler(Sink("rrd", path=str(tmp_path)), idle_s=60, max_open=2,
