@@ -32,9 +32,10 @@ def blueprint(photos, plan: bool = False):
         collapse_panels=True)
 
 
-#: photos with their own tab in the blueprint: the first ones; later photos are in the 3D view
-#: and the entity tree. Every layout sent stays in the recording stream's memory (0.6 MB
-#: each, measured), so it is sent at most MAX_PHOTO_TABS + 1 times per session.
+#: photos with their own tab in the blueprint: the first ones, as their number reaches 1, 2,
+#: 4 or 8 (a 3rd photo gets its tab with the 4th); all are in the 3D view and the entity
+#: tree. Rerun makes a stream for every layout sent and never frees it (rerun#2116: 0.6 MB
+#: each, measured), so a session sends at most 5 (``layouts`` counts them).
 MAX_PHOTO_TABS = 8
 
 
@@ -49,14 +50,18 @@ class SessionView:
         self.measures: dict[int, int] = {}
         self.has_plan = False
         self.logged = 0
+        self.layouts = 0   # layouts sent (each a stream Rerun keeps)
         self._blueprint_for: tuple = ()
         rr = _rr()
         rec.log("world", rr.ViewCoordinates.RDF, static=True)
 
     def update_blueprint(self) -> None:
-        key = (tuple(sorted(self.photos)[:MAX_PHOTO_TABS]), self.has_plan)
+        shown = sorted(self.photos)[:MAX_PHOTO_TABS]
+        tabs = 1 << (len(shown).bit_length() - 1) if shown else 0   # 1, 2, 4 or 8
+        key = (tuple(shown[:tabs]), self.has_plan)
         if key != self._blueprint_for:
             self._blueprint_for = key
+            self.layouts += 1
             self.rec.send_blueprint(blueprint(*key))
 
     def log(self, msg, t_ns: int | None = None) -> bool:

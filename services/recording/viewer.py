@@ -144,9 +144,10 @@ class ViewerHandler(Handler):
     least recently used one is; it opens again (a new file part) if it comes back. Rerun
     never frees a recording stream made from Python (it is only disconnected: rerun issue
     #2116; 0.7 MB and a thread each, measured), so closing finishes files but frees no
-    memory, and ``max_open`` defaults to ``max_sessions`` (a smaller one would only make
+    memory, and ``max_open`` defaults to ``max_streams`` (a smaller one would only make
     sessions that come and go open new streams: the bus fuzz's 100 sessions through 64 open
-    made 1,000). After ``max_sessions`` streams the handler calls ``on_full`` once:
+    made 1,000). Each layout sent is a stream too (``rerun_session``). After ``max_streams``
+    streams the handler calls ``on_full`` once:
     ``findme serve viewer`` then stops cleanly (every file finished) for its supervisor to
     start it afresh, as gunicorn's ``max_requests`` does for a leaking worker."""
 
@@ -157,9 +158,9 @@ class ViewerHandler(Handler):
 
     def __init__(self, sink: Sink | None = None, clock=time.time_ns, idle_s: float = 600.0,
                  max_open: int | None = None, monotonic=time.monotonic,
-                 max_sessions: int = 1000, on_full: Callable[[], None] | None = None):
+                 max_streams: int = 2000, on_full: Callable[[], None] | None = None):
         from findme_io.rerun_session import SessionView  # noqa: F401 - fail early
-        max_open = max_sessions if max_open is None else max_open
+        max_open = max_streams if max_open is None else max_open
         if idle_s <= 0 or max_open < 1:
             raise InputError(f"viewer: idle must be > 0 s and max_open >= 1, got {idle_s}, {max_open}")
         self.sink = sink or Sink.default()
@@ -171,7 +172,7 @@ class ViewerHandler(Handler):
         self.shown = self.handled = 0
         self.failed = 0
         self.closed = 0
-        self.streams, self.max_sessions, self.on_full = 0, max_sessions, on_full
+        self.streams, self.max_streams, self.on_full = 0, max_streams, on_full
         self._lock = threading.Lock()
         self._seen = threading.Condition(self._lock)
 
@@ -190,16 +191,23 @@ class ViewerHandler(Handler):
             self.where[session] = self.sink.attach(rec, session)
             v = self.views[session] = SessionView(rec)
             log.info("viewer: session %s -> %s", session, self.where[session])
-            self.streams += 1
-            if self.streams == self.max_sessions and self.on_full is not None:
-                log.warning("viewer: %d recordings made, which Rerun does not free: stopping "
-                            "so that the supervisor starts a fresh viewer", self.streams)
-                self.on_full()
+            self._made(1 + v.layouts)
             while len(self.views) > self.max_open:
                 self._close(next(iter(self.views)), "more than %d open" % self.max_open)
         self.views.move_to_end(session)
         self._used[session] = self.monotonic()
         return v
+
+    def _made(self, n: int) -> None:
+        """Count ``n`` more Rerun streams (recordings and layouts: never freed); at the
+        limit ask, once, to be restarted."""
+        full = self.streams < self.max_streams <= self.streams + n
+        self.streams += n
+        if full and self.on_full is not None:
+            log.warning("viewer: %d Rerun streams made (recordings and layouts), which Rerun "
+                        "does not free: stopping so that the supervisor starts a fresh viewer",
+                        self.streams)
+            self.on_full()
 
     def _close(self, session: str, why: str) -> None:
         v = self.views.pop(session)
@@ -240,8 +248,11 @@ class ViewerHandler(Handler):
         with self._lock:
             try:
                 authority.check(key, msg)   # drawn under its key's session and n only
-                if self._view(session).log(msg, t):
+                v = self._view(session)
+                before = v.layouts
+                if v.log(msg, t):
                     self.shown += 1
+                self._made(v.layouts - before)
             except FindmeError as e:  # a message it cannot draw (bad camera, ...): skip it
                 self.failed += 1
                 log.warning("viewer: cannot show %s: %s", key, e)
@@ -253,7 +264,7 @@ class ViewerHandler(Handler):
 
     def counters(self):
         return {"shown": self.shown, "not_shown": self.failed, "sessions": len(self.views),
-                "sessions_closed": self.closed, "recordings_made": self.streams}
+                "sessions_closed": self.closed, "rerun_streams": self.streams}
 
 
 def make_viewer(args) -> ViewerHandler:

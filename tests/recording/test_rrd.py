@@ -163,15 +163,16 @@ def _tiny_frame(session, n):
 
 
 def test_viewer_bounds_what_sessions_cost(tmp_path):
-    """The layout is sent at most MAX_PHOTO_TABS + 1 times however many photos come (Rerun
-    keeps every layout sent); an idle session is closed, its file finished, and opens a new
-    file part when it comes back; beyond max_open the least recently used one is closed;
-    after max_sessions recordings the service asks to be restarted, once."""
+    """The layout is sent when the tabbed photos reach 1, 2, 4 and 8, never again however
+    many photos come (Rerun keeps a stream per layout sent); an idle session is closed, its
+    file finished, and opens a new file part when it comes back; beyond max_open the least
+    recently used one is closed; after max_streams streams (recordings and layouts) the
+    service asks to be restarted, once."""
     from findme_io.rerun_session import MAX_PHOTO_TABS
     from services.recording.viewer import Sink, ViewerHandler
     now, full = [0.0], []
     h = ViewerHandler(Sink("rrd", path=str(tmp_path)), idle_s=60, max_open=2,
-                      monotonic=lambda: now[0], max_sessions=4, on_full=lambda: full.append(1))
+                      monotonic=lambda: now[0], max_streams=10, on_full=lambda: full.append(1))
     h.on_message(*_tiny_frame("s1", 0))
     sent = []
     rec = h.views["s1"].rec
@@ -179,7 +180,8 @@ def test_viewer_bounds_what_sessions_cost(tmp_path):
     rec.send_blueprint = lambda bp: (sent.append(bp), real(bp))
     for n in range(1, 3 * MAX_PHOTO_TABS):
         h.on_message(*_tiny_frame("s1", n))
-    assert len(sent) == MAX_PHOTO_TABS - 1     # photos 1..7 changed the tabs, later ones not
+    assert [len(b.root_container.contents[0].contents) for b in sent] == [2, 4, 8]
+    assert MAX_PHOTO_TABS == 8 and h.views["s1"].layouts == 4   # with the first photo's
     now[0] = 61.0
     h.tick(now[0])
     assert not h.views and h.counters()["sessions_closed"] == 1
@@ -189,7 +191,8 @@ def test_viewer_bounds_what_sessions_cost(tmp_path):
     h.on_message(*_tiny_frame("s2", 0))
     h.on_message(*_tiny_frame("s3", 0))        # s1 is the least recently used of 3 > 2 open
     assert list(h.views) == ["s2", "s3"] and h.counters()["sessions_closed"] == 2
-    assert full == [1] and h.counters()["recordings_made"] == 4
+    # streams: s1 1 + 4 layouts, its 2nd part 1 + 1, s2 1 + 1, s3 1 (the 10th) + 1
+    assert full == [1] and h.counters()["rerun_streams"] == 11
     h.on_message(*_tiny_frame("s4", 0))
     assert full == [1]
     h.close()
