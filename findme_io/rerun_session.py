@@ -51,6 +51,7 @@ class SessionView:
         self.has_plan = False
         self.logged = 0
         self.layouts = 0   # layouts sent (each a stream Rerun keeps)
+        self.indices: set[int] = set()   # photo numbers drawn (their entities stay in Rerun)
         self._blueprint_for: tuple = ()
         rr = _rr()
         rec.log("world", rr.ViewCoordinates.RDF, static=True)
@@ -68,6 +69,9 @@ class SessionView:
         """Show one message; False when it is of a type this view does not draw."""
         name = msg.DESCRIPTOR.full_name.rsplit(".", 1)[1]
         rec = self.rec
+        for field in ("index", "index_b"):   # a photo's entities (Rerun keeps them)
+            if msg.DESCRIPTOR.fields_by_name.get(field) is not None:
+                self.indices.add(getattr(msg, field))
         if name == "Frame":
             n = msg.index
             _set_time(rec, n, t_ns or msg.capture_time_ns)

@@ -166,13 +166,13 @@ def test_viewer_bounds_what_sessions_cost(tmp_path):
     """The layout is sent when the tabbed photos reach 1, 2, 4 and 8, never again however
     many photos come (Rerun keeps a stream per layout sent); an idle session is closed, its
     file finished, and opens a new file part when it comes back; beyond max_open the least
-    recently used one is closed; after max_streams streams (recordings and layouts) the
-    service asks to be restarted, once."""
+    recently used one is closed; past the budget of what Rerun keeps (streams: recordings and
+    layouts; photos drawn) the service asks to be restarted, once."""
     from findme_io.rerun_session import MAX_PHOTO_TABS
     from services.recording.viewer import Sink, ViewerHandler
     now, full = [0.0], []
     h = ViewerHandler(Sink("rrd", path=str(tmp_path)), idle_s=60, max_open=2,
-                      monotonic=lambda: now[0], max_streams=10, on_full=lambda: full.append(1))
+                      monotonic=lambda: now[0], budget_mb=8.0, on_full=lambda: full.append(1))
     h.on_message(*_tiny_frame("s1", 0))
     sent = []
     rec = h.views["s1"].rec
@@ -191,8 +191,11 @@ def test_viewer_bounds_what_sessions_cost(tmp_path):
     h.on_message(*_tiny_frame("s2", 0))
     h.on_message(*_tiny_frame("s3", 0))        # s1 is the least recently used of 3 > 2 open
     assert list(h.views) == ["s2", "s3"] and h.counters()["sessions_closed"] == 2
-    # streams: s1 1 + 4 layouts, its 2nd part 1 + 1, s2 1 + 1, s3 1 (the 10th) + 1
-    assert full == [1] and h.counters()["rerun_streams"] == 11
+    # streams: s1 1 + 4 layouts, its 2nd part 1 + 1, s2 1 + 1, s3 1 + 1; photos 24 + 1 + 1 + 1:
+    # s3's recording crossed 8 MB (7.6 -> 8.3)
+    c = h.counters()
+    assert full == [1] and (c["rerun_streams"], c["rerun_photos"]) == (11, 27)
+    assert c["rerun_mb"] == pytest.approx(11 * 0.7 + 27 * 0.05, abs=0.05)
     h.on_message(*_tiny_frame("s4", 0))
     assert full == [1]
     h.close()
