@@ -65,7 +65,11 @@ def _fit_lines(pts: np.ndarray, w: np.ndarray, group: np.ndarray, n: int) -> np.
         pts: (M, 2) points; w: (M,) weights; group: (M,) group index in [0, n).
     Returns:
         (n, 3) lines (a, b, c), a^2 + b^2 = 1, b >= 0.
+
+    A group whose weights are all zero (e.g. segments of zero length) is fitted with equal
+    weights instead of dividing by zero.
     """
+    w = np.where(np.bincount(group, w, n)[group] > 0, w, 1.0)
     sw = np.bincount(group, w, n)
     mx = np.bincount(group, w * pts[:, 0], n) / sw
     my = np.bincount(group, w * pts[:, 1], n) / sw

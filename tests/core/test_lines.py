@@ -177,3 +177,18 @@ def test_snap_to_edges_trusts_two_edges_merged_into_one_less():
                   np.array([8.0]))
     assert np.allclose(snap_to_edges(img, short).coef, short.coef)
     assert len(snap_to_edges(img, Lines(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)))) == 0
+
+
+def test_a_group_of_zero_weight_points_gets_a_finite_line():
+    """Degenerate: every point of a group has weight 0 (zero-length segments of a mangled
+    image): the group is fitted with equal weights, no NaN and no division warning."""
+    import warnings
+    from findme_core.lines import _fit_lines
+    pts = np.array([[0.0, 5.0], [10.0, 5.0], [3.0, 1.0], [3.0, 9.0]])
+    w = np.array([0.0, 0.0, 1.0, 2.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lines = _fit_lines(pts, w, np.array([0, 0, 1, 1]), 2)
+    assert np.isfinite(lines).all()
+    for line, group in ((lines[0], pts[:2]), (lines[1], pts[2:])):   # y = 5, x = 3
+        assert np.allclose(group @ line[:2] + line[2], 0.0, atol=1e-9)
