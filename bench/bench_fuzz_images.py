@@ -288,6 +288,7 @@ def main(argv=None):
         print(f"  {status} {name}: {msg}")
     for name, text in leaks[:10]:
         print(f"  stderr from {name}: {text!r}")
+    bad = []
     if a.cli:
         sample = r.sample([(n, d) for _, n, d in files], min(a.cli, len(files)))
         with tempfile.TemporaryDirectory() as tmp:
@@ -296,7 +297,7 @@ def main(argv=None):
               f"{len(sample) - len(bad)} exited 0 with no stderr or 2 with one line; {len(bad)} did not")
         for name, code, err in bad[:10]:
             print(f"  {name}: exit {code}: {err!r}")
-    ok = not crashes and not leaks and peak < 1024
+    ok = not crashes and not leaks and not bad and peak < 1024   # the CLI sample counts too
     print("PASS" if ok else "FAIL")
     return 0 if ok else 1
 
