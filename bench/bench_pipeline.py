@@ -173,18 +173,13 @@ def main(argv=None):
     left_out: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         for pid, photos in pairs():
-            best = None
             try:
                 runs = [run_session(f"bench-{n_pairs}-{r}", photos, Path(tmp))
                         for r in range(a.repeat)]
             except NoPose as e:
                 left_out.append(f"{pid} ({e})")
                 continue
-            for per, poses in runs:
-                if best is None or sum(map(sum, (p.values() for p in per))) < \
-                        sum(map(sum, (p.values() for p in best[0]))):
-                    best = (per, poses)
-            per, poses = best
+            per, poses = min(runs, key=lambda run: sum(sum(p.values()) for p in run[0]))
             n_pairs, n_poses = n_pairs + 1, n_poses + poses
             parts = min((odometry_parts(photos) for _ in range(a.repeat)),
                         key=lambda d: sum(v for v in d.values() if v == v))

@@ -237,9 +237,8 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
             out.differences[short] = [f"new: {len(now_list)} message(s) now, none recorded"]
             continue
         diffs = []
-        # a trajectory is a session's latest state, republished per batch of poses (how
-        # selections batch is timing): only its last value is compared
-        if len(rec_list) != len(now_list) and bus.parse_key(key).kind != "trajectory":
+        # latest state (bus.LATEST_STATE_KINDS): how often it is republished is timing
+        if len(rec_list) != len(now_list) and bus.parse_key(key).kind not in bus.LATEST_STATE_KINDS:
             diffs.append(f"published {len(rec_list)} time(s) when recorded, {len(now_list)} now "
                          "(comparing the last)")
         diffs += _compare_payloads(rec_list[-1], now_list[-1])

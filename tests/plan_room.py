@@ -81,6 +81,13 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
                                       by=schemas.SELECTED_BY_AUTO, time_ns=n + 1))
         jpegs.append(data)
         views.append(v)
+    truth, poly = first_frame_truth(room, poses)
+    return RenderedSession(frames, hsets, sels, jpegs, views, poly, truth)
+
+
+def first_frame_truth(room, poses):
+    """The true (x, z, yaw) of each pose (N, 3) and the floor polygon (M, 2), in the level
+    frame of the first pose (metres, radians), the frame a plan is given in."""
     p0 = poses[0]
     c, s = math.cos(math.radians(p0.yaw_deg)), math.sin(math.radians(p0.yaw_deg))
 
@@ -88,5 +95,4 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
         dx, dz = X - p0.x, Z - p0.z
         return np.array([c * dx - s * dz, s * dx + c * dz])
     truth = np.array([[*to0(p.x, p.z), math.radians(p.yaw_deg - p0.yaw_deg)] for p in poses])
-    poly = np.array([to0(X, Z) for X, Z in room.floor_polygon])
-    return RenderedSession(frames, hsets, sels, jpegs, views, poly, truth)
+    return truth, np.array([to0(X, Z) for X, Z in room.floor_polygon])

@@ -222,14 +222,12 @@ def _index(key: str, payload: bytes) -> int:
 def canonical(raw: Path, dst: Path, spec: Spec) -> int:
     """Rewrite a recording deterministically (module docstring); returns its message count."""
     recs = read_recording(raw)
-    # the trajectory is a session's latest state: odometry publishes it after each batch of
-    # poses, and how selections batch depends on timing, so only the last one is kept
-    last_traj = max((i for i, r in enumerate(recs) if bus.parse_key(r.key).kind == "trajectory"),
-                    default=None)
+    kinds = [bus.parse_key(r.key).kind for r in recs]
+    last = {r.key: pos for pos, (r, kind) in enumerate(zip(recs, kinds))
+            if kind in bus.LATEST_STATE_KINDS}   # only the last of a latest-state key is kept
     keyed = []
-    for pos, r in enumerate(recs):
-        kind = bus.parse_key(r.key).kind
-        if kind == "trajectory" and pos != last_traj:
+    for pos, (r, kind) in enumerate(zip(recs, kinds)):
+        if last.get(r.key, pos) != pos:
             continue
         rank = KIND_ORDER.index(kind) if kind in KIND_ORDER else len(KIND_ORDER)
         tie = (r.key, _normalised(r.payload, 0)) if kind == "error" else (pos,)

@@ -42,6 +42,12 @@ def _pct_spread(d):
         f"{100 * d['median']:.2f} % ({100 * d['p90']:.1f})"
 
 
+def _rel(points: dict, kind: str) -> str:
+    """Median relative 3D error of one point kind of a subset's ``points_3d``."""
+    d = points.get(kind)
+    return "–" if not d or not d.get("rel_err_pct_n") else f"{d['rel_err_pct_median']:.2f} %"
+
+
 def _single_rows(ours, paper):
     rows = ["| subset | views | answered ours / paper | top-1 ours (p90) | top-1 paper (p90) | "
             "best of 5 ours | best of 5 paper | oracle (any polyline) | floor 3D ours | "
@@ -52,15 +58,11 @@ def _single_rows(ours, paper):
         if not o:
             continue
         po, pp = ours[s].get("points_3d", {}), paper[s].get("points_3d", {})
-
-        def rel(pts, k):
-            d = pts.get(k)
-            return "–" if not d or not d.get("rel_err_pct_n") else f"{d['rel_err_pct_median']:.2f} %"
         rows.append(f"| {s} | {o['n_views']} | {o['coverage']:.2f} / {p['coverage']:.2f} | "
                     f"{_pct_spread(o['pixel_error_top1'])} | "
                     f"{_pct_spread(p['pixel_error_top1'])} | {_pct(o['pixel_error_best_of_5'])} | "
                     f"{_pct(p['pixel_error_best_of_5'])} | {_pct(o['oracle_polyline_pixel_error'], 'mean')} | "
-                    f"{rel(po, 'floor')} | {rel(pp, 'floor')} | {rel(po, 'wall')} | {rel(pp, 'wall')} |")
+                    f"{_rel(po, 'floor')} | {_rel(pp, 'floor')} | {_rel(po, 'wall')} | {_rel(pp, 'wall')} |")
     return rows
 
 
@@ -88,13 +90,10 @@ def _withheld_rows(with_g, without_g):
         o, w = with_g[s].get("single_image"), without_g[s].get("single_image")
         if not o or not w:
             continue
-
-        def rel(res, k):
-            d = res[s].get("points_3d", {}).get(k)
-            return "–" if not d or not d.get("rel_err_pct_n") else f"{d['rel_err_pct_median']:.2f} %"
+        pg, pw = with_g[s].get("points_3d", {}), without_g[s].get("points_3d", {})
         rows.append(f"| {s} | {o['n_views']} | {_pct_spread(o['pixel_error_top1'])} / "
-                    f"{_pct_spread(w['pixel_error_top1'])} | {rel(with_g, 'floor')} / "
-                    f"{rel(without_g, 'floor')} | {rel(with_g, 'wall')} / {rel(without_g, 'wall')} |")
+                    f"{_pct_spread(w['pixel_error_top1'])} | {_rel(pg, 'floor')} / "
+                    f"{_rel(pw, 'floor')} | {_rel(pg, 'wall')} / {_rel(pw, 'wall')} |")
     return rows
 
 

@@ -47,7 +47,7 @@ class HypothesesHandler(Handler):
         self.done += 1
         # the photo's lines, for odometry's room orientation (it detects them itself when
         # the hypotheses saw only part of them)
-        lines = photo_lines(hs, image) if whole and getattr(hs, "lines", None) is not None else None
+        lines = photo_lines(hs, image) if whole else None
         msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov, lines)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)

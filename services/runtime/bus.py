@@ -28,6 +28,9 @@ SERVICES = f"{ROOT}/@services"
 #: Largest payload a service sends (a 12 MP JPEG is ~5 MB). Zenoh's own default limit on a
 #: peer's link is larger; anything above this is refused with a clear error at the sender.
 MAX_MESSAGE_BYTES = 16 * 1024 * 1024
+#: kinds whose message is a session's latest state, republished as it grows (odometry after
+#: each batch of poses: how selections batch is timing), so only the last one is compared
+LATEST_STATE_KINDS = ("trajectory",)
 
 _SESSION_RE = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}\Z")
 

@@ -15,6 +15,7 @@ from findme_core.errors import GeometryError
 from findme_core.room import Pose, Room
 from findme_core.search import SegKind
 from findme_core.synth import _boundary_polyline, _camera
+from tests.plan_room import first_frame_truth
 
 H = 1.4
 
@@ -43,14 +44,7 @@ def _session(room, spots_xz, yaws=range(0, 360, 50), pitch=25.0):
     lays = [_layout(room, p) for p in poses]
     links = [fuse.Link(i, i + 1, math.radians(poses[i + 1].yaw_deg - poses[i].yaw_deg), 1e-4)
              for i in range(len(poses) - 1) if lab[i] == lab[i + 1]]
-    p0 = poses[0]
-    c, s_ = math.cos(math.radians(p0.yaw_deg)), math.sin(math.radians(p0.yaw_deg))
-
-    def to0(X, Z):
-        dx, dz = X - p0.x, Z - p0.z
-        return np.array([c * dx - s_ * dz, s_ * dx + c * dz])
-    truth = np.array([[*to0(p.x, p.z), math.radians(p.yaw_deg - p0.yaw_deg)] for p in poses])
-    poly = np.array([to0(X, Z) for X, Z in room.floor_polygon])
+    truth, poly = first_frame_truth(room, poses)
     return lays, links, lab, truth, poly
 
 
