@@ -43,6 +43,7 @@ from .odometry_session import OdometrySession
 
 NEVER_SELECTED = {"frame", "hypotheses"}   # an Error about these: the photo gets no selection
 OVERLOADED = schemas.ErrorCode.ERROR_CODE_OVERLOADED
+FORBIDDEN = schemas.ErrorCode.ERROR_CODE_FORBIDDEN
 
 
 class OdometryHandler(Handler):
@@ -96,8 +97,8 @@ class OdometryHandler(Handler):
 
     def on_message(self, key, msg):
         k = bus.parse_key(key)   # the key names session and n, never the payload
-        if isinstance(msg, schemas.Error) and k.session not in self.sessions:
-            return []   # about a session this instance holds nothing of: nothing to give up
+        if isinstance(msg, schemas.Error) and self._dead_photo(k.session, msg) is None:
+            return []   # not about a photo that will get no pose: no state for it
         st = self.sessions.get(k.session)
         if st.stale:
             st.stale = False
@@ -144,18 +145,24 @@ class OdometryHandler(Handler):
         except HypothesisError:
             return None
 
-    def _error(self, session, st, err, now):
-        """A photo that will get no pose is not waited for: an Error about its frame or
-        hypotheses (upstream failed), or this service's own OVERLOADED about its selection
-        (refused while this instance was too busy)."""
+    def _dead_photo(self, session, err) -> int | None:
+        """The photo of ``session`` an Error says will get no pose, else None: its frame or
+        hypotheses failed upstream, or this service's own OVERLOADED refused its selection.
+        A FORBIDDEN refusal is about a forged message, not the photo: it is not final."""
         try:
             k = bus.parse_key(err.key)
             n = k.index()
         except FindmeError:
-            return []
+            return None
         ours = err.service.split("/")[0] == self.name
-        final = (k.kind == "selection" and err.code == OVERLOADED) if ours else k.kind in NEVER_SELECTED
-        if k.session == session and final and n not in st.poses:
+        final = ((k.kind == "selection" and err.code == OVERLOADED) if ours
+                 else k.kind in NEVER_SELECTED)
+        return n if k.session == session and final and err.code != FORBIDDEN else None
+
+    def _error(self, session, st, err, now):
+        """A photo that will get no pose is not waited for (``_dead_photo``)."""
+        n = self._dead_photo(session, err)
+        if n is not None and n not in st.poses:
             st.close(n, "dead")
             return self._advance(session, st, now)
         return []
