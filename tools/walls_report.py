@@ -13,9 +13,11 @@ and why it may be off:
 * the predicted segment kind of the column (WALL / STEP / OPEN / NONE).
 
     python tools/walls_report.py DATASET [--no-gravity] [--subsets a,b] [--csv OUT.csv]
+                                 [--max-rel-sigma X | --max-rel-sigma none]
 
-Prints per subset the median relative error (answered points), the coverage and the share
-of points per cause, and the median error per cause.
+Prints per subset the median relative error (answered points), the coverage, the share below
+10 % (missing = failure, as score.py) and, per cause, the points and their median error;
+``reason``: why a point has no answer (``Scene``'s reason, or "no hypothesis").
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from findme.evaluate import view_camera, view_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
-from findme_core.scene import Scene, boundary_sigma_px  # noqa: E402
+from findme_core.scene import MAX_REL_SIGMA, Scene, boundary_sigma_px  # noqa: E402
 from findme_core.search import SegKind  # noqa: E402
 from findme_io.camera_source import hypothesize_photo  # noqa: E402
 from findme_io.imageio import read_image  # noqa: E402
@@ -80,7 +82,7 @@ def _visible(poly, kinds, u, H):
 
 
 def view_rows(args):
-    view_dir, vid, subset, use_gravity = args
+    view_dir, vid, subset, use_gravity, max_rel = args
     cv2.setNumThreads(1)
     with open(os.path.join(view_dir, vid + ".json")) as f:
         meta = json.load(f)
@@ -96,7 +98,8 @@ def view_rows(args):
         top = hs.hypotheses[0]
         try:
             scene = Scene(cam, h, top.polyline, top.kinds, gravity_cov=prov.gravity_cov,
-                          boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+                          boundary_sigma_px=boundary_sigma_px(cam.width, cam.height),
+                          max_rel_sigma=max_rel)
         except FindmeError:
             scene = None
     pts = meta["wall_points"]
@@ -117,6 +120,8 @@ def view_rows(args):
         g = np.asarray(q["xyz_m"], float)
         err = None
         surf = None
+        reason = ("no hypothesis" if loc is None else
+                  None if loc.xyz is not None else loc.error.split(":")[0][:40])
         if loc is not None and loc.xyz is not None:
             err = 100.0 * float(np.linalg.norm(loc.xyz - g) / np.linalg.norm(g))
             surf = loc.surface
@@ -127,7 +132,7 @@ def view_rows(args):
                      "base": base, "true_bv": bv, "pred_v": None if pv is None else round(pv, 1),
                      "dv": None if (pv is None or bv is None) else round(pv - bv, 1),
                      "kind": kind, "deg": None if deg is None else round(deg, 2),
-                     "surface": surf, "err_pct": None if err is None else round(err, 2),
+                     "surface": surf, "reason": reason, "err_pct": None if err is None else round(err, 2),
                      "sigma_m": None if loc is None or loc.xyz is None else round(loc.sigma_m, 3),
                      "vis_px": vis, "ext_px": ext, "dist_m": round(float(np.linalg.norm(g)), 3)})
     return rows
@@ -140,11 +145,14 @@ def main() -> int:
     ap.add_argument("--subsets", default=",".join(ZIND))
     ap.add_argument("--csv")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--max-rel-sigma", default=str(MAX_REL_SIGMA),
+                    help="Scene.max_rel_sigma ('none': every point answered)")
     a = ap.parse_args()
     with open(os.path.join(a.dataset, "index.json")) as f:
         index = json.load(f)
     view_dir = os.path.join(a.dataset, index.get("views_dir", "views"))
-    jobs = [(view_dir, v, s, not a.no_gravity) for s in a.subsets.split(",")
+    max_rel = None if a.max_rel_sigma.lower() == "none" else float(a.max_rel_sigma)
+    jobs = [(view_dir, v, s, not a.no_gravity, max_rel) for s in a.subsets.split(",")
             for v in index["subsets"][s].get("views", [])]
     with ProcessPoolExecutor(a.jobs) as ex:
         rows = [r for rs in ex.map(view_rows, jobs, chunksize=2) for r in rs]
@@ -161,7 +169,7 @@ def main() -> int:
         ok10 = sum(x < 10 for x in e) / len(R)
         print(f"{s:22s} n={len(R):5d} cov={len(e) / len(R):.2f} med={np.median(e) if e else float('nan'):6.2f}% "
               f"p90={np.percentile(e, 90) if e else float('nan'):7.1f}% <10%={ok10:.2f}")
-        for key in ("base", "kind", "surface"):
+        for key in ("base", "kind", "surface", "reason"):
             cats = sorted({str(r[key]) for r in R})
             parts = []
             for c in cats:
