@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.sparse import lil_matrix
 
 from . import planar, register, walls
 from .errors import GeometryError
@@ -166,6 +167,41 @@ class _Problem:
         self._links = [(lk.i, lk.j, lk.yaw, lk.sigma) for lk in links
                        if placed[lk.i] and placed[lk.j] and self.spot[lk.i] == self.spot[lk.j]]
         self._matches(matches or {}, poses, cams)
+
+    # ------------------------------------------------------------------ structure
+    def _pose_cols(self, i) -> list:
+        s = self.spot[i]
+        cols = [] if s == self.spot[0] else [self.spot_ix[s], self.spot_ix[s] + 1]
+        return cols + ([] if i == 0 else [self.yaw_ix[i]])
+
+    def _line_cols(self, k) -> list:
+        if k < 0 or k not in self.line_ix:
+            return []
+        ia, io = self.line_ix[k]
+        return [self.axis_ix if ia is None else ia, io]
+
+    def sparsity(self):
+        """(R, P) which parameters each residual depends on, in the order of ``residuals``:
+        finite differences then perturb every parameter group that shares no residual at
+        once (``least_squares(jac_sparsity=...)``), a few groups instead of P columns."""
+        rows = []
+        for i, k in zip(self.si, self.sl):
+            rows.append(self._pose_cols(i) + self._line_cols(k))
+        V = len(self.line)
+        for i, _, v, _ in self.corners:
+            cols = self._pose_cols(i) + self._line_cols(self.line[v]) + \
+                self._line_cols(self.line[(v - 1) % V])
+            rows += [cols, cols]
+        for i, j, _, _ in self._links:
+            rows.append(self._pose_cols(i)[-1:] + self._pose_cols(j)[-1:])
+        rows += [[c] for c in range(len(self.prior0))]
+        for i, j, a, _, _, _ in self.mt:
+            cols = [self.yaw_ix[k] for k in (i, j) if k != 0]
+            rows += [cols] * len(a)
+        S = lil_matrix((len(rows), len(self.x0)), dtype=np.int8)
+        for r, cols in enumerate(rows):
+            S[r, cols] = 1
+        return S
 
     # ------------------------------------------------------------------ unpacking
     def pose(self, x, i):
@@ -318,10 +354,11 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
     if len(pr.sp) == 0:
         raise GeometryError("no photo's wall samples lie on the outline: nothing to refine")
     res = least_squares(pr.residuals, pr.x0, loss="soft_l1", f_scale=params.f_scale,
-                        max_nfev=params.max_nfev * max(1, len(pr.x0)), x_scale="jac")
+                        max_nfev=params.max_nfev * max(1, len(pr.x0)), x_scale="jac",
+                        jac_sparsity=pr.sparsity())
     m, k = len(res.fun), len(res.x)
     chi2_dof = float(2.0 * res.cost / max(m - k, 1))
-    J = res.jac
+    J = res.jac.toarray() if hasattr(res.jac, "toarray") else res.jac
     cov = np.linalg.pinv(J.T @ J) * max(1.0, chi2_dof)
     n, d = pr.lines(res.x)
     V = vertices_of(n, d, pr.line, pr.V0)
