@@ -197,6 +197,32 @@ def _motion(pa: Photo, pb: Photo, m):
         return None
 
 
+def relate_to(photos, new: Photo, params: SessionParams = SessionParams()):
+    """Feature matches and two-photo motions between each of N photos and a new one (index
+    N): ({(i, N): (a, b) bearings}, [``fuse.Link`` (i, N, ...)]), as ``fuse.place_photo``
+    takes them."""
+    n, matches, motions = len(photos), {}, []
+    for i, p in enumerate(photos):
+        m = features.match(p.features, new.features, params.features)
+        if len(m) < 8:
+            continue
+        matches[(i, n)] = (planar.bearings(p.camera, m.ua), planar.bearings(new.camera, m.ub))
+        if len(m) >= params.min_motion_matches:
+            mo = _motion(p, new, m)
+            if mo is not None:
+                motions.append(fuse.Link(i, n, mo.yaw, mo.sigma_yaw, (mo.x, mo.z)))
+    return matches, motions
+
+
+def find(photos, poses, new: Photo, params: SessionParams = SessionParams()):
+    """"Find me" with the session's photos: where ``new`` was taken, given the analysed
+    photos of a plan and their poses (N, 3) in its frame. Returns (poses (K, 3), scores
+    (K,)), best first (``fuse.place_photo``); raises GeometryError with the reason."""
+    matches, motions = relate_to(photos, new, params)
+    return fuse.place_photo([p.layout for p in photos], poses, new.layout, matches, motions,
+                            params.fuse)
+
+
 def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time.perf_counter,
          relations=None):
     """The floor plan of analysed photos (``analyse``), capture order. ``relations``: what
