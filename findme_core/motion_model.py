@@ -154,6 +154,9 @@ class PlanarMotion:
         score: the evidence's score (``findme``: matches + layouts + orientations).
         alternatives: other motions the evidence allows nearly as well (``findme``; a
             symmetric room), best first, each with its own evidence.
+        appearance: (correlation in [-1, 1], samples) of the two photos' normalised images
+            where each sees the other's surfaces under this motion (``findme``,
+            ``motion_photometric``); (nan, 0) when not measured.
     """
 
     x: float
@@ -169,6 +172,7 @@ class PlanarMotion:
     layout: object = None
     score: float = float("nan")
     alternatives: tuple = ()
+    appearance: tuple = (float("nan"), 0)
 
     @property
     def n_inliers(self) -> int:

@@ -270,7 +270,9 @@ class Registration:
                if self.la and self.lb else None)
         r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
                           e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
-        return _model_error(replace(r, layout=lay, score=score), self.p)
+        corr, n = motion_photometric.agreement(*self.surfaces, q[:1], q[None, 1:4])
+        return _model_error(replace(r, layout=lay, score=score,
+                                    appearance=(float(corr[0]), int(n[0]))), self.p)
 
     def _refusal(self, k: int) -> MotionError:
         walls = ("the photos' boundaries share no wall" if self.la and self.lb else
