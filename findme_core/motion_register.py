@@ -33,6 +33,7 @@ class Registration:
                  params: MotionParams, copies: int = 0, surfaces=(None, None)):
         self.p, self.m, self.n, self.copies = params, matches, len(matches), copies
         self.surfaces = surfaces
+        self.trace = None   # (yaws, candidate yaws (C,), t (C, 3), scores (C,)) once scored
         self.feats = self.n >= params.min_matches
         if self.feats:
             check_matches(matches, params)       # identical photos: an error whatever else
@@ -212,6 +213,7 @@ class Registration:
         # the photos' appearance where each sees the other's surfaces: the best candidates
         top_k = np.argsort(-total)[:self.p.photometric_top]
         total[top_k] += self._photometric(cy[top_k], ct[top_k])[0]
+        self.trace = (yaws, cy, ct, total)   # what was weighed (``tools/motion_pairs.py``)
         results, top = [], float(total.max())
         for i in np.argsort(-total):
             if len(results) == self.p.refine_top or (
