@@ -11,8 +11,8 @@ spread on a grid, FLANN-LSH matching) side by side with the alternatives (exact 
 matching of the same keypoints, ORB with 1500 keypoints, SIFT with 3000) in the same run,
 and the feature-only estimator (the default before layouts), the paper's estimator and ours
 without the photos' appearance (the default before it, ``photometric_weight`` 0, photos
-prepared without their surfaces) next to ours on the chosen features. Hypotheses are computed before the clock starts (~40-60 ms
-per photo, their own benchmark). Per pair the best of ``--repeat`` runs; reports median,
+prepared without their surfaces) next to ours on the chosen features. Hypotheses are
+computed before the clock starts (~40-60 ms per photo, their own benchmark). Per pair the best of ``--repeat`` runs; reports median,
 p10/p90 and IQR over the pairs, in CPU milliseconds of the (one) thread, which other
 processes on the machine do not inflate. Goal: features + matching + motion <= 60 ms.
 """

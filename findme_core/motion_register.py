@@ -211,7 +211,7 @@ class Registration:
             raise self._refusal(0)
         total, which = self.fit.score(cy, ct)
         # the photos' appearance where each sees the other's surfaces: the best candidates
-        top_k = np.argsort(-total)[:self.p.photometric_top]
+        top_k = _distinct_top(cy, ct, total, self.p.photometric_top)
         total[top_k] += self._photometric(cy[top_k], ct[top_k])[0]
         self.trace = (yaws, cy, ct, total)   # what was weighed (``tools/motion_pairs.py``)
         results, top = [], float(total.max())
@@ -301,6 +301,14 @@ class Registration:
         what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
         raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
                           "along the wall cannot be measured")
+
+
+def _distinct_top(cy, ct, total, k: int) -> np.ndarray:
+    """Indices of the k best-scoring candidates (yaw (C,), t (C, 3), score (C,)) that are
+    not copies of a better one (the same yaw and t: a scale found twice)."""
+    order = np.argsort(-total, kind="stable")
+    _, first = np.unique(np.column_stack([cy, ct])[order], axis=0, return_index=True)
+    return order[np.sort(first)[:k]]
 
 
 def _spread_over(m: PlanarMotion) -> PlanarMotion:

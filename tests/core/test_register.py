@@ -1,8 +1,8 @@
 """Tests of the layout registration (findme_core.register) and of the default motion
 estimator on rendered rooms: textureless walls (no feature match at all) give the motion
 from the layouts alone, exactly when the layouts are; a symmetric room gives its ambiguity as
-several candidates, unless the walls' appearance tells the twins apart; and every degenerate pair (one wall, parallel walls only, no common wall)
-is an explicit error."""
+several candidates, unless the walls' appearance tells the twins apart; and every
+degenerate pair (one wall, parallel walls only, no common wall) is an explicit error."""
 
 from __future__ import annotations
 
