@@ -53,15 +53,16 @@ class Surface:
 
     Attributes:
         camera: the thumbnail's camera; image: (h, w) float32 normalised thumbnail.
-        points: (S, 3) level-frame points of the samples, metres; values: (S,) their
-            normalised grey values; layout: the layout that placed them.
+        points: (S, 3) level-frame points of the samples, metres (none without a
+            layout); values: (S,) their normalised grey values; layout: the layout that
+            placed them, or None (the photo is then only looked up, every pixel visible).
     """
 
     camera: Camera
     image: np.ndarray
     points: np.ndarray
     values: np.ndarray
-    layout: Layout
+    layout: Layout | None
 
 
 def normalised(grey: np.ndarray, window: int, flat: float) -> np.ndarray:
@@ -74,16 +75,17 @@ def normalised(grey: np.ndarray, window: int, flat: float) -> np.ndarray:
 
 
 def surface(image, camera: Camera, layout: Layout | None,
-            params: PhotometricParams = PhotometricParams()) -> Surface | None:
+            params: PhotometricParams = PhotometricParams()) -> Surface:
     """The samples of one photo (``image`` (H, W[, 3]) uint8, the size of ``camera``) on the
-    floor and walls of its ``layout``; None without a layout or a sample."""
-    if layout is None or len(layout.azimuth) < 2:
-        return None
+    floor and walls of its ``layout``: none without a layout (or one that sees no floor),
+    the photo then only serves as the other's lookup."""
     s = params.width / camera.width
     cam = camera.scaled(s)
     grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
     small = cv2.resize(grey, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
     img = normalised(small, params.window, params.flat)
+    if layout is None or len(layout.azimuth) < 2:
+        return Surface(cam, img, np.zeros((0, 3)), np.zeros(0, np.float32), None)
     v, u = np.mgrid[params.step // 2:cam.height:params.step, params.step // 2:cam.width:params.step]
     px = np.column_stack([u.ravel(), v.ravel()]).astype(float)
     r = cam.rays_level(px)
@@ -96,8 +98,6 @@ def surface(image, camera: Camera, layout: Layout | None,
         wall = near & ~floor & (kind == SegKind.WALL) & np.isfinite(rng)
         scale = np.where(floor, layout.height / r[:, 1], np.where(wall, rng / horiz, np.nan))
     keep = floor | wall
-    if not keep.any():
-        return None
     pts = scale[keep, None] * r[keep]
     vals = img[v.ravel()[keep], u.ravel()[keep]]
     return Surface(cam, img, pts, vals, layout)
@@ -105,6 +105,8 @@ def surface(image, camera: Camera, layout: Layout | None,
 
 def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricParams):
     """Sum of products (C,) and sample counts (C,) of src's samples seen by dst."""
+    if len(src.points) == 0:
+        return np.zeros(len(yaw)), np.zeros(len(yaw), int)
     if into_b:   # X_B = R^T (X_A - t)
         q = _rotate(yaw, src.points[None] - t[:, None], inverse=True)
     else:        # X_A = R X_B + t
@@ -115,9 +117,11 @@ def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricPar
     h, w = dst.image.shape
     inside = front & (uv[..., 0] >= 0) & (uv[..., 0] <= w - 1) & (uv[..., 1] >= 0) \
         & (uv[..., 1] <= h - 1)
-    d = np.hypot(q[..., 0], q[..., 2])
-    j, near = _lookup(dst.layout, np.arctan2(q[..., 0], q[..., 2]))
-    seen = inside & near & (d <= dst.layout.range[j] * 1.1 + p.hidden_m)
+    seen = inside
+    if dst.layout is not None:   # not hidden behind dst's walls
+        d = np.hypot(q[..., 0], q[..., 2])
+        j, near = _lookup(dst.layout, np.arctan2(q[..., 0], q[..., 2]))
+        seen = seen & near & (d <= dst.layout.range[j] * 1.1 + p.hidden_m)
     m = cv2.remap(dst.image, np.where(seen, uv[..., 0], -1).astype(np.float32),
                   np.where(seen, uv[..., 1], -1).astype(np.float32), cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)

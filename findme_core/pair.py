@@ -50,7 +50,7 @@ class Photo:
         layouts: ``layout.Layout`` of the candidate hypotheses, the chosen one first.
         orientation: the room's orientation from its lines, None without usable lines.
         surface: its pixels placed on the floor and walls of the chosen layout
-            (``motion_photometric``), None without a layout.
+            (``motion_photometric``; none without a layout: then only looked up).
         timing_ms: milliseconds per stage of its preparation.
     """
 
@@ -98,8 +98,7 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
         segments = line_segments(image)
     o = room_orientation(segments, camera)
     t3 = clock()
-    surf = motion_photometric.surface(image, camera, lays[0]) if lays and scene is not None \
-        else None
+    surf = motion_photometric.surface(image, camera, lays[0] if lays else None)
     t4 = clock()
     return Photo(camera, float(height), f, scene, lays, o,
                  {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t4 - t1)}, surf)

@@ -1,7 +1,7 @@
 """Tests of the photometric agreement of two photos under a planar motion
 (findme_core.motion_photometric) on rendered rooms with exact layouts: the true motion
 correlates, a wrong one (moved, or turned a quarter) does not; an exposure change does not
-matter; blank walls say nothing; a photo without layout gives no surface."""
+matter; blank walls say nothing; a photo without layout is only looked up."""
 
 from __future__ import annotations
 
@@ -64,9 +64,19 @@ def test_blank_walls_say_nothing():
     assert n[0] > 1000 and corr[0] == pytest.approx(0.0, abs=1e-6)
 
 
-def test_no_layout_no_surface_and_no_evidence():
-    v = render(ROOM, POSES[0], 160, 120, hfov_deg=70.0, seed=3, supersample=1)
-    assert mp.surface(v.image, v.camera, None) is None
-    sa, _ = _surfaces()
+def test_a_photo_without_layout_is_only_looked_up():
+    """B without a layout (no floor seen, no hypothesis) places no sample of its own, but A's
+    samples are still found in B's image (every pixel counts as visible); two photos
+    without layouts, or a missing photo, give no evidence."""
+    sa, sb = _surfaces()
+    v = render(ROOM, POSES[1], 320, 240, hfov_deg=70.0, seed=3, supersample=1)
+    bare = mp.surface(v.image, v.camera, None)
+    assert len(bare.points) == 0 and bare.layout is None
+    yaw, t = _truth()
+    c_full, n_full = mp.agreement(sa, sb, yaw, t)
+    c_bare, n_bare = mp.agreement(sa, bare, yaw, t)
+    assert 0 < n_bare[0] < n_full[0] and c_bare[0] > 0.15
+    corr, n = mp.agreement(bare, bare, [0.0], np.zeros((1, 3)))
+    assert corr.tolist() == [0.0] and n.tolist() == [0]
     corr, n = mp.agreement(sa, None, [0.0, 0.1], np.zeros((2, 3)))
     assert corr.tolist() == [0.0, 0.0] and n.tolist() == [0, 0]
