@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -74,27 +75,53 @@ def analyse(image, camera: Camera, height: float, params: SessionParams = Sessio
     return Photo(camera, float(height), L, sc, features.detect(image, params.features), why)
 
 
-def relate(photos, spots=None, params: SessionParams = SessionParams()):
-    """Links (rotation-only yaws), feature matches and motions between the photos.
+class Relations(NamedTuple):
+    """What ties a session's photos together, as ``fuse.place`` takes it.
 
-    Returns:
-        (links, matches {(i, j): (a, b) bearings}, motions) as ``fuse.place`` takes them.
+    Attributes:
+        links: ``fuse.Link`` rotation-only yaws between photos of one spot.
+        matches: {(i, j): (a (M, 3), b (M, 3))} level-frame bearings of feature matches.
+        motions: ``fuse.Link`` two-photo motions (with ``t``) between photos of two spots.
+        spots: (N,) spot label per photo (given, or found by ``auto_spots``).
     """
-    return _relate(photos, spots, params)[:3]
+
+    links: list
+    matches: dict
+    motions: list
+    spots: list
 
 
-def _relate(photos, spots, params: SessionParams):
-    """``relate`` plus the spot labels used (given, or ``auto_spots``)."""
+def relate(photos, spots=None, params: SessionParams = SessionParams(), *, cache=None,
+           ids=None) -> Relations:
+    """Links (rotation-only yaws), feature matches and motions between the photos, and the
+    spot labels (``spots``, or found by ``auto_spots`` when None).
+
+    Args:
+        cache: a dict the caller keeps between calls (a mapper that relates each new photo
+            once): the matches, rotation-only yaws and motions of each pair are kept there,
+            keyed by (kind, id_i, id_j). A caller that changes a photo's layout deletes the
+            ("motion", ...) entries of that photo (motions lift with its scene).
+        ids: (N,) a stable id per photo for ``cache`` (default: the positions).
+    """
     n = len(photos)
-    cache = {}
+    cache = {} if cache is None else cache
+    ids = list(range(n)) if ids is None else list(ids)
+
+    def memo(kind, i, j, make):
+        key = (kind, ids[i], ids[j])
+        if key not in cache:
+            cache[key] = make()
+        return cache[key]
 
     def match(i, j):
-        if (i, j) not in cache:
-            cache[(i, j)] = features.match(photos[i].features, photos[j].features,
-                                           params.features)
-        return cache[(i, j)]
+        return memo("match", i, j, lambda: features.match(photos[i].features,
+                                                          photos[j].features, params.features))
 
-    lab, links = auto_spots(photos, match) if spots is None else (list(spots), [])
+    def turn(i, j):
+        return memo("turn", i, j, lambda: spot.rotation_yaw(match(i, j), photos[i].camera,
+                                                            photos[j].camera))
+
+    lab, links = auto_spots(photos, match, turn) if spots is None else (list(spots), [])
     matches, motions = {}, []
     for i in range(n):
         for j in range(i + 1, n):
@@ -102,7 +129,7 @@ def _relate(photos, spots, params: SessionParams):
             if lab[i] == lab[j]:
                 if spots is None:   # linked once, by auto_spots
                     continue
-                r = spot.rotation_yaw(m, photos[i].camera, photos[j].camera)
+                r = turn(i, j)
                 if r is not None:
                     links.append(fuse.Link(i, j, r.yaw, r.sigma))
                 continue
@@ -111,28 +138,33 @@ def _relate(photos, spots, params: SessionParams):
             matches[(i, j)] = (planar.bearings(photos[i].camera, m.ua),
                                planar.bearings(photos[j].camera, m.ub))
             if len(m) >= params.min_motion_matches:
-                mo = _motion(photos[i], photos[j], m)
+                mo = memo("motion", i, j, lambda: _motion(photos[i], photos[j], m))
                 if mo is not None:
                     motions.append(fuse.Link(i, j, mo.yaw, mo.sigma_yaw, (mo.x, mo.z)))
-    return links, matches, motions, lab
+    return Relations(links, matches, motions, lab)
 
 
-def auto_spots(photos, match) -> tuple[list[int], list]:
+def auto_spots(photos, match, turn=None) -> tuple[list[int], list]:
     """(spot label per photo (N,), the rotation ``fuse.Link`` s that joined them), capture
     order. Photo j joins the current spot when it
     shares a rotation-only yaw (``spot.rotation_yaw``) with one of the spot's photos (the
     latest first); else, when it shares one with a photo of the spot before, the current
     spot was part of that one's turn (a gap of left-out views: no overlap across it) and
     both are one spot again; else it starts a new spot. ``match(i, j)`` gives the
-    matches of photos i < j.
+    matches of photos i < j; ``turn(i, j)``, if given, their ``spot.rotation_yaw`` (a cached
+    one), else it is computed from the matches.
 
     Every photo of the spot counts, not only the one before: a turn that skips views (too
     little floor, a blurred photo) or comes round to its first photo still overlaps some
     photo of it; rotation-only consensus refuses photos taken at another spot (parallax).
     """
+    if turn is None:
+        def turn(i, j):
+            return spot.rotation_yaw(match(i, j), photos[i].camera, photos[j].camera)
+
     def turned(members, j):   # the link to the latest photo of ``members`` j turned from
         for i in reversed(members):
-            r = spot.rotation_yaw(match(i, j), photos[i].camera, photos[j].camera)
+            r = turn(i, j)
             if r is not None:
                 return fuse.Link(i, j, r.yaw, r.sigma)
         return None
@@ -168,8 +200,8 @@ def _motion(pa: Photo, pb: Photo, m):
 def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time.perf_counter,
          relations=None):
     """The floor plan of analysed photos (``analyse``), capture order. ``relations``: what
-    ``relate`` gives for these photos, when the caller already has it (a mapper that
-    relates each new photo once).
+    ``relate`` gives for these photos (``Relations``), when the caller already has it (a
+    mapper that relates each new photo once); its spots then stand for ``spots``.
 
     Returns:
         (plan, placement, timing_ms).
@@ -180,10 +212,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     if not photos:
         raise GeometryError("a plan needs at least one photo")
     t0 = clock()
-    if relations is None:
-        links, matches, motions, spots = _relate(photos, spots, params)
-    else:
-        links, matches, motions = relations
+    links, matches, motions, spots = (relate(photos, spots, params) if relations is None
+                                      else relations)
     t1 = clock()
     layouts = [p.layout for p in photos]
     pl = fuse.place(layouts, links, spots, matches, motions, params.fuse)

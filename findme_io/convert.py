@@ -205,3 +205,33 @@ def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
         if d is not None:
             dm.distance_m, dm.sigma_m = float(d), float(s)
     return r
+
+
+def set_motion_estimate(msg, mo, max_alternatives: int = 8):
+    """Fill a ``schemas.Motion`` (in place: a builder, like protobuf's own setters) with a
+    ``findme_core.motion_model.PlanarMotion``: B's pose in A's level frame (metres,
+    radians, as on the bus), its 1-sigmas, inliers and its evidence: score, the lifted
+    points that fixed the scale, the layouts' agreement and the ``max_alternatives`` best
+    alternatives (a symmetric room). ``matches`` is the caller's (the matching stage's)."""
+    msg.x_m, msg.z_m, msg.yaw_rad = float(mo.x), float(mo.z), float(mo.yaw)
+    msg.sigma_x_m, msg.sigma_z_m = float(mo.sigma_x), float(mo.sigma_z)
+    msg.sigma_yaw_rad = float(mo.sigma_yaw)
+    msg.inliers, msg.scale_points = mo.n_inliers, int(mo.n_scale)
+    if math.isfinite(mo.score):
+        msg.score = float(mo.score)
+    lay = mo.layout
+    if lay is not None:
+        out = msg.layout
+        out.rank_a, out.rank_b = max(int(lay.rank_a), 1), max(int(lay.rank_b), 1)
+        out.samples, out.violations = int(lay.samples), int(lay.violations)
+        if math.isfinite(lay.rms_m):
+            out.rms_m = float(lay.rms_m)
+        out.walls.extend(schemas.IndexPair(a=int(a), b=int(b)) for a, b in lay.walls[:64])
+        out.corners.extend(schemas.IndexPair(a=int(a), b=int(b)) for a, b in lay.corners[:64])
+    for a in mo.alternatives[:max_alternatives]:
+        alt = msg.alternatives.add(x_m=float(a.x), z_m=float(a.z), yaw_rad=float(a.yaw),
+                                   sigma_x_m=float(a.sigma_x), sigma_z_m=float(a.sigma_z),
+                                   sigma_yaw_rad=float(a.sigma_yaw), inliers=a.n_inliers)
+        if math.isfinite(a.score):
+            alt.score = float(a.score)
+    return msg

@@ -30,6 +30,9 @@ Problems = list[str]
 
 #: Lines a HypothesisSet may carry (a 12 MP photo has a few hundred merged lines).
 MAX_LINES = 4096
+#: Alternatives a Motion may carry, and wall / corner pairs of its layout evidence.
+MAX_ALTERNATIVES = 8
+MAX_LAYOUT_PAIRS = 64
 
 
 def is_valid_session(session: object) -> bool:
@@ -297,7 +300,34 @@ def _motion(m: motion_pb2.Motion) -> Problems:
             (_nonneg if f.startswith("sigma") else _finite)(p, f, getattr(m, f))
     if m.inliers > m.matches:
         p.append(f"inliers ({m.inliers}) exceed matches ({m.matches})")
+    _motion_evidence(p, m)
     return p
+
+
+def _motion_evidence(p: Problems, m: motion_pb2.Motion) -> None:
+    """score, layout and alternatives: bounded, finite, none on a failed motion."""
+    if m.error and (m.HasField("score") or m.HasField("layout") or len(m.alternatives)):
+        p.append("a failed motion (error set) must carry no score, layout or alternatives")
+    if m.HasField("score"):
+        _finite(p, "score", m.score)
+    if len(m.alternatives) > MAX_ALTERNATIVES:
+        p.append(f"alternatives: at most {MAX_ALTERNATIVES}, got {len(m.alternatives)}")
+    for i, a in enumerate(m.alternatives[:MAX_ALTERNATIVES]):
+        for f in _MOTION_VALUES + _MOTION_SIGMAS:
+            (_nonneg if f.startswith("sigma") else _finite)(p, f"alternatives[{i}].{f}",
+                                                            getattr(a, f))
+        if a.HasField("score"):
+            _finite(p, f"alternatives[{i}].score", a.score)
+    if m.HasField("layout"):
+        lay = m.layout
+        if lay.rank_a < 1 or lay.rank_b < 1:
+            p.append(f"layout ranks start at 1, got ({lay.rank_a}, {lay.rank_b})")
+        if lay.HasField("rms_m"):
+            _nonneg(p, "layout.rms_m", lay.rms_m)
+        for name in ("walls", "corners"):
+            if len(getattr(lay, name)) > MAX_LAYOUT_PAIRS:
+                p.append(f"layout.{name}: at most {MAX_LAYOUT_PAIRS}, "
+                         f"got {len(getattr(lay, name))}")
 
 
 def _pose_fields(p: Problems, m: motion_pb2.Pose, prefix: str = "") -> None:

@@ -669,11 +669,22 @@
       } else {
         Object.assign(line.dataset, {xM: m.x_m, zM: m.z_m, yawDeg: m.yaw_rad * DEG});
         const yaw = m.yaw_rad * DEG;
+        // the evidence: feature matches, and the walls of the two photos that line up
+        const why = [];
+        if (m.matches) why.push(`${m.inliers} of ${m.matches} matches agree`);
+        const nw = m.layout ? m.layout.walls : 0;
+        if (nw) why.push(`${nw} wall${nw > 1 ? 's' : ''} of the two photos line up`);
         line.textContent = `Photo ${m.b + 1} was taken ${fmtLen(Math.abs(m.x_m), 2)} ` +
           `${m.x_m >= 0 ? 'right' : 'left'} and ${fmtLen(Math.abs(m.z_m), 2)} ` +
           `${m.z_m >= 0 ? 'ahead' : 'behind'} of photo ${m.a + 1}, turned ` +
           `${Math.abs(yaw).toFixed(1)}° ${yaw >= 0 ? 'right' : 'left'}` +
-          (m.matches ? ` (${m.inliers} of ${m.matches} matches agree).` : '.');
+          (why.length ? ` (${why.join('; ')}).` : '.');
+        const na = (m.alternatives || []).length;
+        if (na) {   // a symmetric room: say so rather than look sure
+          line.textContent += ` Ambiguous: the room looks alike from ${na} other ` +
+            `place${na > 1 ? 's' : ''}; a photo that shows a door or a corner decides.`;
+          line.classList.add('warn');
+        }
       }
       text.append(line);
     }

@@ -6,8 +6,11 @@ Per photo, once, when its frame arrives: its camera and ORB features (the image 
 dropped). When its hypotheses and selection are in (in any order: what is missing is fetched
 from the bus when someone caches it, else awaited): its layout under the selected boundary
 (a new selection rebuilds it); a photo whose hypothesis set is empty takes part without a
-layout. Between photos: rotation-only yaws, feature matches and two-photo motions
-(``session.relate``), each pair computed once and kept. Then ``session.plan`` (placement of
+layout. Between photos, as ``findme plan`` relates them (``session.relate``): spots found
+from the photos (``session.auto_spots``: a photo joins a spot when it turned from any photo
+of it, so a turn with left-out views stays one spot), feature matches and two-photo
+motions; each pair's matches, turn and motion are computed once and kept (a motion again
+when one of its photos gets a new layout). Then ``session.plan`` (placement of
 every photo, outline, walls, joint refinement) over the session's photos in index order;
 each placed photo's 1-sigma is the refinement's, else ``plan_pose.covariance``. The plan
 frame is the level frame of the first photo with a layout (``Plan.origin_index``; photo 0
@@ -64,7 +67,7 @@ class _Photo:
 @dataclass
 class _Session:
     photos: dict = field(default_factory=dict)      # n -> _Photo
-    pairs: dict = field(default_factory=dict)       # (i, j, adjacent) -> relate() of the two
+    pairs: dict = field(default_factory=dict)       # session.relate's cache: (kind, i, j) -> ...
     planned: int = -1                                # ready photos at the last plan
     signature: tuple = ()
     seen: float = 0.0                                # clock of the last message
@@ -177,8 +180,8 @@ class MapperHandler(Handler):
                 why = str(e).splitlines()[0][:200]
         ph.photo = plan_session.Photo(ph.camera, h, L, sc, ph.features, why)
         ph.key = (rank, height)
-        for pk in [pk for pk in st.pairs if n in pk[:2]]:   # motions lift with the scene
-            del st.pairs[pk]
+        for pk in [pk for pk in st.pairs if pk[0] == "motion" and n in pk[1:]]:
+            del st.pairs[pk]   # motions lift with the scene; matches and turns stay
 
     # ------------------------------------------------------------------ planning
     def _maybe_plan(self, sid: str, st: _Session) -> list[Output]:
@@ -193,24 +196,6 @@ class MapperHandler(Handler):
         st.signature, st.planned = sig, len(ready)
         self.plans += 1
         return [Output(bus.key(sid, "plan"), self._plan(sid, st, ready))]
-
-    def _relations(self, st: _Session, order: list[int]):
-        """links, matches, motions among the photos ``order`` (list positions), from the
-        cached relations of each pair."""
-        links, matches, motions = [], {}, []
-        for a in range(len(order)):
-            for b in range(a + 1, len(order)):
-                i, j = order[a], order[b]
-                pk = (i, j, b == a + 1)
-                if pk not in st.pairs:
-                    pair = [st.photos[i].photo, st.photos[j].photo]
-                    st.pairs[pk] = plan_session.relate(pair, None if pk[2] else [0, 1],
-                                                       self.params)
-                lk, mt, mo = st.pairs[pk]
-                links += [fuse.Link(a, b, x.yaw, x.sigma, x.t) for x in lk]
-                matches.update({(a, b): v for v in mt.values()})
-                motions += [fuse.Link(a, b, x.yaw, x.sigma, x.t) for x in mo]
-        return links, matches, motions
 
     def _plan(self, sid: str, st: _Session, ready: list[int]):
         msg = schemas.Plan(session=sid, time_ns=self.wall_clock(), camera_height_m=1.0)
@@ -229,7 +214,8 @@ class MapperHandler(Handler):
             msg.metric = all(st.photos[n].key[1] is not None for n in order)
             try:
                 t0 = time.perf_counter()
-                rel = self._relations(st, order)
+                rel = plan_session.relate(photos, None, self.params, cache=st.pairs,
+                                          ids=order)
                 t_rel = 1e3 * (time.perf_counter() - t0)
                 plan, pl, timing = plan_session.plan(photos, None, self.params, relations=rel)
                 timing["relate"] = t_rel   # the new pairs' share: the others were cached

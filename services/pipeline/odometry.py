@@ -33,7 +33,7 @@ import schemas
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
-from findme_io.convert import frame_camera, msg_camera, msg_hypotheses, msg_lines
+from findme_io.convert import frame_camera, msg_camera, msg_hypotheses, msg_lines, set_motion_estimate
 from findme_io.imageio import decode_image
 
 from ..runtime import bus
@@ -243,9 +243,8 @@ class OdometryHandler(Handler):
             m.error = str(e).splitlines()[0][:500] or type(e).__name__
             return [Output(bus.key(session, "motion", a, b), m)]
         mo = res.motion
-        m.x_m, m.z_m, m.yaw_rad = mo.x, mo.z, mo.yaw
-        m.sigma_x_m, m.sigma_z_m, m.sigma_yaw_rad = mo.sigma_x, mo.sigma_z, mo.sigma_yaw
-        m.inliers, m.matches = mo.n_inliers, res.matches
+        set_motion_estimate(m, mo)
+        m.matches = res.matches
         cov = [[mo.sigma_x ** 2, 0, 0], [0, mo.sigma_z ** 2, 0], [0, 0, mo.sigma_yaw ** 2]]
         st.poses[b] = compose(st.poses[a], mo.x, mo.z, mo.yaw, mo.dy, cov)
         st.times[b] = self._time(session, st, b)

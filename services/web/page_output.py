@@ -87,8 +87,16 @@ def to_page(session: str, msg) -> dict | None:
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}
-        for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad"):
+        for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "score"):
             d[k] = _opt(msg, k)
+        d["scale_points"] = msg.scale_points
+        # the evidence: how many walls and corners of the two photos' layouts agree, and
+        # the other motions the evidence allows nearly as well (a symmetric room)
+        d["layout"] = ({"walls": len(msg.layout.walls), "corners": len(msg.layout.corners),
+                        "samples": msg.layout.samples}
+                       if msg.HasField("layout") else None)
+        d["alternatives"] = [{"x_m": a.x_m, "z_m": a.z_m, "yaw_rad": a.yaw_rad,
+                              "score": _opt(a, "score")} for a in msg.alternatives]
         return d
     if name == "Pose":
         return {"type": "pose", **_pose(msg)}

@@ -74,8 +74,10 @@ def test_a_changed_service_fails_on_its_results_and_what_follows(monkeypatch):
     monkeypatch.setattr(hyp_mod, "hypothesis_set_msg", shifted)
     r = regress(PAIR)
     assert not r.ok
-    # the measured points are floor points: a boundary 2.5 px lower does not move them
-    assert set(r.differences) == {"hypotheses/0", "hypotheses/1", "scene/0", "scene/1"}
+    # the measured points are floor points: a boundary 2.5 px lower does not move them; the
+    # motion's evidence (its layouts' agreement, registered on the boundaries) does move
+    assert set(r.differences) == {"hypotheses/0", "hypotheses/1", "scene/0", "scene/1",
+                                  "motion/0/1"}
     assert any("(moved 2.50 px > 1 px)" in d for d in r.differences["scene/0"])
     text = r.report()
     assert text.splitlines()[-1].startswith("FAIL (tolerances: polyline vertices")

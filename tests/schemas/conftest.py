@@ -84,7 +84,14 @@ def sample_messages() -> list[tuple[str, object]]:
     motion = S.Motion(session=SESSION, index_a=3, index_b=4, x_m=0.42, z_m=1.87,
                       yaw_rad=math.radians(-12.5), sigma_x_m=0.08, sigma_z_m=0.12,
                       sigma_yaw_rad=math.radians(1.5), inliers=143, matches=388,
-                      method="sift+ratio+eq5-8", time_ns=T0 + 12_000_000_000)
+                      method="sift+ratio+eq5-8", time_ns=T0 + 12_000_000_000,
+                      score=57.25, scale_points=31,
+                      layout=S.MotionLayout(rank_a=1, rank_b=2, samples=84, violations=3,
+                                            rms_m=0.041, walls=[S.IndexPair(a=2, b=1)],
+                                            corners=[S.IndexPair(a=1, b=3)]),
+                      alternatives=[S.MotionAlternative(
+                          x_m=-0.42, z_m=1.87, yaw_rad=math.radians(167.5), sigma_x_m=0.1,
+                          sigma_z_m=0.14, sigma_yaw_rad=0.03, inliers=20, score=51.0)])
     motion_failed = S.Motion(session=SESSION, index_a=4, index_b=5, inliers=3, matches=7,
                              method="sift+ratio+eq5-8",
                              error="too few matches: 7 (need 12)", time_ns=T0 + 13_000_000_000)

@@ -85,7 +85,7 @@ def test_the_plan_grows_photo_by_photo(mapped):
     assert plans[-1].closed
     # each pair of photos was related once (cached), never again
     st = m.sessions["plan-test"]
-    assert len({pk[:2] for pk in st.pairs}) == 12 * 11 // 2
+    assert len({pk[1:] for pk in st.pairs if pk[0] == "match"}) == 12 * 11 // 2
     assert m.counters() == {"sessions": 1, "plans": 12}
 
 
@@ -193,3 +193,23 @@ def test_the_registry_makes_the_mapper():
     h = make_handler("mapper", p.parse_args([]))
     assert isinstance(h, MapperHandler) and h.name == "mapper"
     assert h.cache_keys == ("findme/*/plan",) and h.shard
+
+
+def test_a_turn_with_left_out_views_is_one_spot_on_the_bus_as_in_findme_plan():
+    # each spot's turn skips views: 0 -> 50 -> 180 -> 330 deg, where the 180 deg photo
+    # overlaps neither neighbour and 330 overlaps only the first photo; the mapper finds the
+    # spots as `findme plan` does (session.auto_spots), not from consecutive photos only
+    room = rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
+                            yaws=(0, 50, 180, 330))
+    m = MapperHandler()
+    plans = [o.msg for k, msg in room.messages() for o in m.on_message(k, msg)]
+    last = plans[-1]
+    assert [q.spot for q in last.poses] == [0] * 4 + [1] * 4
+    assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in last.poses)
+    got = np.array([(q.x_m, q.z_m, q.yaw_rad) for q in last.poses])
+    # every photo stands at its spot, the 180 deg photos too (by their spot, not a turn)
+    assert np.abs(got[:, :2] - room.poses[:, :2]).max() < 0.02
+    # the photos a turn joins have their yaws; the 180 deg photo (2 and 6) overlaps no
+    # other photo of its spot and sees one wall: its yaw rests on the layout alone
+    linked = [0, 1, 3, 4, 5, 7]
+    assert np.abs(fuse.wrap(got[linked, 2] - room.poses[linked, 2])).max() < math.radians(0.5)

@@ -9,7 +9,9 @@ import schemas
 from findme_core.search import SegKind
 from findme_core.synth import Pose, Room, planar_motion, render
 from services.pipeline.hypotheses import HypothesesHandler
+from findme_io.convert import set_motion_estimate
 from services.pipeline.odometry import OdometryHandler
+from services.web.page_output import to_page
 from tests.services.conftest import frame_of
 
 
@@ -121,3 +123,37 @@ def test_each_photo_is_prepared_once_for_all_its_motions(photos, monkeypatch):
     out = feed(OdometryHandler(), msgs, [0, 1, 2])
     assert not out["findme/od/motion/1/2"].error
     assert len(calls) == 3
+
+
+def test_the_motion_on_the_bus_carries_its_evidence(photos):
+    poses, msgs = photos
+    m = feed(OdometryHandler(), msgs, [0, 1])["findme/od/motion/0/1"]
+    m = schemas.decode(schemas.Motion, schemas.encode(m))     # both validate
+    # both photos see the rectangle's walls: their layouts' agreement is the evidence
+    assert m.HasField("layout") and m.layout.samples > 20 and len(m.layout.walls) >= 1
+    assert m.layout.rank_a == m.layout.rank_b == 1 and m.layout.rms_m < 0.1
+    assert m.HasField("score") and m.score > 0 and m.scale_points > 0
+    page = to_page("od", m)
+    assert page["layout"]["walls"] == len(m.layout.walls) and page["scale_points"] > 0
+
+
+def test_a_symmetric_room_reaches_the_page_as_alternatives():
+    """A square room seen as in tests/core/test_register.py: two motions a quarter turn
+    apart fit equally; the bus message carries both, each with its evidence."""
+    from tests.core.layout_rooms import exact_orientation, no_matches, view_layout
+    from findme_core.motion import estimate
+    pa, pb = Pose(0.0, -1.5, 1.45, 0.0, 25.0), Pose(1.2, 1.0, 1.45, 45.0, 30.0)
+    square = Room.rectangle(5.0, 5.0)
+    (va, la), (vb, lb) = view_layout(square, pa), view_layout(square, pb)
+    mo = estimate(no_matches(), va.camera, vb.camera, 1.45, 1.45, None, None,
+                  layouts=([la], [lb]), orientations=(exact_orientation(pa), exact_orientation(pb)))
+    assert mo.alternatives
+    m = set_motion_estimate(schemas.Motion(session="od", index_a=0, index_b=1), mo)
+    m = schemas.decode(schemas.Motion, schemas.encode(m))     # both validate
+    assert len(m.alternatives) == min(len(mo.alternatives), 8)
+    yaws = sorted([m.yaw_rad, m.alternatives[0].yaw_rad])
+    assert abs(math.degrees(yaws[1] - yaws[0]) - 90.0) < 0.01     # the truth and its twin
+    assert all(a.HasField("score") and a.score > 0 for a in m.alternatives)
+    assert m.inliers == 0 and m.layout.samples > 20
+    page = to_page("od", m)
+    assert len(page["alternatives"]) == len(m.alternatives)
