@@ -3,6 +3,7 @@
     python bench/bench_load.py [--phones 1 5 20 40] [--workers 1 2] [--seconds 30]
                                [--json OUT.json]
     python bench/bench_load.py --soak 600 --phones 5 --workers 2     # memory over 10 minutes
+    python bench/bench_load.py --phones 5 20 --workers 1 --mapper both  # the mapper's cost
 
 Deployment (loopback): ``findme router``, ``findme serve`` store, hypotheses (1 or 2
 workers), selection --auto, measurement, odometry, recorder. Each phone is a session; it
@@ -18,7 +19,9 @@ start and end. A run ends when every frame is accounted for, or 30 s after the l
 if some never are. The baseline is 1 phone, same run. ``--soak`` runs one deployment for
 that many seconds (phones start a new session every ``--session-s``; services forget a
 session idle for 60 s and the store holds small results for 120 s, so that the plateau
-shows within minutes) and samples RSS.
+shows within minutes) and samples RSS. ``--mapper on`` adds the mapper service (floor
+plans; ``both``: each run without, then with it): plans received per session and what the
+last one covered (photos placed / photos the mapper may take, ``max_photos`` 32).
 """
 
 from __future__ import annotations
@@ -157,7 +160,9 @@ class Ledger:
         self.failed: set[tuple[str, int]] = set()
         self.errors: dict[tuple[str, int], int] = {}
         self.dup_poses = 0
+        self.plans: dict[str, list[int]] = {}   # session -> [plans, photos placed in the last]
         self.subs = [client.declare_subscriber("findme/*/pose/*", self._pose),
+                     client.declare_subscriber("findme/*/plan", self._plan),
                      client.declare_subscriber("findme/*/motion/*/*", self._motion),
                      client.declare_subscriber("findme/*/error", self._error)]
 
@@ -170,6 +175,14 @@ class Ledger:
                 self.dup_poses += 1
             self.pose.setdefault(ident, t)
             self.cv.notify_all()
+
+    def _plan(self, sample):
+        p = schemas.decode(schemas.Plan, sample.payload.to_bytes())
+        placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in p.poses)
+        with self.cv:
+            n = self.plans.setdefault(p.session, [0, 0])
+            n[0] += 1
+            n[1] = max(n[1], placed)
 
     def _motion(self, sample):
         m = schemas.decode(schemas.Motion, sample.payload.to_bytes())
@@ -214,7 +227,13 @@ class Ledger:
                     name = schemas.ErrorCode.Name(self.errors[f]).removeprefix("ERROR_CODE_")
                     errs[name] = errs.get(name, 0) + 1
             done = len(lat) + len(failed) + sum(errs.values())
+            plans = {"sessions": len(self.plans),
+                     "plans": sum(v[0] for v in self.plans.values()),
+                     "placed_in_last_median": float(np.median([v[1] for v in
+                                                              self.plans.values()]))
+                     if self.plans else None}
             return {"offered": len(sent), "delivered": len(lat), "failed": len(failed),
+                    "mapper": plans,
                     "errors": errs, "unaccounted": len(sent) - done, "dup_poses": self.dup_poses,
                     "p50_ms": float(np.percentile(lat, 50)) if lat else None,
                     "p99_ms": float(np.percentile(lat, 99)) if lat else None}
@@ -251,16 +270,18 @@ def drive(client, ledger, pool, phones: int, seconds: float, session_s: float | 
             on_tick(time.perf_counter() - t0)
 
 
-def run(workers, phones, seconds, pool, extra=(), odometry=1):
+def run(workers, phones, seconds, pool, extra=(), odometry=1, mapper=False):
     with tempfile.TemporaryDirectory(prefix="bench-load-rec-") as out:
-        dep = Deployment(workers, out, extra, odometry)
+        dep = Deployment(workers, out, extra, odometry,
+                         SERVICES + ("mapper",) if mapper else SERVICES)
         try:
             start = dep.stats()
             ledger = Ledger(dep.client)
             drive(dep.client, ledger, pool, phones, seconds, tag=f"w{workers}n{phones}-")
             ledger.wait(30)
             end = dep.stats()
-            res = {"workers": workers, "odometry": odometry, "phones": phones, **ledger.summary(),
+            res = {"workers": workers, "odometry": odometry, "phones": phones,
+                   "with_mapper": mapper, **ledger.summary(),
                    "rss_mb": {k: (round(start[k][0]), round(end[k][0])) for k in end},
                    "cpu_s": {k: round(end[k][1] - start[k][1], 1) for k in end},
                    "status": dep.statuses()}
@@ -356,14 +377,20 @@ def fairness(pool, repeats: int = 3) -> dict:
 
 
 def table(rows) -> str:
-    lines = ["| hyp. workers | odometry | phones | offered | delivered | failed | errors | "
-             "unaccounted | dup | p50 / p99 ms | RSS MB start -> end |", "|" + "---|" * 11]
+    lines = ["| hyp. workers | odometry | mapper | phones | offered | delivered | failed | "
+             "errors | unaccounted | dup | p50 / p99 ms | plans (placed in the last) | "
+             "RSS MB start -> end |", "|" + "---|" * 13]
     for r in rows:
         errs = ", ".join(f"{k} {v}" for k, v in sorted(r["errors"].items())) or "0"
         rss = ", ".join(f"{k} {a}->{b}" for k, (a, b) in sorted(r["rss_mb"].items()))
         lat = f"{r['p50_ms']:.0f} / {r['p99_ms']:.0f}" if r["p50_ms"] is not None else "-"
-        lines.append(f"| {r['workers']} | {r['odometry']} | {r['phones']} | {r['offered']} | {r['delivered']} | "
-                     f"{r['failed']} | {errs} | {r['unaccounted']} | {r['dup_poses']} | {lat} | {rss} |")
+        mp = r.get("mapper") or {}
+        plans = (f"{mp['plans']} ({mp['placed_in_last_median']:.0f})" if mp.get("plans")
+                 else "-")
+        lines.append(f"| {r['workers']} | {r['odometry']} | {'yes' if r.get('with_mapper') else 'no'} | "
+                     f"{r['phones']} | {r['offered']} | {r['delivered']} | "
+                     f"{r['failed']} | {errs} | {r['unaccounted']} | {r['dup_poses']} | {lat} | "
+                     f"{plans} | {rss} |")
     return "\n".join(lines)
 
 
@@ -379,6 +406,8 @@ def main() -> None:
                     help="soak: a phone starts a new session this often (default 60 s)")
     ap.add_argument("--fairness", action="store_true",
                     help="one small photo alone vs right after another phone's four 12 MB ones")
+    ap.add_argument("--mapper", choices=("off", "on", "both"), default="off",
+                    help="add the mapper service (both: each run without, then with it)")
     ap.add_argument("--json", metavar="OUT")
     args = ap.parse_args()
     w, h = map(int, args.size.lower().split("x"))
@@ -397,9 +426,11 @@ def main() -> None:
         rows = []
         for workers in args.workers:
             for phones in args.phones:
-                r = run(workers, phones, args.seconds, pool, odometry=args.odometry)
-                rows.append(r)
-                print(table([r]).splitlines()[-1], flush=True)
+                for mapper in {"off": [False], "on": [True], "both": [False, True]}[args.mapper]:
+                    r = run(workers, phones, args.seconds, pool, odometry=args.odometry,
+                            mapper=mapper)
+                    rows.append(r)
+                    print(table([r]).splitlines()[-1], flush=True)
         out = {"runs": rows}
         print(table(rows))
     if args.json:

@@ -205,8 +205,10 @@ def cmd_serve(args) -> int:
         raise InputError("capture needs --session and at least one photo")
     stop = stop_on_signal()
     session = _open(args)
-    svc = Service(make_handler(args.service, args), session, instance=args.instance,
-                  **service_options(args)).start()
+    handler = make_handler(args.service, args)
+    if handler.nice and hasattr(os, "nice"):
+        os.nice(handler.nice)
+    svc = Service(handler, session, instance=args.instance, **service_options(args)).start()
     try:
         if args.service == "capture":
             return _serve_capture(args, session, svc)

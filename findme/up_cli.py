@@ -5,7 +5,8 @@
 
 Starts, as child processes of this one: ``router``; ``store`` (the last minute of messages,
 for a service that restarts); ``hypotheses`` x N (they share the
-frames); ``selection --auto``; ``measurement``; ``odometry``; ``recorder`` (sessions to
+frames); ``selection --auto``; ``measurement``; ``odometry``; ``mapper`` (the room's floor
+plan as photos come; it plans once per drained queue, so it keeps up); ``recorder`` (sessions to
 ``--out``); and with ``--gateway`` the phone page's gateway (which then selects for its
 pages and for nobody else, so no ``selection`` service is started: ``findme send`` selects
 for itself when none runs). Each child is this same Python (``sys.executable -m
@@ -70,7 +71,8 @@ def processes(args) -> list[tuple[str, list[str]]]:
                                   *quiet]) for i in range(1, args.hypotheses + 1)]
     if not args.gateway:
         procs.append(("selection", ["serve", "selection", "--auto", "--connect", ep, *quiet]))
-    procs += [(name, ["serve", name, "--connect", ep, *quiet]) for name in ("measurement", "odometry")]
+    procs += [(name, ["serve", name, "--connect", ep, *quiet])
+              for name in ("measurement", "odometry", "mapper")]
     procs.append(("recorder", ["serve", "recorder", "--connect", ep, "--out", args.out, *quiet]))
     if args.gateway:
         from .app_cli import https_files

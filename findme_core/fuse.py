@@ -13,7 +13,8 @@ right, radians). Photo 0 has pose (0, 0, 0).
 * Placement, block by block (beam search, the biggest spots first): candidate poses from wall and corner
   correspondences with each placed photo (``register.wall_yaws`` / ``translations``),
   scored by the layout agreement of every (placed photo, block photo) pair
-  (``register.scores``, both ways: agreeing wall samples minus samples on seen floor).
+  (``register.scores``, both ways: agreeing wall samples minus samples on seen floor), the
+  feature matches and the two-photo motions (``evidence``).
 
 The joint refinement of all poses and walls is ``adjustment``. Pure numpy; no I/O.
 """
@@ -24,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import planar, register
+from . import evidence, register
 from .errors import GeometryError
 from .layout import Layout
 
@@ -231,11 +232,11 @@ def _try(layouts, poses, rel, block, spot, placed_spot, matches, motions, b,
     cands = np.vstack([_from_motions(motions, poses, rel, members, fixed), cands])
     if not len(cands):
         return "no wall of its photos matches a wall of the placed photos"
-    sc = _score(layouts, poses, rel, placed, mine, cands, params)
+    sc = evidence.layout_score(layouts, poses, rel, placed, mine, cands, params)
     top = np.argsort(-sc)[: params.feature_top]
-    cands, sc = cands[top], sc[top] + _feature_score(matches or {}, poses, rel, members,
-                                                      cands[top], params)
-    sc = sc + _motion_score(motions, poses, rel, members, cands, params)
+    cands, sc = cands[top], sc[top] + evidence.feature_score(matches or {}, poses, rel,
+                                                              members, cands[top], params)
+    sc = sc + evidence.motion_score(motions, poses, rel, members, cands, params)
     o = np.argsort(-sc)
     if sc[o[0]] < params.min_score:
         return (f"its walls agree with the placed photos' walls too little (score "
@@ -276,15 +277,8 @@ def _candidates(layouts, poses, rel, placed, mine, fixed, params: FuseParams) ->
 
 def _from_motions(motions, poses, rel, members, fixed) -> np.ndarray:
     """(C, 3) block poses implied by the motions between a placed photo and a block photo."""
-    mem, out = set(int(m) for m in members), []
-    for m in motions:
-        i, j, yaw, t = m.i, m.j, m.yaw, np.asarray(m.t, float)
-        if (i in mem) == (j in mem):
-            continue
-        if i in mem:   # invert: photo i's pose in photo j's frame
-            i, j = j, i
-            t = -register.rot2(np.array([-yaw]), t[None])[0, 0]
-            yaw = -yaw
+    out = []
+    for i, j, yaw, t in evidence.oriented(motions, members):
         if not np.isfinite(poses[i, 0]):
             continue
         p = compose(poses[i], yaw, t)
@@ -302,69 +296,3 @@ def _dedupe(c: np.ndarray, params: FuseParams) -> np.ndarray:
     _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
     o = np.argsort(-counts, kind="stable")[: params.max_candidates]
     return c[first[o]]
-
-
-def _score(layouts, poses, rel, placed, mine, cands, params: FuseParams) -> np.ndarray:
-    """(C,) summed layout score of C block poses over every (placed, block photo) pair."""
-    total = np.zeros(len(cands))
-    for j in mine:
-        pj = np.column_stack([cands[:, 0], cands[:, 1], wrap(cands[:, 2] + rel[j])])
-        for i in placed:
-            pi = poses[i]
-            yaw = wrap(pj[:, 2] - pi[2])
-            t = register.rot2(np.full(len(pj), -pi[2]), (pj[:, :2] - pi[:2])[:, None])[:, 0]
-            total += register.scores(layouts[i], layouts[j], yaw, t, params.register)
-    return total
-
-
-def _feature_score(matches, poses, rel, members, cands, params: FuseParams) -> np.ndarray:
-    """(C,) feature matches between placed photos and the block's photos that C block poses
-    put on their epipolar planes, in front of both cameras (planar motion, no height
-    change: t = (x, 0, z))."""
-    total = np.zeros(len(cands))
-    mem = set(int(m) for m in members)
-    pix = params.feature_px / 500.0
-    for (i, j), (a, b) in matches.items():
-        if (i in mem) == (j in mem):
-            continue
-        if i in mem:                     # block photo first: swap to (placed, block)
-            i, j, a, b = j, i, b, a
-        if not np.isfinite(poses[i, 0]) or len(a) == 0:
-            continue
-        pj = np.column_stack([cands[:, 0], cands[:, 1], wrap(cands[:, 2] + rel[j])])
-        yaw = wrap(pj[:, 2] - poses[i, 2])
-        t2 = register.rot2(np.full(len(pj), -poses[i, 2]), (pj[:, :2] - poses[i, :2])[:, None])[:, 0]
-        t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
-        r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
-        la, lb = planar.depths(yaw, t, a, b)
-        ok = (r < pix) & (la > 0) & (lb > 0)
-        total += params.feature_weight * np.sum(np.where(ok, 1.0 - (r / pix) ** 2, 0.0), 1)
-    return total
-
-
-def _motion_score(motions, poses, rel, members, cands, params: FuseParams) -> np.ndarray:
-    """(C,) agreement of C block poses with the two-photo motions between placed photos and
-    the block's photos (Gaussian in the position error over ``motion_rel`` x distance)."""
-    total = np.zeros(len(cands))
-    mem = set(int(m) for m in members)
-    for m in motions:
-        i, j = m.i, m.j
-        if (i in mem) == (j in mem) or m.t is None:
-            continue
-        yaw = m.yaw
-        if i in mem:
-            i, j = j, i
-            t = -register.rot2(np.array([-m.yaw]), np.asarray(m.t, float)[None])[0, 0]
-            yaw = -m.yaw
-        else:
-            t = np.asarray(m.t, float)
-        if not np.isfinite(poses[i, 0]):
-            continue
-        dyaw = wrap(cands[:, 2] + rel[j] - poses[i, 2] - yaw)
-        # where the motion puts photo j, in the room frame; the candidates put it at cands[:, :2]
-        want = poses[i, :2] + register.rot2(np.array([poses[i, 2]]), t[None])[0, 0]
-        sig = params.motion_rel * max(float(np.hypot(*t)), 0.3)
-        d = np.hypot(*(cands[:, :2] - want).T)
-        total += params.motion_weight * np.exp(-0.5 * (d / sig) ** 2
-                                               - 0.5 * (dyaw / np.radians(params.motion_yaw_deg)) ** 2)
-    return total

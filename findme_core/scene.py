@@ -14,6 +14,11 @@ atan2(x, z)). A tapped pixel's azimuth selects its segment; it is on the floor i
 meets the floor before the wall, else on the wall. OPEN segments (floor continues past the
 image) have floor but no known wall; NONE segments (no floor in view) have neither.
 
+A point whose 1-sigma (``uncertainty``) exceeds ``max_rel_sigma`` of its distance is not
+placed: an honest "unknown" (reason ``REASONS[7]``) rather than a guess. On real photos these
+are mostly wall points above a boundary chosen near the horizon (a counter's or a sill's edge
+taken for the floor line), where a pixel is worth metres.
+
 How far each point may be off (boundary, height, tap, gravity) is ``uncertainty``'s.
 """
 
@@ -31,7 +36,11 @@ from .uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_PX, boundary_sigma_p
                           distances, point_sigmas)
 
 _PARALLEL = 1e-9
-_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE = 1, 2, 3, 4, 5, 6
+_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE = range(1, 8)
+#: default ``max_rel_sigma``: a point whose 1-sigma is more than half its distance is not
+#: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
+#: not fitted
+MAX_REL_SIGMA = 0.5
 #: Why a pixel has no 3D position (``Scene.locate_level``'s reason codes).
 REASONS = {
     _ABOVE_HORIZON: "the pixel is at or above the horizon, so it is not on the floor, and no "
@@ -43,6 +52,8 @@ REASONS = {
                "distance is unknown",
     _OUTSIDE: "the pixel is outside the image",
     _NOT_FINITE: "the pixel is not finite",
+    _LOOSE: "the boundary places this point too loosely (its 1-sigma exceeds the allowed "
+            "share of its distance): the wall's base is barely seen or lies near the horizon",
 }
 _SURFACES = {1: "floor", 2: "wall"}
 @dataclass(frozen=True)
@@ -84,11 +95,13 @@ class Scene:
         boundary_sigma_px: boundary error used for the uncertainty, pixels.
         gravity_cov: (2, 2) covariance (rad^2) of gravity's tilt about the level x (pitch)
             and z (roll) axes (``provenance.Provenance.gravity_cov``); None = exact.
+        max_rel_sigma: a point whose 1-sigma exceeds this share of its distance from the
+            camera gets no answer (reason in ``REASONS``); None answers every point.
     """
 
     def __init__(self, camera: Camera, height: float, polyline, kinds=None,
                  height_sigma: float = 0.03, boundary_sigma_px: float = 1.0,
-                 gravity_cov=None):
+                 gravity_cov=None, max_rel_sigma: float | None = MAX_REL_SIGMA):
         if not np.isfinite(height) or height <= 0:
             raise GeometryError(f"camera height must be a positive number of metres, got {height!r}")
         poly = np.asarray(polyline, float).reshape(-1, 2)
@@ -103,11 +116,17 @@ class Scene:
                             else np.asarray(gravity_cov, float).reshape(2, 2))
         if not np.all(np.isfinite(self.gravity_cov)):
             raise GeometryError(f"gravity_cov must be finite, got {self.gravity_cov.tolist()}")
+        if max_rel_sigma is not None and not (np.isfinite(max_rel_sigma) and max_rel_sigma > 0):
+            raise GeometryError(f"max_rel_sigma must be a positive number or None, got "
+                                f"{max_rel_sigma!r}")
+        self.max_rel_sigma = None if max_rel_sigma is None else float(max_rel_sigma)
         self._pieces = self._build(poly)
-        # the boundary part is linearised: the scene under the boundary moved down by at
-        # most one pixel, the displacement scaled up to ``boundary_sigma_px``
+        # the boundary part is linearised: the scene under the boundary moved down (and, for
+        # a steep boundary, sideways) by at most one pixel, the displacement scaled up to
+        # ``boundary_sigma_px``
         self._shift_px = min(self.boundary_sigma_px, 1.0)
         self._pieces_shifted = self._build(poly + np.array([0.0, self._shift_px]))
+        self._pieces_sideways = self._build(poly + np.array([self._shift_px, 0.0]))
 
     def _build(self, poly, cam: Camera | None = None):
         """Pieces: (az0, az1, kind, normal (2,), offset) with n . (x, z) = offset on the wall."""
@@ -205,6 +224,13 @@ class Scene:
 
         parts, jac = point_sigmas(self, pxs, rays, P, surface)
         sigma = np.sqrt(sum(x * x for x in parts.values()))
+        if self.max_rel_sigma is not None:
+            with np.errstate(invalid="ignore"):
+                loose = ok & ~(sigma <= self.max_rel_sigma * np.linalg.norm(P, axis=1))
+            reason = np.where(loose, _LOOSE, reason)
+            ok &= ~loose
+            surface = np.where(ok, surface, 0)
+            P[~ok] = np.nan
         sigma = np.where(ok, sigma, np.inf)
         return P, surface, sigma, parts, reason, jac
 

@@ -3,7 +3,9 @@
 A located point's 1-sigma radius (metres) is the root sum of squares of four parts:
 
 * boundary: the chosen boundary off by ``boundary_sigma_px`` (linearised: the scene rebuilt
-  under the boundary moved down by one pixel, the displacement scaled up);
+  under the boundary moved by one pixel, the displacement scaled up), moved down or sideways,
+  whichever moves the point more: a steep boundary (the base of a wall running away from the
+  camera) moved down slides along itself, so only the sideways move shows its error;
 * height: the camera height off by its sigma (every point scales with it);
 * pixel: the tap off by one pixel in u and in v;
 * gravity: gravity's tilt off along each principal axis of its covariance (central
@@ -61,7 +63,8 @@ def point_sigmas(scene, px: np.ndarray, rays: np.ndarray, P: np.ndarray,
 
     shift = scene._shift_px
     parts = {"height": np.linalg.norm(P, axis=1) * scene.height_sigma / scene.height,
-             "boundary": moved(scene._pieces_shifted, rays) * (
+             "boundary": np.maximum(moved(scene._pieces_shifted, rays),
+                                    moved(scene._pieces_sideways, rays)) * (
                  scene.boundary_sigma_px / shift if shift > 0 else 0.0),
              "pixel": np.hypot(moved(scene._pieces, cam.rays_level(px + (1.0, 0.0))),
                                moved(scene._pieces, cam.rays_level(px + (0.0, 1.0))))}

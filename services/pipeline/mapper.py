@@ -19,7 +19,10 @@ normally).
 Cost, bounded per session: at most ``max_photos`` photos per plan (the first ones; later
 ones are listed LEFT_OUT), a new plan after every ``every`` newly ready photos or when no
 photo is left waiting (a count, not a time: a replay gives the same plans), and the pair
-relations of those photos only. State: at most ``max_sessions`` sessions (the least recently
+relations of those photos only. On the bus, a plan also waits while more of its session's
+messages are queued (``Handler.backlog``): a burst, or a mapper that fell behind a user's
+photos (a plan of 24 photos costs seconds), gets one plan per drained queue, not one per
+photo, so the mapper keeps up; the last plan of a session is the same either way. State: at most ``max_sessions`` sessions (the least recently
 active one is dropped first) and a session idle for ``idle_s`` seconds is dropped.
 
 Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan, one that
@@ -80,6 +83,7 @@ class MapperHandler(Handler):
               Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection))
     shard = True
+    nice = 10   # floor plans are background work: poses and measurements go first
 
     def __init__(self, max_photos: int = 32, every: int = 1, max_sessions: int = 16,
                  idle_s: float = 3600.0, params: plan_session.SessionParams | None = None,
@@ -185,6 +189,8 @@ class MapperHandler(Handler):
 
     # ------------------------------------------------------------------ planning
     def _maybe_plan(self, sid: str, st: _Session) -> list[Output]:
+        if self.backlog is not None and self.backlog(sid) > 0:
+            return []   # more of the session is queued: the plan after it covers this too
         ready = [n for n in sorted(st.photos) if st.photos[n].photo is not None]
         sig = tuple((n, st.photos[n].key) for n in ready)
         if sig == st.signature or not st.photos:

@@ -86,6 +86,12 @@ class Handler:
     #: fetch_all(key expression) -> [(key, payload)]: every message the bus still holds
     #: for a key expression (set by Service). None = no way to ask.
     fetch_all = None
+    #: served in its own process (``findme serve``), run at this lower CPU priority
+    #: (``os.nice``): background work (the mapper's floor plans) yields to the phones' poses
+    nice = 0
+    #: backlog(session) -> messages of that session received and not handled yet (set by
+    #: Service). None (a test driving the handler) = nothing is known to be waiting.
+    backlog = None
     #: worker threads: > 1 only for a handler whose ``on_message`` may run concurrently (no
     #: shared state; OpenCV and numpy release the GIL): a second photo is not held up by a
     #: large one in progress

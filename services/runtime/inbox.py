@@ -156,6 +156,11 @@ class Inbox:
                 self.cv.wait(0.5 if tick_s is None else max(0.0, min(0.5, self.next_tick - now)))
         return None, None
 
+    def session_waiting(self, session: str) -> int:
+        """Messages of ``session`` received and not taken yet."""
+        with self.cv:
+            return self.intake.waiting(session)
+
     def knows(self, key: str) -> bool:
         """Whether ``key`` was taken (queued or handled) here lately."""
         with self.cv:

@@ -59,6 +59,11 @@ class Intake:
         """Sessions with something waiting."""
         return len(self._q)
 
+    def waiting(self, session: str) -> int:
+        """Messages of ``session`` waiting."""
+        q = self._q.get(session)
+        return len(q) if q else 0
+
     def offer(self, item: Item, latest: int | None = None) -> tuple[bool, list[Item], str]:
         """Queue ``item``. Returns (accepted, superseded items, why it was refused).
 

@@ -94,6 +94,7 @@ class Service:
         self.idle.set()
         handler.fetch = self.fetch
         handler.fetch_all = self.fetch_all
+        handler.backlog = self.inbox.session_waiting
 
     @property
     def counters(self) -> Counters:

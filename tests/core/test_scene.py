@@ -4,7 +4,7 @@ import pytest
 
 from findme_core.camera import Camera
 from findme_core.errors import GeometryError, HypothesisError
-from findme_core.scene import Scene, distances
+from findme_core.scene import REASONS, Scene, boundary_sigma_px, distances
 from findme_core.search import SegKind
 from findme_core.synth import FLOOR, WALL_BASE
 
@@ -178,3 +178,61 @@ def test_gravity_part_of_a_distance_is_correlated(tilted_view):
 def test_nonfinite_gravity_cov_is_refused(tilted_view):
     with pytest.raises(GeometryError, match="gravity_cov"):
         Scene(tilted_view.camera, 1.4, [[0, 300], [639, 300]], gravity_cov=[[np.nan, 0], [0, 1]])
+
+
+def test_boundary_near_the_horizon_places_no_wall_point(level_view):
+    """A wrong boundary just below the horizon (a counter's edge taken for the floor line):
+    a pixel there is worth metres, so the wall points above it are not placed (None with
+    the reason) rather than put tens of metres away; the true boundary places them."""
+    view = level_view
+    cam = view.camera
+    sigma_px = boundary_sigma_px(cam.width, cam.height)
+    px = _pixels(view, lambda l: (l >= WALL_BASE) & (l < 50), n=40, seed=3)
+    px = px[px[:, 1] < cam.cy - 10]              # above the wrong boundary
+    wrong = Scene(cam, view.camera_height, [[0, cam.cy + 4], [cam.width - 1, cam.cy + 4]],
+                  boundary_sigma_px=sigma_px)
+    located = wrong.locate(px)
+    assert all(p.xyz is None and "too loosely" in p.error for p in located)
+    # without the limit the same points get a position (far off) with their large sigma
+    free = Scene(cam, view.camera_height, [[0, cam.cy + 4], [cam.width - 1, cam.cy + 4]],
+                 boundary_sigma_px=sigma_px, max_rel_sigma=None).locate(px)
+    truth = view.points_cam[px[:, 1].astype(int), px[:, 0].astype(int)]
+    assert all(p.surface == "wall" and p.sigma_m > 0.5 * np.linalg.norm(p.xyz) for p in free)
+    assert all(np.linalg.norm(p.xyz - t) > np.linalg.norm(t) for p, t in zip(free, truth))
+    right = Scene(cam, view.camera_height, view.ground_truth_boundary_polyline(),
+                  boundary_sigma_px=sigma_px).locate(px)
+    for p, t in zip(right, truth):
+        assert p.surface == "wall" and p.sigma_m <= 0.5 * np.linalg.norm(p.xyz)
+        assert np.linalg.norm(p.xyz - t) < 0.005 * np.linalg.norm(t)
+    P, surface, sigma, _, reason = wrong.locate_level(px)   # the vectorised form agrees
+    assert np.all(np.isnan(P)) and np.all(surface == 0) and np.all(np.isinf(sigma))
+    assert np.all(reason == list(REASONS)[-1])
+
+
+def test_steep_boundary_has_its_sideways_sigma():
+    """The base of a wall running away from the camera is steep in the image: moved down it
+    slides along itself, so the boundary part is the sideways move's displacement (it was
+    near 0 before); the point itself is exact."""
+    cam = Camera.from_hfov(70, 640, 480)
+    h, x = 1.5, 0.4                                  # a wall 0.4 m to the right, along z
+    poly, _ = cam.project_cam([[x, h, 1.6], [x, h, 12.0]])
+    scene = Scene(cam, h, poly)
+    assert abs(np.diff(poly[:, 1])[0]) > 2 * abs(np.diff(poly[:, 0])[0])   # steep
+    z = 4.0
+    uv, _ = cam.project_cam([[x, 0.5, z]])           # a wall pixel 1 m above the floor
+    p = scene.locate(uv)[0]
+    assert p.surface == "wall" and np.allclose(p.xyz, [x, 0.5, z], atol=1e-6)
+
+    def moved(shift):
+        q = Scene(cam, h, poly + shift, max_rel_sigma=None).locate(uv)[0]
+        return np.linalg.norm(q.xyz - p.xyz)
+    down, side = moved([0.0, 1.0]), moved([1.0, 0.0])
+    assert side > 3 * down
+    assert p.sigma_parts["boundary"] == pytest.approx(side, rel=0.02)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+def test_max_rel_sigma_must_be_positive(bad):
+    cam = Camera.from_hfov(70, 640, 480)
+    with pytest.raises(GeometryError, match="max_rel_sigma"):
+        Scene(cam, 1.5, [[0, 400], [639, 400]], max_rel_sigma=bad)

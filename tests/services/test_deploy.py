@@ -31,7 +31,7 @@ def test_procfile_is_what_findme_up_runs():
             for name, argv in processes(parser.parse_args(["up"]))]
     assert lines == want
     names = {ln.split(":")[0] for ln in lines}
-    assert {"router", "selection", "measurement", "odometry", "recorder"} <= names
+    assert {"router", "selection", "measurement", "odometry", "mapper", "recorder"} <= names
     assert sum(n.startswith("hypotheses") for n in names) == 2
     for ln in lines:
         argv = shlex.split(ln.split(":", 1)[1])
@@ -55,8 +55,8 @@ def test_compose_commands_certificates_and_image_files():
     the services connect to and every TLS file they use; the image copies every package
     and its build context leaves out the venv, keys and recordings; certs/ is git-ignored."""
     cmds = _compose_commands()
-    assert set(cmds) == {"router", "store", "hypotheses", "measurement", "odometry", "recorder",
-                         "gateway"}
+    assert set(cmds) == {"router", "store", "hypotheses", "measurement", "odometry", "mapper",
+                         "recorder", "gateway"}
     parser = build_parser()
     for argv in cmds.values():
         assert parser.parse_args(argv).command in ("router", "serve")

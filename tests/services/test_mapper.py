@@ -10,6 +10,7 @@ and their turns come from the photos' own features (yaws within 0.5 deg, not the
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import pytest
@@ -19,6 +20,8 @@ from findme_core import fuse, polygon, session as plan_session
 from findme_core.errors import HypothesisError, InputError
 from findme_core.room import Room
 from services.pipeline.mapper import MapperHandler
+from services.runtime.service import Service
+from tests.services.conftest import Collector
 from tests.plan_room import rendered_session
 
 
@@ -213,3 +216,57 @@ def test_a_turn_with_left_out_views_is_one_spot_on_the_bus_as_in_findme_plan():
     # other photo of its spot and sees one wall: its yaw rests on the layout alone
     linked = [0, 1, 3, 4, 5, 7]
     assert np.abs(fuse.wrap(got[linked, 2] - room.poses[linked, 2])).max() < math.radians(0.5)
+
+
+def test_a_mapper_behind_its_photos_plans_once_per_drained_queue(room, mapped):
+    # on the bus the Service tells the handler how many of the session's messages wait
+    # (Handler.backlog); a burst queued behind the first message is planned once, at its end
+    _, plans = mapped
+    msgs = list(room.messages())
+    left = [len(msgs)]
+
+    def backlog(session):
+        assert session == "plan-test"
+        return left[0]
+    m = MapperHandler()
+    m.backlog = backlog
+    outs = []
+    for k, msg in msgs:
+        left[0] -= 1
+        outs += m.on_message(k, msg)
+    (out,) = outs
+    assert out.msg.up_to_index == 11 and out.msg.photos == 12
+    # the same plan as the mapper that planned after every photo
+    np.testing.assert_allclose(_vertices(out.msg), _vertices(plans[-1]), atol=1e-9)
+    assert [q.spot for q in out.msg.poses] == [q.spot for q in plans[-1].poses]
+
+
+class _HeldMapper(MapperHandler):
+    """A mapper that starts handling once ``release`` is set (all the burst queued first)."""
+
+    def __init__(self):
+        super().__init__()
+        self.release = threading.Event()
+
+    def on_message(self, key, msg):
+        self.release.wait(30)
+        return super().on_message(key, msg)
+
+
+def test_on_the_bus_a_queued_burst_gets_one_plan(room, mapped, zsession):
+    _, plans = mapped
+    h = _HeldMapper()
+    svc = Service(h, zsession, fifo_depth=64).start()
+    out = Collector(zsession, "findme/plan-test/plan")
+    msgs = list(room.messages())
+    for k, msg in msgs:
+        zsession.put(k, schemas.encode(msg))
+    with svc._cv:   # the whole burst is in the mapper's queue before it handles any
+        assert svc._cv.wait_for(lambda: svc.counters.frames_in == len(msgs), 10)
+    h.release.set()
+    (plan,) = out.decoded(schemas.Plan, 1)
+    assert svc.wait_idle(30)
+    assert len(out.keys()) == 1 and svc.status().errors == 0
+    assert plan.up_to_index == 11 and plan.photos == 12
+    np.testing.assert_allclose(_vertices(plan), _vertices(plans[-1]), atol=1e-9)
+    svc.stop()
