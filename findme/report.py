@@ -16,6 +16,7 @@ import zenoh
 import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
+from findme_io.convert import motion_text
 from services.runtime import bus
 
 from .options import floats
@@ -103,10 +104,7 @@ class Printer:
             return f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m" \
                    f"{'' if m.metric else ', up to scale'})"
         if name == "Motion":
-            if m.error:
-                return f"motion {m.index_a} -> {m.index_b}: no estimate: {m.error}"
-            return (f"motion {m.index_a} -> {m.index_b}: x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, yaw "
-                    f"{__import__('math').degrees(m.yaw_rad):+.2f} deg ({m.inliers}/{m.matches} inliers)")
+            return motion_text(m)
         if name == "Pose":
             return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
                     f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")

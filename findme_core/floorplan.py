@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from . import adjust, polygon, register, walls
+from . import adjust, polygon, register, wall_kinds, walls
 from .errors import GeometryError
 from .layout import Layout
 from .search import SegKind
@@ -227,7 +227,7 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
 def _outline(layouts, poses, params: PlanParams):
     """(evidence, classified lines, outline, which outline lines are on the axes) at poses."""
     ev = walls.evidence(layouts, poses)
-    wl = walls.classify(ev, walls.fit(ev, params.lines), params.lines)
+    wl = wall_kinds.classify(ev, walls.fit(ev, params.lines), params.lines)
     lines = polygon.Lines.of(wl)
     free = polygon.free_space(layouts, poses, lines, params.polygon)
     cams = poses[np.isfinite(poses[:, 0]), :2]

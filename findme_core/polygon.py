@@ -6,7 +6,7 @@ photo; metres). A wall line is a unit normal n (2,) and offset d with n . p = d 
 
 1. Free floor (``free_space``): every scan sample of every placed photo is a ray from its
    camera; the floor is free along it up to the first wall line it crosses within the
-   wall's extent (``walls.crossing``): through furniture in front of the wall (the sample
+   wall's extent (``wall_kinds.crossing``): through furniture in front of the wall (the sample
    stopped short of it) and not past a door or an opening in it (the sample went beyond).
    A ray that crosses no wall keeps what the photo saw (its range; nothing for no floor).
 2. Cell complex (as in floor-plan reconstruction from scans): the wall lines cut the plane
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from . import register, walls
+from . import register, wall_kinds, walls
 from .errors import GeometryError
 from .search import SegKind
 
@@ -103,7 +103,7 @@ def free_space(layouts, poses, lines: Lines, params: PolygonParams = PolygonPara
         R = params.max_range_m
         seen = np.where(L.kind == SegKind.NONE, 0.0, np.minimum(L.range, R))
         if len(lines.normals):
-            ok, t = walls.crossing(c, c + R * d, lines.normals, lines.offsets, lines.extent)
+            ok, t = wall_kinds.crossing(c, c + R * d, lines.normals, lines.offsets, lines.extent)
             t_wall = np.where(ok.any(1), np.nanmin(np.where(ok, t, np.inf), axis=1) * R, np.inf)
         else:
             t_wall = np.full(len(az), np.inf)

@@ -235,3 +235,19 @@ def set_motion_estimate(msg, mo, max_alternatives: int = 8):
         if math.isfinite(a.score):
             alt.score = float(a.score)
     return msg
+
+
+def motion_text(msg) -> str:
+    """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
+    this edge), its evidence, and 'ambiguous' when the evidence allows other motions."""
+    if msg.error:
+        return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
+    why = [f"{msg.inliers}/{msg.matches} inliers"]
+    nw = len(msg.layout.walls) if msg.HasField("layout") else 0
+    if nw:
+        why.append(f"{nw} wall{'s line' if nw > 1 else ' lines'} up")
+    na = len(msg.alternatives)
+    if na:
+        why.append(f"ambiguous: {na} other motion{'s fit' if na > 1 else ' fits'} almost as well")
+    return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} m, z {msg.z_m:+.3f} m, "
+            f"yaw {math.degrees(msg.yaw_rad):+.2f} deg ({'; '.join(why)})")

@@ -29,11 +29,10 @@ Timelines: ``photo`` (sequence: the photo index n of the message) and ``bus_time
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 import schemas
+from .convert import motion_text
 
 PIXEL_TO_RERUN = 0.5
 #: Walls are drawn this many camera heights tall above the floor (a 2.5 m room seen from
@@ -264,14 +263,8 @@ def log_trajectory(rec, path: str, traj) -> None:
 def log_motion(rec, path: str, motion) -> None:
     """A motion estimate as a line of text (``path`` = log)."""
     rr = _rr()
-    if motion.error:
-        rec.log(path, rr.TextLog(f"motion {motion.index_a} -> {motion.index_b}: no estimate: "
-                                 f"{motion.error}", level="WARN"))
-        return
-    rec.log(path, rr.TextLog(
-        f"motion {motion.index_a} -> {motion.index_b}: x {motion.x_m:+.3f} m, z {motion.z_m:+.3f} m, "
-        f"yaw {math.degrees(motion.yaw_rad):+.2f} deg ({motion.inliers}/{motion.matches} inliers)",
-        level="INFO"))
+    level = "WARN" if motion.error or len(motion.alternatives) else "INFO"
+    rec.log(path, rr.TextLog(motion_text(motion), level=level))
 
 
 def log_error(rec, path: str, err) -> None:

@@ -84,6 +84,11 @@ class MapperHandler(Handler):
               Input("findme/*/selection/*", schemas.Selection))
     shard = True
     nice = 10   # floor plans are background work: poses and measurements go first
+    # a plan of many photos takes seconds while the photos keep coming: room for a session's
+    # messages meanwhile (still bounded by the bytes a session may have waiting), and a
+    # plan may come late rather than a photo be left out
+    queue_depth = 256
+    max_wait_s = 300.0
 
     def __init__(self, max_photos: int = 32, every: int = 1, max_sessions: int = 16,
                  idle_s: float = 3600.0, params: plan_session.SessionParams | None = None,

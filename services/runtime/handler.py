@@ -98,6 +98,10 @@ class Handler:
     threads = 1
     #: messages a session may have waiting (``Service(fifo_depth=...)`` overrides)
     queue_depth = 32
+    #: seconds a message may wait in the queue before it is answered OVERLOADED (None: the
+    #: service's ``max_wait_s``, ``--max-wait``); longer for background work whose results
+    #: may come late (the mapper)
+    max_wait_s: float | None = None
     #: call ``tick`` about every this many seconds (None: never), on the worker thread
     tick_s: float | None = None
     #: ``on_message`` is O(1) and never blocks: run it in Zenoh's callback, unqueued (store)

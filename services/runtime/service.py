@@ -74,7 +74,8 @@ class Service:
         self.instance = instance or uuid.uuid4().hex[:8]
         self.ident = f"{handler.name}/{self.instance}"
         self.inbox = Inbox(handler, self.ident, fifo_depth or handler.queue_depth, session_bytes,
-                           queue_bytes, seen_s, max_wait_s if handler.report_overload else None)
+                           queue_bytes, seen_s,
+                           (handler.max_wait_s or max_wait_s) if handler.report_overload else None)
         self._cv = self.inbox.cv
         self.results_out = self.errors = 0
         self.started_ns = time.time_ns()

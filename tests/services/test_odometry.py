@@ -9,7 +9,7 @@ import schemas
 from findme_core.search import SegKind
 from findme_core.synth import Pose, Room, planar_motion, render
 from services.pipeline.hypotheses import HypothesesHandler
-from findme_io.convert import set_motion_estimate
+from findme_io.convert import motion_text, set_motion_estimate
 from services.pipeline.odometry import OdometryHandler
 from services.web.page_output import to_page
 from tests.services.conftest import frame_of
@@ -157,3 +157,7 @@ def test_a_symmetric_room_reaches_the_page_as_alternatives():
     assert m.inliers == 0 and m.layout.samples > 20
     page = to_page("od", m)
     assert len(page["alternatives"]) == len(m.alternatives)
+    # the console and Rerun line says so too
+    n = len(m.alternatives)
+    assert f"ambiguous: {n} other motion{'s fit' if n > 1 else ' fits'} almost as well" \
+        in motion_text(m)
