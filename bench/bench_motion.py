@@ -9,9 +9,10 @@ lines), matching, and the motion (lifting the matched points under each photo's 
 hypothesis, then the estimator), with the chosen detector and matcher (ORB, 3000 keypoints
 spread on a grid, FLANN-LSH matching) side by side with the alternatives (exact brute-force
 matching of the same keypoints, ORB with 1500 keypoints, SIFT with 3000) in the same run,
-and the feature-only estimator (the default before layouts) and the paper's estimator next
-to ours on the chosen features. Hypotheses are computed before the clock starts (~40-60 ms
-per photo, their own benchmark). Per pair the best of ``--repeat`` runs; reports median,
+and the feature-only estimator (the default before layouts), the paper's estimator and ours
+without the photos' appearance (the default before it, ``photometric_weight`` 0, photos
+prepared without their surfaces) next to ours on the chosen features. Hypotheses are
+computed before the clock starts (~40-60 ms per photo, their own benchmark). Per pair the best of ``--repeat`` runs; reports median,
 p10/p90 and IQR over the pairs, in CPU milliseconds of the (one) thread, which other
 processes on the machine do not inflate. Goal: features + matching + motion <= 60 ms.
 """
@@ -23,6 +24,7 @@ import json
 import os
 import sys
 import time
+from dataclasses import replace
 
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
@@ -86,11 +88,15 @@ def main(argv=None):
                 pb = prepare(ib, cb, hb, hsb.hypotheses, 1, hsb.lines.ends, params.max_layouts,
                              fp, clock)
                 res = motion_photos(pa, pb, methods, fp, params, clock)
+                if "chosen" in name:   # main's default before the photos' appearance took part
+                    res["findme without appearance"] = motion_photos(
+                        replace(pa, surface=None), replace(pb, surface=None), ("findme",), fp,
+                        replace(params, photometric_weight=0.0), clock)["findme"]
                 ours = res["findme"]
                 if isinstance(ours, Exception):     # no estimate: time up to the error
                     break
                 tm = dict(ours.timing_ms)
-                for other in ("features", "paper"):
+                for other in ("findme without appearance", "features", "paper"):
                     if other in res and not isinstance(res[other], Exception):
                         tm[f"{other} estimator (motion)"] = res[other].timing_ms["motion"]
                 if best is None or sum(tm.values()) < sum(best.values()):

@@ -40,13 +40,17 @@ def _estimate_json(m) -> dict:
                          "rms_m": None if not math.isfinite(lay.rms_m) else r6(lay.rms_m),
                          "walls": [list(w) for w in lay.walls],
                          "corners": [list(c) for c in lay.corners]}
+    if m.appearance[1]:
+        out["appearance"] = {"correlation": r6(m.appearance[0]), "samples": m.appearance[1]}
     return out
 
 
 def motion_json(r: PairResult, metric: bool) -> dict:
     """The JSON contract of ``findme motion --json``: the motion, its evidence (inliers;
     ``layout``: which hypotheses' walls were registered, how many boundary samples agree,
-    which walls (A's index, B's index) and corners matched, the rms residual) and the
+    which walls (A's index, B's index) and corners matched, the rms residual; ``appearance``:
+    the correlation of the photos' normalised images over the samples each sees of the
+    other's floor and walls) and the
     ``alternatives`` the evidence allows nearly as well (a symmetric room), best first."""
     m = r.motion
     out = _estimate_json(m)
@@ -116,6 +120,10 @@ def cmd_motion(args) -> int:
         print(f"  layouts (hypotheses {lay['hypotheses'][0]} and {lay['hypotheses'][1]}): "
               f"{lay['samples']} boundary samples on each other's walls, {len(lay['walls'])} "
               f"wall pairs, {len(lay['corners'])} corners")
+    if "appearance" in out:
+        app = out["appearance"]
+        print(f"  appearance: the photos correlate {app['correlation']:+.3f} over "
+              f"{app['samples']} samples each sees of the other's floor and walls")
     for k, alt in enumerate(out["alternatives"], 2):
         print(f"  candidate {k} (the evidence allows it nearly as well): x {alt['x_m']:+.3f}, "
               f"z {alt['z_m']:+.3f} {unit}, yaw {alt['yaw_deg']:+.2f} deg")

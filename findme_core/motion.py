@@ -57,7 +57,7 @@ METHODS = ("findme", "features", "lifted", "paper")
 def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: float,
              lift_a: Lifter | None, lift_b: Lifter | None, method: str = "findme",
              params: MotionParams = MotionParams(), *, layouts=((), ()),
-             orientations=(None, None)) -> PlanarMotion:
+             orientations=(None, None), surfaces=(None, None)) -> PlanarMotion:
     """Planar motion of B in A's level frame.
 
     Args:
@@ -71,6 +71,8 @@ def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: fl
         layouts: (A's, B's) sequences of ``layout.Layout`` of candidate hypotheses, the
             chosen one first (``findme`` only).
         orientations: (A's, B's) ``orientation.Orientation`` or None (``findme`` only).
+        surfaces: (A's, B's) ``motion_photometric.Surface`` (the photo's samples placed by
+            its chosen layout) or None (``findme`` only).
 
     Raises:
         MotionError: too few matches and no common wall, identical photos, no common view,
@@ -83,7 +85,7 @@ def estimate(matches: Matches, cam_a: Camera, cam_b: Camera, h_a: float, h_b: fl
     keep, rep = distinct(matches, params.duplicate_px)   # copies of one corner count once
     m = Registration(matches.subset(keep), cam_a, cam_b, h_a, h_b, _subset(lift_a, keep),
                      _subset(lift_b, keep), layouts, orientations, params,
-                     len(matches) - len(keep)).run()
+                     len(matches) - len(keep), surfaces).run()
     return _expanded(m, rep)
 
 

@@ -40,9 +40,10 @@ class MotionParams:
             has 62-81 % of its errors within 1 sigma (gross failures stay outside 3 sigma).
         findme_scale_sigma, findme_direction_sigma_deg, findme_yaw_sigma_deg: the same for
             the ``findme`` estimates, fitted by ``tools/calibrate_motion.py`` on
-            tum-cabinet-pairs (dev); held out, zind-pairs-tilted has 57-90 % of its errors
-            within 1 sigma and 95 % within 3, zind-pairs-level 30-80 % and 80-90 % (its
-            sigma also spans the alternatives, ``motion_register``).
+            tum-cabinet-pairs (dev; with the appearance term: 0.033, 3.1, 0.67 before it);
+            held out, zind-pairs-tilted has 73-91 % of its errors within 1 sigma and 86-95 %
+            within 3, zind-pairs-level 53-79 % and 84-89 % (its sigma also spans the
+            alternatives, ``motion_register``).
         seed: RANSAC seed.
 
     ``findme`` only:
@@ -79,6 +80,15 @@ class MotionParams:
         lift_min_elev_deg: a match lifted in one photo is placed in the other by its height
             (``motion_lifted``) only when its bearing there is at least this far from the
             horizon.
+        photometric_weight, photometric_top: the ``photometric_top`` best distinct
+            candidates also score ``photometric_weight`` times the summed products of the
+            two photos' normalised images over the samples each sees of the other's surfaces
+            (``motion_photometric``: ~2,000-9,000 samples; a right motion sums +50 to +900,
+            a wrong one about 0 or less). Dev findme success at 0 / 0.01 / 0.04 / 0.08 /
+            0.15: zind-pairs-level 12 / 12 / 13 / 13 / 12 of 22, zind-pairs-tilted 15 / 16 /
+            17 / 16 / 15; at 0 vs 0.04: tum-cabinet-pairs 80 vs 84 of 95, kitti06-pairs 4
+            vs 5 of 7. The best 12 distinct candidates or the best 24: the same success on
+            all four subsets.
     """
 
     thr_px: float = 3.0
@@ -93,11 +103,12 @@ class MotionParams:
     scale_sigma: float = 0.13
     direction_sigma_deg: float = 5.0
     yaw_sigma_deg: float = 1.4
-    findme_scale_sigma: float = 0.033
-    findme_direction_sigma_deg: float = 3.1
-    findme_yaw_sigma_deg: float = 0.67
+    findme_scale_sigma: float = 0.042
+    findme_direction_sigma_deg: float = 3.65
+    findme_yaw_sigma_deg: float = 0.71
     seed: int = 0
     max_layouts: int = 1
+    gen_layouts: int = 1
     layout_weight: float = 0.25
     layout_violation: float = 0.25
     layout_floor: float = 0.0
@@ -117,6 +128,8 @@ class MotionParams:
     alternative_ratio: float = 0.8
     duplicate_px: float = 4.0
     lift_min_elev_deg: float = 3.0
+    photometric_weight: float = 0.04
+    photometric_top: int = 12
 
     def model_errors(self, method: str) -> tuple[float, float, float]:
         """(relative scale, direction degrees, yaw degrees) model errors of ``method``."""
@@ -143,6 +156,9 @@ class PlanarMotion:
         score: the evidence's score (``findme``: matches + layouts + orientations).
         alternatives: other motions the evidence allows nearly as well (``findme``; a
             symmetric room), best first, each with its own evidence.
+        appearance: (correlation in [-1, 1], samples) of the two photos' normalised images
+            where each sees the other's surfaces under this motion (``findme``,
+            ``motion_photometric``); (nan, 0) when not measured.
     """
 
     x: float
@@ -158,6 +174,7 @@ class PlanarMotion:
     layout: object = None
     score: float = float("nan")
     alternatives: tuple = ()
+    appearance: tuple = (float("nan"), 0)
 
     @property
     def n_inliers(self) -> int:

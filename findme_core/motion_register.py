@@ -16,7 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import motion_lifted, register
+from . import motion_lifted, motion_photometric, register
 from .errors import MotionError
 from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_error,
                               check_matches, local_optimisation)
@@ -30,8 +30,10 @@ class Registration:
     ``motion.estimate``."""
 
     def __init__(self, matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts, orientations,
-                 params: MotionParams, copies: int = 0):
+                 params: MotionParams, copies: int = 0, surfaces=(None, None)):
         self.p, self.m, self.n, self.copies = params, matches, len(matches), copies
+        self.surfaces = surfaces
+        self.trace = None   # (yaws, candidate yaws (C,), t (C, 3), scores (C,)) once scored
         self.feats = self.n >= params.min_matches
         if self.feats:
             check_matches(matches, params)       # identical photos: an error whatever else
@@ -168,20 +170,24 @@ class Registration:
                         if free_dir:
                             add(y, s * t)
             d2 = T[:, [0, 2]] / np.maximum(np.linalg.norm(T[:, [0, 2]], axis=1, keepdims=True), 1e-12)
-            for la in self.la[:1]:
-                for lb in self.lb[:1]:
-                    add(y, register.translations(la, lb, y, d2, self.rp))
+            for la, lb in self._layout_pairs():
+                add(y, register.translations(la, lb, y, d2, self.rp))
         # matches lifted in one photo only, placed in the other by their height
         corr = motion_lifted.correspondences(self.P, self.p.lift_min_elev_deg)
         for y in yaws:
             add(y, motion_lifted.at_yaw(corr, y))
-        if self.la and self.lb:   # the walls alone (one wall fixes one direction only)
+        for la, lb in self._layout_pairs():   # the walls alone (one wall: one direction)
             for y in yaws:
-                add(y, register.translations(self.la[0], self.lb[0], y, None, self.rp,
-                                             single=not self.feats))
+                add(y, register.translations(la, lb, y, None, self.rp, single=not self.feats))
         if not cy:
             return np.zeros(0), np.zeros((0, 3))
         return np.array(cy), np.vstack(ct)
+
+    def _layout_pairs(self):
+        """The layout pairs that propose translations: every pair of the candidate
+        hypotheses, up to ``gen_layouts`` of each photo (the chosen ones first)."""
+        k = self.p.gen_layouts
+        return [(la, lb) for la in self.la[:k] for lb in self.lb[:k]]
 
     def _t3(self, t2):
         return np.column_stack([t2[:, 0], np.full(len(t2), self.dy), t2[:, 1]])
@@ -204,6 +210,10 @@ class Registration:
         if len(cy) == 0:
             raise self._refusal(0)
         total, which = self.fit.score(cy, ct)
+        # the photos' appearance where each sees the other's surfaces: the best candidates
+        top_k = _distinct_top(cy, ct, total, self.p.photometric_top)
+        total[top_k] += self._photometric(cy[top_k], ct[top_k])[0]
+        self.trace = (yaws, cy, ct, total)   # what was weighed (``tools/motion_pairs.py``)
         results, top = [], float(total.max())
         for i in np.argsort(-total):
             if len(results) == self.p.refine_top or (
@@ -213,7 +223,8 @@ class Registration:
                 continue
             q, cov = self.fit.refine(cy[i], ct[i], which[i])
             s, w = self.fit.score(q[0], q[1:4])
-            results.append((q, cov, float(s[0]), w[0]))
+            results.append((q, cov, float(s[0] + self._photometric(q[:1], q[None, 1:4])[0][0]),
+                            w[0]))
         results.sort(key=lambda r: -r[2])
         out = []
         for r in results:
@@ -235,6 +246,13 @@ class Registration:
                      if o.score >= self.p.alternative_ratio * best.score)
         return _spread_over(replace(best, alternatives=alts))
 
+    def _photometric(self, yaw, t3):
+        """(C,) score of C motions by the photos' appearance (``motion_photometric``: the
+        summed products of the normalised images over the samples each photo sees of the
+        other's surfaces, times ``photometric_weight``) and (C,) their correlation."""
+        corr, n = motion_photometric.agreement(*self.surfaces, yaw, t3)
+        return self.p.photometric_weight * corr * n, corr
+
     def _check_determined(self, m: PlanarMotion, pair) -> None:
         if m.n_inliers < self.p.min_inliers:
             if m.layout is None or m.layout.samples < self.p.min_layout_samples:
@@ -254,7 +272,9 @@ class Registration:
                if self.la and self.lb else None)
         r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
                           e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
-        return _model_error(replace(r, layout=lay, score=score), self.p)
+        corr, n = motion_photometric.agreement(*self.surfaces, q[:1], q[None, 1:4])
+        return _model_error(replace(r, layout=lay, score=score,
+                                    appearance=(float(corr[0]), int(n[0]))), self.p)
 
     def _refusal(self, k: int) -> MotionError:
         walls = ("the photos' boundaries share no wall" if self.la and self.lb else
@@ -281,6 +301,14 @@ class Registration:
         what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
         raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
                           "along the wall cannot be measured")
+
+
+def _distinct_top(cy, ct, total, k: int) -> np.ndarray:
+    """Indices of the k best-scoring candidates (yaw (C,), t (C, 3), score (C,)) that are
+    not copies of a better one (the same yaw and t: a scale found twice)."""
+    order = np.argsort(-total, kind="stable")
+    _, first = np.unique(np.column_stack([cy, ct])[order], axis=0, return_index=True)
+    return order[np.sort(first)[:k]]
 
 
 def _spread_over(m: PlanarMotion) -> PlanarMotion:

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from . import features, layout
+from . import features, layout, motion_photometric
 from .orientation import Orientation, orientation as room_orientation
 from .camera import Camera
 from .errors import FindmeError, HypothesisError
@@ -49,6 +49,8 @@ class Photo:
         scene: the chosen hypothesis' scene (lifts matched points), None without one.
         layouts: ``layout.Layout`` of the candidate hypotheses, the chosen one first.
         orientation: the room's orientation from its lines, None without usable lines.
+        surface: its pixels placed on the floor and walls of the chosen layout
+            (``motion_photometric``; none without a layout: then only looked up).
         timing_ms: milliseconds per stage of its preparation.
     """
 
@@ -59,6 +61,7 @@ class Photo:
     layouts: list = field(default_factory=list)
     orientation: Orientation | None = None
     timing_ms: dict = field(default_factory=dict)
+    surface: motion_photometric.Surface | None = None
 
 
 def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
@@ -95,8 +98,10 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
         segments = line_segments(image)
     o = room_orientation(segments, camera)
     t3 = clock()
+    surf = motion_photometric.surface(image, camera, lays[0] if lays else None)
+    t4 = clock()
     return Photo(camera, float(height), f, scene, lays, o,
-                 {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t2 - t1 + t3 - t2)})
+                 {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t4 - t1)}, surf)
 
 
 def _work_scale(image) -> float:
@@ -198,7 +203,8 @@ def motion_photos(pa: Photo, pb: Photo, methods=("findme",),
             mo = estimate(m, pa.camera, pb.camera, pa.height, pb.height,
                           lifter(pa.scene, m.ua), lifter(pb.scene, m.ub), method, params,
                           layouts=(pa.layouts, pb.layouts),
-                          orientations=(pa.orientation, pb.orientation))
+                          orientations=(pa.orientation, pb.orientation),
+                          surfaces=(pa.surface, pb.surface))
         except FindmeError as e:
             out[method] = e
             continue

@@ -17,6 +17,15 @@ of the baseline, as score.py), or the refusal's reason. The failure cause is a s
   suffixed with the evidence the pair lacks: ``noflA``/``noflB`` (the photo's rank-1
   hypothesis sees no floor), ``<k>ok`` (correct matches, when fewer than 10).
 
+``--why`` adds, for ``findme``, what its registration weighed (``Registration.trace``): the
+yaw candidate nearest the true yaw (degrees), how many scored candidates are right (within
+the success bounds) and the rank of the best of them, and for the candidates at the right
+yaw (within 5 deg) the best baseline direction (degrees off) and the length ratios (to the
+true baseline) of those within 10 deg of it. The failure's reason then reads: ``no-yaw``
+(no candidate yaw within 5 deg), ``no-dir`` (right yaw, no direction within 10 deg),
+``scale`` (right yaw and direction, no right length), ``outscored`` (a right candidate lost
+the score: its rank), ``refine`` (the best candidate was right, the answer is not).
+
 ``--pred`` writes score.py predictions (pairs only) of the first method; the others go to
 PRED.<method>.json. Reads only the photos' inputs, as ``findme eval``; the truth is used only
 to diagnose.
@@ -64,8 +73,48 @@ def _refusal_tag(msg: str) -> str:
     return "other"
 
 
+def _why(reg, g, base):
+    """What the ``findme`` registration weighed against the truth (see the module doc)."""
+    if reg is None or reg.trace is None:
+        return {"reason": "no-candidates"}
+    yaws, cy, ct, total = reg.trace
+    ty, tx, tz = math.radians(g["yaw_deg"]), g["x_m"], g["z_m"]
+    wrap = lambda a: np.abs(np.angle(np.exp(1j * np.asarray(a))))  # noqa: E731
+    dyaw = wrap(cy - ty)
+    right = (dyaw <= math.radians(5)) & (np.hypot(ct[:, 0] - tx, ct[:, 2] - tz) <= 0.25 * base)
+    out = {"yaw_cand_deg": float(np.degrees(wrap(np.array(yaws) - ty).min())),
+           "candidates": int(len(cy)), "right": int(right.sum())}
+    if right.any():
+        out["right_rank"] = int((total > total[right].max()).sum())
+    at = dyaw <= math.radians(5)
+    if at.any():
+        ang = np.degrees(wrap(np.arctan2(ct[at, 0], ct[at, 2]) - math.atan2(tx, tz)))
+        out["dir_deg"] = float(ang.min())
+        out["ratios"] = sorted(round(float(r), 2) for r in
+                               np.hypot(ct[at, 0], ct[at, 2])[ang < 10] / base)[:5]
+    out["reason"] = ("refine" if right.any() and out["right_rank"] == 0 else
+                     f"outscored({out['right_rank']})" if right.any() else
+                     "no-yaw" if out["yaw_cand_deg"] > 5 else
+                     "no-dir" if out.get("dir_deg", 180) > 10 else "scale")
+    return out
+
+
+def _traced(methods):
+    """Run ``motion_photos`` keeping the ``findme`` Registration (its ``trace``)."""
+    from findme_core import motion
+    seen = []
+    real = motion.Registration
+
+    class Traced(real):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            seen.append(self)
+    motion.Registration = Traced
+    return seen, lambda: setattr(motion, "Registration", real)
+
+
 def diagnose(job):
-    split, pid, methods, params = job
+    split, pid, methods, params, why = job
     import cv2
     cv2.setNumThreads(1)
     pair, photos = pair_inputs(split / "pairs", split / "views", pid)
@@ -77,7 +126,11 @@ def diagnose(job):
                   for (i, c, h), w in zip(photos, "AB"))
     except FindmeError as e:
         return {**out, "error": str(e)}
-    res = motion_photos(pa, pb, methods, params=params)
+    seen, restore = _traced(methods) if why else ([], lambda: None)
+    try:
+        res = motion_photos(pa, pb, methods, params=params)
+    finally:
+        restore()
     from findme_core import features
     m = features.match(pa.features, pb.features)
     a, b = bearings(pa.camera, m.ua), bearings(pb.camera, m.ub)
@@ -109,6 +162,8 @@ def diagnose(job):
                      "err_yaw": ey, "success": succ, "inliers": mo.n_inliers,
                      "alternatives": len(mo.alternatives), "alt_ok": alt_ok,
                      "cause": "ok" if succ else ("wrong-yaw" if ey > 5 else "wrong-t")}
+    if why and "findme" in out:
+        out["findme"]["why"] = _why(seen[0] if seen else None, g, base)
     lack = "".join(f" nofl{w}" for w, s in zip("AB", out["sees_floor"]) if not s)
     lack += f" {ok}ok" if ok < 10 else ""
     for meth in methods:
@@ -127,6 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path)
     ap.add_argument("--pred", type=Path)
     ap.add_argument("--quiet", action="store_true", help="summary lines only")
+    ap.add_argument("--why", action="store_true",
+                    help="what findme's registration weighed against the truth (module doc)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a MotionParams field (e.g. orientation_weight=20); repeatable")
     a = ap.parse_args(argv)
@@ -137,7 +194,7 @@ def main(argv=None) -> int:
     rows = {}
     for subset in a.subsets.split(","):
         pids = index["subsets"][subset]["pairs"]
-        jobs = [(a.split, p, methods, params) for p in pids]
+        jobs = [(a.split, p, methods, params, a.why) for p in pids]
         with ProcessPoolExecutor(a.jobs, mp_context=mp.get_context("spawn")) as ex:
             res = list(ex.map(diagnose, jobs))
         rows[subset] = res
@@ -155,6 +212,11 @@ def main(argv=None) -> int:
                 cells.append(f"{d['cause'][:30]:>30s}" if "refused" in d else
                              f"{d['err_t']:5.2f}m {d['err_yaw']:5.1f}d {d['cause'][:17]:>17s}")
             fl = "".join("F" if s else "-" for s in r["sees_floor"])
+            w = r.get("findme", {}).get("why")
+            if w is not None and r["findme"]["cause"] != "ok":
+                cells.append(f"{w['reason']:>13s} yaw~{w.get('yaw_cand_deg', float('nan')):4.1f} "
+                             f"dir~{w.get('dir_deg', float('nan')):5.1f} "
+                             f"len/true {w.get('ratios', [])}")
             if not a.quiet:
                 print(f"{r['pair']:26s} {r['baseline_m']:5.2f} {r['kp'][0]:4d}/{r['kp'][1]:<5d} "
                       f"{r['matches']:4d} {r['correct']:3d} {fl:>4s}  " + "  ".join(cells))

@@ -1,8 +1,8 @@
 """Tests of the layout registration (findme_core.register) and of the default motion
 estimator on rendered rooms: textureless walls (no feature match at all) give the motion
 from the layouts alone, exactly when the layouts are; a symmetric room gives its ambiguity as
-several candidates; and every degenerate pair (one wall, parallel walls only, no common wall)
-is an explicit error."""
+several candidates, unless the walls' appearance tells the twins apart; and every
+degenerate pair (one wall, parallel walls only, no common wall) is an explicit error."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from findme_core import features, register
+from findme_core import features, motion_photometric, register
 from findme_core.errors import MotionError
 from findme_core.layout import _simplify, from_hypothesis
 from findme_core.motion import MotionParams, estimate
@@ -84,6 +84,33 @@ def test_symmetric_room_gives_the_ambiguity_as_candidates():
     assert all(c.score >= MotionParams().alternative_ratio * m.score for c in m.alternatives)
     # the answer's 1-sigma spans its twin: a quarter turn away, nearly as likely
     assert math.degrees(m.sigma_yaw) > 30.0
+
+
+@pytest.mark.parametrize("walls", ["blank", "painted"])
+def test_symmetric_room_ambiguity_resolved_by_appearance_only_when_the_walls_show_it(walls):
+    """The square room above with each photo's surfaces (``motion_photometric``) and still no
+    feature match: blank walls and floor say nothing, so both quarter-turn twins remain
+    (sigma over 30 deg); the rendered floor and pictures on the walls look right only under
+    the true motion, which then comes out alone, its 1-sigma a degree or two."""
+    pa, pb = Pose(0.0, -1.5, 1.45, 0.0, 25.0), Pose(1.2, 1.0, 1.45, 45.0, 30.0)
+    room = Room.rectangle(5.0, 5.0)
+    (va, la), (vb, lb) = view_layout(room, pa), view_layout(room, pb)
+    surfaces = [motion_photometric.surface(np.full_like(v.image, 128) if walls == "blank"
+                                           else v.image, v.camera, lay)
+                for v, lay in ((va, la), (vb, lb))]
+    m = estimate(no_matches(), va.camera, vb.camera, 1.45, 1.45, None, None,
+                 layouts=([la], [lb]), orientations=(exact_orientation(pa), exact_orientation(pb)),
+                 surfaces=surfaces)
+    cands = [m, *m.alternatives]
+    errs = [_err(c, pa, pb) for c in cands]
+    assert min(e[0] for e in errs) < 1e-6 and min(e[1] for e in errs) < 1e-5   # the truth
+    assert all(c.appearance[1] > 1000 for c in cands)
+    if walls == "blank":
+        assert len(cands) >= 2 and math.degrees(m.sigma_yaw) > 30.0
+        assert all(c.appearance[0] == pytest.approx(0.0, abs=1e-6) for c in cands)
+    else:
+        assert len(cands) == 1 and errs[0][0] < 1e-6 and errs[0][1] < 1e-5
+        assert m.appearance[0] > 0.1 and math.degrees(m.sigma_yaw) < 2.0
 
 
 def test_one_wall_only_is_an_error():
