@@ -219,6 +219,9 @@ def set_motion_estimate(msg, mo, max_alternatives: int = 8):
     msg.inliers, msg.scale_points = mo.n_inliers, int(mo.n_scale)
     if math.isfinite(mo.score):
         msg.score = float(mo.score)
+    corr, samples = mo.appearance
+    if samples and math.isfinite(corr):
+        msg.appearance, msg.appearance_samples = float(np.clip(corr, -1.0, 1.0)), int(samples)
     lay = mo.layout
     if lay is not None:
         out = msg.layout

@@ -306,10 +306,15 @@ def _motion(m: motion_pb2.Motion) -> Problems:
 
 def _motion_evidence(p: Problems, m: motion_pb2.Motion) -> None:
     """score, layout and alternatives: bounded, finite, none on a failed motion."""
-    if m.error and (m.HasField("score") or m.HasField("layout") or len(m.alternatives)):
-        p.append("a failed motion (error set) must carry no score, layout or alternatives")
+    if m.error and (m.HasField("score") or m.HasField("layout") or len(m.alternatives)
+                    or m.HasField("appearance")):
+        p.append("a failed motion (error set) must carry no score, layout, alternatives or "
+                 "appearance")
     if m.HasField("score"):
         _finite(p, "score", m.score)
+    if m.HasField("appearance") and _finite(p, "appearance", m.appearance) \
+            and abs(m.appearance) > 1.0:
+        p.append(f"appearance is a correlation in [-1, 1], got {m.appearance!r}")
     if len(m.alternatives) > MAX_ALTERNATIVES:
         p.append(f"alternatives: at most {MAX_ALTERNATIVES}, got {len(m.alternatives)}")
     for i, a in enumerate(m.alternatives[:MAX_ALTERNATIVES]):

@@ -7,7 +7,7 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class Motion(_message.Message):
-    __slots__ = ("schema", "session", "index_a", "index_b", "x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "inliers", "matches", "method", "error", "time_ns", "score", "scale_points", "layout", "alternatives")
+    __slots__ = ("schema", "session", "index_a", "index_b", "x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "inliers", "matches", "method", "error", "time_ns", "score", "scale_points", "layout", "alternatives", "appearance", "appearance_samples")
     SCHEMA_FIELD_NUMBER: _ClassVar[int]
     SESSION_FIELD_NUMBER: _ClassVar[int]
     INDEX_A_FIELD_NUMBER: _ClassVar[int]
@@ -27,6 +27,8 @@ class Motion(_message.Message):
     SCALE_POINTS_FIELD_NUMBER: _ClassVar[int]
     LAYOUT_FIELD_NUMBER: _ClassVar[int]
     ALTERNATIVES_FIELD_NUMBER: _ClassVar[int]
+    APPEARANCE_FIELD_NUMBER: _ClassVar[int]
+    APPEARANCE_SAMPLES_FIELD_NUMBER: _ClassVar[int]
     schema: str
     session: str
     index_a: int
@@ -46,7 +48,9 @@ class Motion(_message.Message):
     scale_points: int
     layout: MotionLayout
     alternatives: _containers.RepeatedCompositeFieldContainer[MotionAlternative]
-    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index_a: _Optional[int] = ..., index_b: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ..., inliers: _Optional[int] = ..., matches: _Optional[int] = ..., method: _Optional[str] = ..., error: _Optional[str] = ..., time_ns: _Optional[int] = ..., score: _Optional[float] = ..., scale_points: _Optional[int] = ..., layout: _Optional[_Union[MotionLayout, _Mapping]] = ..., alternatives: _Optional[_Iterable[_Union[MotionAlternative, _Mapping]]] = ...) -> None: ...
+    appearance: float
+    appearance_samples: int
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index_a: _Optional[int] = ..., index_b: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ..., inliers: _Optional[int] = ..., matches: _Optional[int] = ..., method: _Optional[str] = ..., error: _Optional[str] = ..., time_ns: _Optional[int] = ..., score: _Optional[float] = ..., scale_points: _Optional[int] = ..., layout: _Optional[_Union[MotionLayout, _Mapping]] = ..., alternatives: _Optional[_Iterable[_Union[MotionAlternative, _Mapping]]] = ..., appearance: _Optional[float] = ..., appearance_samples: _Optional[int] = ...) -> None: ...
 
 class MotionLayout(_message.Message):
     __slots__ = ("rank_a", "rank_b", "samples", "violations", "rms_m", "walls", "corners")

@@ -87,7 +87,8 @@ def to_page(session: str, msg) -> dict | None:
     if name == "Motion":
         d = {"type": "motion", "a": msg.index_a, "b": msg.index_b, "error": msg.error,
              "inliers": msg.inliers, "matches": msg.matches, "method": msg.method}
-        for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "score"):
+        for k in ("x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "score",
+                  "appearance"):
             d[k] = _opt(msg, k)
         d["scale_points"] = msg.scale_points
         # the evidence: how many walls and corners of the two photos' layouts agree, and

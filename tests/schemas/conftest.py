@@ -85,7 +85,7 @@ def sample_messages() -> list[tuple[str, object]]:
                       yaw_rad=math.radians(-12.5), sigma_x_m=0.08, sigma_z_m=0.12,
                       sigma_yaw_rad=math.radians(1.5), inliers=143, matches=388,
                       method="sift+ratio+eq5-8", time_ns=T0 + 12_000_000_000,
-                      score=57.25, scale_points=31,
+                      score=57.25, scale_points=31, appearance=0.41, appearance_samples=3120,
                       layout=S.MotionLayout(rank_a=1, rank_b=2, samples=84, violations=3,
                                             rms_m=0.041, walls=[S.IndexPair(a=2, b=1)],
                                             corners=[S.IndexPair(a=1, b=3)]),

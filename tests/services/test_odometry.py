@@ -133,6 +133,8 @@ def test_the_motion_on_the_bus_carries_its_evidence(photos):
     assert m.HasField("layout") and m.layout.samples > 20 and len(m.layout.walls) >= 1
     assert m.layout.rank_a == m.layout.rank_b == 1 and m.layout.rms_m < 0.1
     assert m.HasField("score") and m.score > 0 and m.scale_points > 0
+    # the photos' appearance on each other's walls and floor agrees (textured rendered room)
+    assert m.appearance_samples > 0 and 0.2 < m.appearance <= 1.0
     page = to_page("od", m)
     assert page["layout"]["walls"] == len(m.layout.walls) and page["scale_points"] > 0
 
