@@ -54,6 +54,10 @@ def register(sub) -> None:
     q.add_argument("photo", metavar="PHOTO")
     add_camera_args(q)
     q.add_argument("--camera-height", type=float, metavar="M")
+    q.add_argument("--photos", nargs="+", metavar="SESSION_PHOTO",
+                   help="the photos the plan was made from, as given to findme plan: the new "
+                        "photo's feature matches and motions with them count too (the plan's "
+                        "walls alone leave a rectangular room's quarter turns open)")
     q.add_argument("--json", action="store_true")
     q.set_defaults(func=cmd_locate_in)
 
@@ -119,28 +123,48 @@ def cmd_plan(args) -> int:
 def cmd_locate_in(args) -> int:
     try:
         with open(args.plan) as f:
-            plan = Plan.from_dict(json.load(f))
+            d = json.load(f)
+        plan, plan_names = Plan.from_dict(d), list(d.get("poses", {}))
     except (OSError, KeyError, TypeError, ValueError) as e:
         raise InputError(f"{args.plan}: not a plan from findme plan --json ({e})") from None
     img, cam, h, _ = photo_inputs(args.photo, args)
     photo = session.analyse(img, cam, h)
     if photo.layout is None:
         raise FindmeError(f"the photo shows no usable floor boundary: {photo.reason}")
-    found = relocalise.locate(plan, photo.layout)
-    poses = [{"x_m": round(p.x, 3), "z_m": round(p.z, 3), "yaw_deg": round(math.degrees(p.yaw), 2),
-              "score": round(p.score, 2), "agreeing": p.agreeing} for p in found]
-    best = found[0]
-    amb = found[1].score / best.score if len(found) > 1 and best.score > 0 else 0.0
-    out = {"pose": poses[0], "alternatives": poses[1:], "ambiguity": round(amb, 3)}
+    if args.photos:
+        poses = _find_with_photos(plan, plan_names, args, photo)
+    else:
+        found = relocalise.locate(plan, photo.layout)
+        poses = [{"x_m": round(p.x, 3), "z_m": round(p.z, 3),
+                  "yaw_deg": round(math.degrees(p.yaw), 2), "score": round(p.score, 2),
+                  "agreeing": p.agreeing} for p in found]
+    best = poses[0]
+    amb = (poses[1]["score"] / best["score"] if len(poses) > 1 and best["score"] > 0 else 0.0)
+    out = {"pose": best, "alternatives": poses[1:], "ambiguity": round(amb, 3)}
     if args.json:
         print(json.dumps(out))
         return 0
-    print(f"you are at x {best.x:+.2f} z {best.z:+.2f}, facing {math.degrees(best.yaw):+.1f} deg "
-          f"({best.agreeing} wall samples agree)")
+    print(f"you are at x {best['x_m']:+.2f} z {best['z_m']:+.2f}, facing "
+          f"{best['yaw_deg']:+.1f} deg" + (f" ({best['agreeing']} wall samples agree)"
+                                           if "agreeing" in best else ""))
     if amb > 0.8:
-        print(f"  ambiguous: {len(found) - 1} other pose(s) fit almost as well "
+        print(f"  ambiguous: {len(poses) - 1} other pose(s) fit almost as well "
               f"(runner-up {amb:.0%} of the best score)")
     return 0
+
+
+def _find_with_photos(plan: Plan, plan_names: list, args, photo) -> list[dict]:
+    """Poses of ``photo`` on ``plan`` with the plan's photos (``--photos``, in the plan's
+    order: its pose keys are their file names): ``session.find``."""
+    names = [os.path.basename(p) for p in args.photos]
+    if names != plan_names or len(names) != len(plan.poses):
+        raise InputError(f"--photos {names} are not the plan's photos {plan_names} (the same "
+                         "files in the same order as given to findme plan)")
+    photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photos]
+    cands, scores = session.find(photos, plan.poses, photo)
+    return [{"x_m": round(float(c[0]), 3), "z_m": round(float(c[1]), 3),
+             "yaw_deg": round(math.degrees(float(c[2])), 2), "score": round(float(s), 2)}
+            for c, s in zip(cands, scores)]
 
 
 def room_photos(room_dir: str, view_dir: str, rid: str) -> tuple[list, list]:

@@ -1,11 +1,11 @@
-""""Find me" on the dev rooms: each photo, left out of its room's plan, localised on the plan
-the other photos make (``findme locate-in``: ``relocalise.locate``).
+""""Find me" on the dev rooms: each spot's photos, left out of their room's plan, localised
+on the plan the other spots' photos make, as new photos from a new place in a mapped room.
 
     python tools/locate_report.py DATASET_DIR [--cache DIR] [--json OUT.json]
 
-For every room set (zind-rooms) and every photo v of it: the plan of the room's other
-photos (spots from the view ids, as ``findme eval``; the plan's frame is the level frame of
-its first photo o), then v's pose on it, as a new photo of a mapped room, two ways: "walls",
+For every room set (zind-rooms) and every spot s of it (spots from the view ids, as
+``findme eval``): the plan of the photos taken elsewhere (its frame: the level frame of its
+first photo o), then each photo v of s on it, alone, two ways: "walls",
 from v's layout against the plan's walls alone (``findme locate-in PLAN.json PHOTO``), and
 "photos", with the plan's photos too (``session.find``: v's feature matches and two-photo
 motions with them, scored as the session places a photo). The truth (used only to score) is v's pose in o's frame from the room's
@@ -46,7 +46,8 @@ def _photos(dataset, rid, cache):
 
 
 def room(dataset, rid, cache=None) -> list[dict]:
-    """One row per photo of room ``rid``: its error on the plan of the others, or why none."""
+    """One row per photo of room ``rid``: its errors on the plan of the room's other spots,
+    or why there are none."""
     views, photos = _photos(dataset, rid, cache)
     with open(os.path.join(dataset, "rooms", rid + ".json")) as f:
         truth = json.load(f)["poses_planar"]
@@ -55,39 +56,48 @@ def room(dataset, rid, cache=None) -> list[dict]:
     spots = room_spots(views, "ids")
     pairs: dict = {}            # relations of each pair, computed once for all the plans
     rows = []
-    for v in range(len(views)):
-        rest = [k for k in range(len(views)) if k != v]
-        row = {"room": rid, "view": views[v]}
+    for s in dict.fromkeys(spots):                 # each spot in turn, in capture order
+        rest = [k for k in range(len(views)) if spots[k] != s]
         try:
-            if photos[v].layout is None:
-                raise FindmeError(f"no layout: {photos[v].reason}")
+            if not rest:
+                raise FindmeError("the room has one spot: no plan without it")
             rel = session.relate([photos[k] for k in rest], [spots[k] for k in rest],
                                  cache=pairs, ids=rest)
             plan, _, _ = session.plan([photos[k] for k in rest], relations=rel)
         except FindmeError as e:
-            rows.append({**row, "error": str(e).splitlines()[0]})
+            rows += [{"room": rid, "view": views[v], "error": str(e).splitlines()[0]}
+                     for v in range(len(views)) if spots[v] == s]
             continue
         o = rest[0]                  # the plan's frame: its first photo's level frame
-        yaw_t, t_t = fuse.relative(T[o], T[v])
-        for how in ("walls", "photos"):
-            try:
-                if how == "walls":   # findme locate-in PLAN.json PHOTO: the plan's walls only
-                    found = relocalise.locate(plan, photos[v].layout)
-                    cands = np.array([(p.x, p.z, p.yaw) for p in found])
-                    sc = np.array([p.score for p in found])
-                else:                # with the plan's photos: their features and motions too
-                    cands, sc = session.find([photos[k] for k in rest], plan.poses, photos[v])
-            except FindmeError as e:
-                row[how] = {"error": str(e).splitlines()[0]}
-                continue
-            errs = [(float(np.hypot(c[0] - t_t[0], c[1] - t_t[1])),
-                     abs(math.degrees(float(fuse.wrap(c[2] - yaw_t))))) for c in cands]
-            ok = [e <= 0.25 and y <= 5.0 for e, y in errs]
-            row[how] = {"t_m": errs[0][0], "yaw_deg": errs[0][1], "ok": ok[0],
-                        "any_ok": any(ok), "candidates": len(cands),
-                        "ambiguity": float(sc[1] / sc[0]) if len(sc) > 1 and sc[0] > 0 else 0.0}
-        rows.append(row)
+        for v in [k for k in range(len(views)) if spots[k] == s]:
+            rows.append(_locate(plan, [photos[k] for k in rest], photos[v],
+                                fuse.relative(T[o], T[v]), {"room": rid, "view": views[v]}))
     return rows
+
+
+def _locate(plan, photos, new, truth, row) -> dict:
+    """``row`` with photo ``new``'s errors on ``plan`` (made from ``photos``) both ways."""
+    yaw_t, t_t = truth
+    for how in ("walls", "photos"):
+        try:
+            if how == "walls":       # findme locate-in PLAN.json PHOTO: the plan's walls only
+                if new.layout is None:
+                    raise FindmeError(f"no layout: {new.reason}")
+                found = relocalise.locate(plan, new.layout)
+                cands = np.array([(p.x, p.z, p.yaw) for p in found])
+                sc = np.array([p.score for p in found])
+            else:                    # with the plan's photos: their features and motions too
+                cands, sc = session.find(photos, plan.poses, new)
+        except FindmeError as e:
+            row[how] = {"error": str(e).splitlines()[0]}
+            continue
+        errs = [(float(np.hypot(c[0] - t_t[0], c[1] - t_t[1])),
+                 abs(math.degrees(float(fuse.wrap(c[2] - yaw_t))))) for c in cands]
+        ok = [e <= 0.25 and y <= 5.0 for e, y in errs]
+        row[how] = {"t_m": errs[0][0], "yaw_deg": errs[0][1], "ok": ok[0], "any_ok": any(ok),
+                    "candidates": len(cands),
+                    "ambiguity": float(sc[1] / sc[0]) if len(sc) > 1 and sc[0] > 0 else 0.0}
+    return row
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,94 @@
+"""``findme plan`` and ``findme locate-in`` end to end (real entry point, subprocesses) on a
+room the project renders: the photos and their camera sidecars (findme-eval view format)
+on disk, the plan's outline and poses against the truth, and a new photo taken elsewhere
+found on the plan, with and without the session's photos."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from findme_core import fuse
+from findme_core.room import Pose, Room
+from findme_core.synth import render
+from tests.cli.conftest import as_json, run_findme
+from tests.plan_room import H, first_frame_truth, rendered_session
+
+ROOM = Room.rectangle(5.0, 4.0)
+SPOTS = [(-0.8, -0.5), (1.0, 0.6)]
+NEW = Pose(0.3, -1.0, H, 115.0, 28.0, 0.0)     # a third place, facing a corner
+
+
+def _write(path, image_bytes, cam):
+    path.write_bytes(image_bytes)
+    path.with_suffix(".json").write_text(json.dumps({
+        "intrinsics": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
+                       "width": cam.width, "height": cam.height},
+        "gravity_cam": [float(g) for g in cam.gravity], "camera_height_m": H}))
+
+
+@pytest.fixture(scope="module")
+def session_on_disk(tmp_path_factory):
+    """(photo paths, plan JSON path, plan dict, new photo path, truth of the new photo)."""
+    d = tmp_path_factory.mktemp("plan")
+    room = rendered_session(ROOM, SPOTS, yaws=range(0, 360, 60))
+    paths = []
+    for n, (data, v) in enumerate(zip(room.jpegs, room.views)):
+        paths.append(d / f"photo_{n:02d}.jpg")
+        _write(paths[-1], data, v.camera)
+    import cv2
+    nv = render(ROOM, NEW, 640, 480, hfov_deg=70.0, supersample=1)
+    new = d / "new.jpg"
+    _write(new, cv2.imencode(".jpg", nv.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes(),
+           nv.camera)
+    first = Pose(SPOTS[0][0], SPOTS[0][1], H, 0.0, 28.0, 0.0)
+    truth, _ = first_frame_truth(ROOM, [first, NEW])
+    out = run_findme("plan", *paths, "--json", timeout=300)
+    plan = as_json(out)
+    plan_path = d / "plan.json"
+    plan_path.write_text(out.stdout)
+    return paths, plan_path, plan, new, truth[1], room
+
+
+def test_the_plan_is_the_rendered_room(session_on_disk):
+    _, _, plan, _, _, room = session_on_disk
+    V = np.array(plan["floor_polygon_m"])
+    dist = np.linalg.norm(V[:, None] - room.polygon[None], axis=2)
+    assert len(V) == 4 and dist.min(1).max() < 0.15, V.round(3)
+    got = np.array([(p["x_m"], p["z_m"], math.radians(p["yaw_deg"]))
+                    for p in plan["poses"].values()])
+    assert np.abs(got[:, :2] - room.poses[:, :2]).max() < 0.1
+    assert np.degrees(np.abs(fuse.wrap(got[:, 2] - room.poses[:, 2]))).max() < 2.0
+
+
+def _err(pose, truth):
+    return (math.hypot(pose["x_m"] - truth[0], pose["z_m"] - truth[1]),
+            abs(math.degrees(float(fuse.wrap(math.radians(pose["yaw_deg"]) - truth[2])))))
+
+
+def test_a_new_photo_is_found_with_the_sessions_photos(session_on_disk):
+    paths, plan_path, _, new, truth, _ = session_on_disk
+    out = as_json(run_findme("locate-in", plan_path, new, "--photos", *paths, "--json",
+                             timeout=300))
+    t, y = _err(out["pose"], truth)
+    assert t < 0.15 and y < 3.0, (out, truth)
+    assert out["ambiguity"] < 0.8      # the features tell the rectangle's twins apart
+
+
+def test_the_plans_walls_alone_give_the_truth_among_their_poses(session_on_disk):
+    # a rectangle looks alike turned half round: the walls alone may not tell which
+    _, plan_path, _, new, truth, _ = session_on_disk
+    out = as_json(run_findme("locate-in", plan_path, new, "--json"))
+    errs = [_err(p, truth) for p in [out["pose"], *out["alternatives"]]]
+    assert any(t < 0.2 and y < 3.0 for t, y in errs), (out, truth)
+    assert out["ambiguity"] > 0.95     # and says so: the corner fits every corner alike
+
+
+def test_photos_that_are_not_the_plans_are_refused(session_on_disk):
+    paths, plan_path, _, new, _, _ = session_on_disk
+    p = run_findme("locate-in", plan_path, new, "--photos", *paths[::-1], check=False)
+    assert p.returncode == 2 and "not the plan's photos" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1
