@@ -151,13 +151,14 @@ def main(argv=None):
     if unknown:
         ap.error(f"unknown weight(s) {', '.join(sorted(unknown))}; choose among {', '.join(FEATURES)}")
     free = np.array([f in names for f in FEATURES])
+    fitter = fit
     if a.grid:
         name, _, vals = a.grid.partition("=")
         if name not in FEATURES or not vals:
             ap.error(f"--grid wants NAME=V1,V2,... with NAME among {', '.join(FEATURES)}")
         values = [float(x) for x in vals.split(",")]
 
-        def fit(train, w0, free):  # noqa: F811 (the grid replaces the fit)
+        def fitter(train, w0, free):   # the grid replaces the smooth fit
             return grid_choice(train, w0, name, values)
     with ProcessPoolExecutor(os.cpu_count()) as ex:
         res = list(ex.map(candidates, [(view_dir, v, w) for v in vids], chunksize=4))
@@ -168,13 +169,13 @@ def main(argv=None):
         held = {}
         for g in groups:
             train = [data[v] for v in vids if group_of(v) != g]
-            wg = fit(train, w, free)
+            wg = fitter(train, w, free)
             if a.grid:
                 print(f"  fold {g}: {name} = {wg[FEATURES.index(name)]:g}")
             for v in vids:
                 if group_of(v) == g:
                     held[v] = top1([data[v]], wg)[0]
-        w_new = fit([data[v] for v in vids], w, free)
+        w_new = fitter([data[v] for v in vids], w, free)
         print("top-1 median pixel error per subset "
               "(current weights | held-out fit | in-sample fit | best candidate)")
         for s in SUBSETS:
