@@ -43,9 +43,14 @@ def _pct_spread(d):
 
 
 def _rel(points: dict, kind: str) -> str:
-    """Median relative 3D error of one point kind of a subset's ``points_3d``."""
+    """Median relative 3D error of one point kind of a subset's ``points_3d``, with the share
+    of its points answered when some are not (a point placed too loosely gets no answer)."""
     d = points.get(kind)
-    return "–" if not d or not d.get("rel_err_pct_n") else f"{d['rel_err_pct_median']:.2f} %"
+    if not d or not d.get("rel_err_pct_n"):
+        return "–"
+    cov = d.get("coverage")
+    return f"{d['rel_err_pct_median']:.2f} %" + (f" (cov {cov:.2f})" if cov is not None
+                                                 and cov < 0.995 else "")
 
 
 def _single_rows(ours, paper):
@@ -149,7 +154,9 @@ def main(argv=None):
         "ZInD wall points under the top hypothesis <= 4 %. \"paper\" = `--method paper` "
         "(Hough, level camera, slope groups, Canny edge support). \"answered\": views with at "
         "least one hypothesis; a photo with no straight line at all gets an empty list with the "
-        "reason, which the scorer counts as pixel error 1.0 even where no floor is visible.", "",
+        "reason, which the scorer counts as pixel error 1.0 even where no floor is visible. "
+        "\"cov\": the share of the 3D points answered, where some are not (a point whose "
+        "1-sigma exceeds half its distance gets no answer, with the reason).", "",
         *_single_rows(ours, paper), "",
         "## Two images: planar motion", "",
         "Goals: translation <= 0.05 m and yaw <= 1° (1.5° on ZInD pairs) with >= 95 % answered. "
