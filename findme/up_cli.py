@@ -52,6 +52,9 @@ def register(sub) -> None:
                         "(python tools/make_certs.py certs --host THIS-MACHINE)")
     p.add_argument("--tls-cert", "--cert", dest="tls_cert", metavar="CERT.pem")
     p.add_argument("--tls-key", "--key", dest="tls_key", metavar="KEY.pem")
+    p.add_argument("--no-mapper", action="store_true",
+                   help="no floor plans (the mapper): on a small machine under many phones it "
+                        "takes CPU the poses need")
     p.add_argument("--quiet", action="store_true",
                    help="services log warnings and errors only")
     p.add_argument("--procfile", action="store_true",
@@ -72,7 +75,8 @@ def processes(args) -> list[tuple[str, list[str]]]:
     if not args.gateway:
         procs.append(("selection", ["serve", "selection", "--auto", "--connect", ep, *quiet]))
     procs += [(name, ["serve", name, "--connect", ep, *quiet])
-              for name in ("measurement", "odometry", "mapper")]
+              for name in ("measurement", "odometry", "mapper")
+              if not (name == "mapper" and getattr(args, "no_mapper", False))]
     procs.append(("recorder", ["serve", "recorder", "--connect", ep, "--out", args.out, *quiet]))
     if args.gateway:
         from .app_cli import https_files

@@ -198,3 +198,9 @@ def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
     finally:
         app.send_signal(signal.SIGTERM)
         assert app.wait(30) == 0
+
+
+def test_up_without_the_mapper():
+    from findme.up_cli import processes
+    names = [n for n, _ in processes(build_parser().parse_args(["up", "--no-mapper"]))]
+    assert "mapper" not in names and {"odometry", "measurement", "recorder"} <= set(names)
