@@ -15,6 +15,7 @@ import argparse
 import datetime as dt
 import importlib.util
 import json
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -121,6 +122,23 @@ def _room_rows(results):
     return rows
 
 
+def _locate_rows(rows) -> list[str]:
+    """"Find me" rows from ``tools/locate_report.py --json``: per room and pooled, each way."""
+    out = ["| room | photos | from | localised | a right pose among the candidates | "
+           "translation median | yaw median |", "|---|---|---|---|---|---|---|"]
+    rooms = sorted({r["room"] for r in rows})
+    for name in rooms + ["all"]:
+        rr = [r for r in rows if name in ("all", r["room"])]
+        for how in ("walls", "photos"):
+            done = [r[how] for r in rr if how in r and "error" not in r[how]]
+            med = (lambda k, f: format(statistics.median(d[k] for d in done), f) if done else "–")
+            out.append(f"| {name} | {len(rr)} | {how} | "
+                       f"{sum(d['ok'] for d in done) / max(len(rr), 1):.2f} | "
+                       f"{sum(d['any_ok'] for d in done)} | {med('t_m', '.3f')} m | "
+                       f"{med('yaw_deg', '.2f')}° |")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("split", type=Path)
@@ -137,6 +155,10 @@ def main(argv=None):
                               "--motion-method", "paper"], check=True)
         subprocess.run(run + ["--out", str(t / "nograv.json"), "--no-gravity"], check=True)
         subprocess.run(run + ["--out", str(t / "auto.json"), "--room-spots", "auto"], check=True)
+        subprocess.run([sys.executable, str(Path(__file__).with_name("locate_report.py")),
+                        str(a.split), "--json", str(t / "locate.json")], check=True,
+                       stdout=subprocess.DEVNULL)
+        locate = json.loads((t / "locate.json").read_text())
         ours = _score(a.split, scorer, t / "ours.json")
         nograv = _score(a.split, scorer, t / "nograv.json")
         auto_spots = _score(a.split, scorer, t / "auto.json")
@@ -179,6 +201,12 @@ def main(argv=None):
         "(`--room-spots ids`, the default); \"spots found\": from the photos alone "
         "(`--room-spots auto`). Goal: localisation success (<= 0.25 m and <= 5°) >= 0.90.", "",
         *_room_rows([("spots by id", ours), ("spots found", auto_spots)]), "",
+        "\"Find me\" on a plan (`tools/locate_report.py`): each spot's photos left out of their "
+        "room's plan and found, one by one, on the plan of the other spots, as new photos from "
+        "a new place: \"walls\" from the plan's walls alone (`findme locate-in PLAN.json "
+        "PHOTO`), \"photos\" with the plan's photos too (`--photos`: the new photo's feature "
+        "matches and motions with them). Localised: within 0.25 m and 5°.", "",
+        *_locate_rows(locate), "",
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text("\n".join(lines) + "\n")
