@@ -157,7 +157,7 @@ def _find_with_photos(plan: Plan, plan_names: list, args, photo) -> list[dict]:
     """Poses of ``photo`` on ``plan`` with the plan's photos (``--photos``, in the plan's
     order: its pose keys are their file names): ``session.find``."""
     names = [os.path.basename(p) for p in args.photos]
-    if names != plan_names or len(names) != len(plan.poses):
+    if names != plan_names:
         raise InputError(f"--photos {names} are not the plan's photos {plan_names} (the same "
                          "files in the same order as given to findme plan)")
     photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photos]

@@ -19,10 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import planar, register
-
-
-def _wrap(a):
-    return np.angle(np.exp(1j * np.asarray(a, float)))
+from .planar import wrap
 
 
 def oriented(motions, members):
@@ -44,12 +41,12 @@ def oriented(motions, members):
 
 def _block_poses(cands, rel, j):
     """(C, 3) poses of block photo j for C block candidates."""
-    return np.column_stack([cands[:, 0], cands[:, 1], _wrap(cands[:, 2] + rel[j])])
+    return np.column_stack([cands[:, 0], cands[:, 1], wrap(cands[:, 2] + rel[j])])
 
 
 def _in_frame(pi, pj):
     """(yaw (C,), t (C, 2)) of poses pj (C, 3) in the frame of pose pi (3,)."""
-    yaw = _wrap(pj[:, 2] - pi[2])
+    yaw = wrap(pj[:, 2] - pi[2])
     t = register.rot2(np.full(len(pj), -pi[2]), (pj[:, :2] - pi[:2])[:, None])[:, 0]
     return yaw, t
 
@@ -99,7 +96,7 @@ def motion_score(motions, poses, rel, members, cands, params) -> np.ndarray:
     for i, j, yaw, t in oriented(motions, members):
         if not np.isfinite(poses[i, 0]):
             continue
-        dyaw = _wrap(cands[:, 2] + rel[j] - poses[i, 2] - yaw)
+        dyaw = wrap(cands[:, 2] + rel[j] - poses[i, 2] - yaw)
         # where the motion puts photo j, in the room frame; the candidates put it at cands[:, :2]
         want = poses[i, :2] + register.rot2(np.array([poses[i, 2]]), t[None])[0, 0]
         sig = params.motion_rel * max(float(np.hypot(*t)), 0.3)

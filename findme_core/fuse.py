@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import evidence, register
+from .planar import wrap
 from .errors import GeometryError
 from .layout import Layout
 
@@ -110,11 +111,6 @@ class Placement:
     ambiguity: list
     reasons: list
     order: list = field(default_factory=list)
-
-
-def wrap(a):
-    """Angle(s) wrapped to (-pi, pi]."""
-    return np.angle(np.exp(1j * np.asarray(a, float)))
 
 
 def relative(pa, pb):

@@ -16,6 +16,11 @@ import numpy as np
 from .camera import Camera
 
 
+def wrap(a):
+    """Angle(s) in radians wrapped to (-pi, pi]."""
+    return np.angle(np.exp(1j * np.asarray(a, float)))
+
+
 def rot_y(yaw) -> np.ndarray:
     """(3, 3) level_A <- level_B rotation R_y(yaw); (C, 3, 3) for C yaws."""
     c, s = np.cos(yaw), np.sin(yaw)

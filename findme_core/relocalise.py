@@ -25,6 +25,7 @@ from . import register
 from .errors import GeometryError
 from .floorplan import Plan
 from .layout import Layout
+from .planar import wrap
 from .search import SegKind
 
 
@@ -39,10 +40,6 @@ class Located:
     score: float
     agreeing: int
     rms_m: float
-
-
-def _wrap(a):
-    return np.angle(np.exp(1j * np.asarray(a, float)))
 
 
 def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
@@ -82,7 +79,7 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
                     A = np.array([n_in[k], n_in[m]])
                     rhs = np.array([off[k] - pd[i], off[m] - pd[j]])
                     t = np.linalg.solve(A, rhs)
-                    cands.append((t[0], t[1], float(_wrap(yaw))))
+                    cands.append((t[0], t[1], float(wrap(yaw))))
     if not cands:
         raise GeometryError("no two walls of the photo match two walls of the plan")
     c = np.unique(np.round(np.array(cands), 3), axis=0)
@@ -98,7 +95,7 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
     out = []
     for k in o:
         x, z, yaw = c[k]
-        if all(abs(_wrap(yaw - q.yaw)) > np.radians(10) or np.hypot(x - q.x, z - q.z) > 0.3
+        if all(abs(wrap(yaw - q.yaw)) > np.radians(10) or np.hypot(x - q.x, z - q.z) > 0.3
                for q in out):
             out.append(Located(float(x), float(z), float(yaw), *scored[k]))
         if len(out) >= keep:

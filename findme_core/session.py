@@ -133,15 +133,25 @@ def relate(photos, spots=None, params: SessionParams = SessionParams(), *, cache
                 if r is not None:
                     links.append(fuse.Link(i, j, r.yaw, r.sigma))
                 continue
-            if len(m) < 8:
-                continue
-            matches[(i, j)] = (planar.bearings(photos[i].camera, m.ua),
-                               planar.bearings(photos[j].camera, m.ub))
-            if len(m) >= params.min_motion_matches:
-                mo = memo("motion", i, j, lambda: _motion(photos[i], photos[j], m))
-                if mo is not None:
-                    motions.append(fuse.Link(i, j, mo.yaw, mo.sigma_yaw, (mo.x, mo.z)))
+            bear, link = _across(i, j, photos[i], photos[j], m, params, lambda: memo(
+                "motion", i, j, lambda: _motion(photos[i], photos[j], m)))
+            if bear is not None:
+                matches[(i, j)] = bear
+            if link is not None:
+                motions.append(link)
     return Relations(links, matches, motions, lab)
+
+
+def _across(i, j, pa: Photo, pb: Photo, m, params: SessionParams, motion_of):
+    """What the matches ``m`` of photos i and j, taken at different spots, give: (their level
+    bearings (a (M, 3), b (M, 3)) with 8 matches or more, else None; a ``fuse.Link`` of
+    their two-photo motion (``motion_of()``: the estimate or None) with
+    ``min_motion_matches``, else None)."""
+    if len(m) < 8:
+        return None, None
+    bear = (planar.bearings(pa.camera, m.ua), planar.bearings(pb.camera, m.ub))
+    mo = motion_of() if len(m) >= params.min_motion_matches else None
+    return bear, None if mo is None else fuse.Link(i, j, mo.yaw, mo.sigma_yaw, (mo.x, mo.z))
 
 
 def auto_spots(photos, match, turn=None) -> tuple[list[int], list]:
@@ -204,13 +214,11 @@ def relate_to(photos, new: Photo, params: SessionParams = SessionParams()):
     n, matches, motions = len(photos), {}, []
     for i, p in enumerate(photos):
         m = features.match(p.features, new.features, params.features)
-        if len(m) < 8:
-            continue
-        matches[(i, n)] = (planar.bearings(p.camera, m.ua), planar.bearings(new.camera, m.ub))
-        if len(m) >= params.min_motion_matches:
-            mo = _motion(p, new, m)
-            if mo is not None:
-                motions.append(fuse.Link(i, n, mo.yaw, mo.sigma_yaw, (mo.x, mo.z)))
+        bear, link = _across(i, n, p, new, m, params, lambda: _motion(p, new, m))
+        if bear is not None:
+            matches[(i, n)] = bear
+        if link is not None:
+            motions.append(link)
     return matches, motions
 
 

@@ -207,7 +207,7 @@ def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
     return r
 
 
-def set_motion_estimate(msg, mo, max_alternatives: int = 8):
+def set_motion_estimate(msg, mo, max_alternatives: int = schemas.MAX_ALTERNATIVES):
     """Fill a ``schemas.Motion`` (in place: a builder, like protobuf's own setters) with a
     ``findme_core.motion_model.PlanarMotion``: B's pose in A's level frame (metres,
     radians, as on the bus), its 1-sigmas, inliers and its evidence: score, the lifted
@@ -229,8 +229,9 @@ def set_motion_estimate(msg, mo, max_alternatives: int = 8):
         out.samples, out.violations = int(lay.samples), int(lay.violations)
         if math.isfinite(lay.rms_m):
             out.rms_m = float(lay.rms_m)
-        out.walls.extend(schemas.IndexPair(a=int(a), b=int(b)) for a, b in lay.walls[:64])
-        out.corners.extend(schemas.IndexPair(a=int(a), b=int(b)) for a, b in lay.corners[:64])
+        for name in ("walls", "corners"):   # as many as the schema takes
+            getattr(out, name).extend(schemas.IndexPair(a=int(a), b=int(b))
+                                      for a, b in getattr(lay, name)[:schemas.MAX_LAYOUT_PAIRS])
     for a in mo.alternatives[:max_alternatives]:
         alt = msg.alternatives.add(x_m=float(a.x), z_m=float(a.z), yaw_rad=float(a.yaw),
                                    sigma_x_m=float(a.sigma_x), sigma_z_m=float(a.sigma_z),

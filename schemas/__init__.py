@@ -31,7 +31,8 @@ from ._codec import (
     schema_of,
     validate,
 )
-from ._validate import IMAGE_FORMATS, SESSION_PATTERN, is_valid_session
+from ._validate import (IMAGE_FORMATS, MAX_ALTERNATIVES, MAX_LAYOUT_PAIRS, SESSION_PATTERN,
+                        is_valid_session)
 from .helpers import (
     level_frame_id,
     msg_to_pixels,
@@ -97,7 +98,7 @@ VERSION = "findme.v1"
 __all__ = [
     "VERSION", "MESSAGE_TYPES", "SchemaError", "WrongTypeError", "Payload",
     "encode", "decode", "decode_any", "schema_of", "validate",
-    "IMAGE_FORMATS", "SESSION_PATTERN", "is_valid_session",
+    "IMAGE_FORMATS", "SESSION_PATTERN", "is_valid_session", "MAX_ALTERNATIVES", "MAX_LAYOUT_PAIRS",
     "pixels_to_msg", "msg_to_pixels", "polyline_to_msg", "msg_to_polyline", "vec3_to_msg",
     "msg_to_vec3", "ns_to_timestamp", "timestamp_to_ns", "level_frame_id", "yaw_quaternion",
     "pose_to_foxglove", "pose_to_frame_transform",

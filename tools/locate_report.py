@@ -20,35 +20,23 @@ import argparse
 import json
 import math
 import os
-import pickle
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.plan_cli import room_photos, room_spots  # noqa: E402
+from findme.plan_cli import room_spots  # noqa: E402
 from findme_core import fuse, relocalise, session  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
-
-
-def _photos(dataset, rid, cache):
-    path = os.path.join(cache, rid + ".pkl") if cache else None
-    if path and os.path.exists(path):
-        with open(path, "rb") as f:
-            return pickle.load(f)
-    out = room_photos(os.path.join(dataset, "rooms"), os.path.join(dataset, "views"), rid)
-    if path:
-        os.makedirs(cache, exist_ok=True)
-        with open(path, "wb") as f:
-            pickle.dump(out, f)
-    return out
+from tools.plan_report import cached_photos  # noqa: E402 (the same --cache files)
 
 
 def room(dataset, rid, cache=None) -> list[dict]:
     """One row per photo of room ``rid``: its errors on the plan of the room's other spots,
     or why there are none."""
-    views, photos = _photos(dataset, rid, cache)
+    views, photos = cached_photos(os.path.join(dataset, "rooms"), os.path.join(dataset, "views"),
+                                  rid, cache)
     with open(os.path.join(dataset, "rooms", rid + ".json")) as f:
         truth = json.load(f)["poses_planar"]
     T = np.array([[truth[v]["x_m"], truth[v]["z_m"], math.radians(truth[v]["yaw_deg"])]

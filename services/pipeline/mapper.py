@@ -22,8 +22,9 @@ photo is left waiting (a count, not a time: a replay gives the same plans), and 
 relations of those photos only. On the bus, a plan also waits while more of its session's
 messages are queued (``Handler.backlog``): a burst, or a mapper that fell behind a user's
 photos (a plan of 24 photos costs seconds), gets one plan per drained queue, not one per
-photo, so the mapper keeps up; the last plan of a session is the same either way. State: at most ``max_sessions`` sessions (the least recently
-active one is dropped first) and a session idle for ``idle_s`` seconds is dropped.
+photo, so the mapper keeps up; the last plan of a session is the same either way. State: at
+most ``max_sessions`` sessions (the least recently active one is dropped first) and a
+session idle for ``idle_s`` seconds is dropped.
 
 Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan, one that
 cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline

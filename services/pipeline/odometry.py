@@ -33,7 +33,8 @@ import schemas
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.pair import motion_photos, prepare
 from findme_core.trajectory import PlanarPose, compose
-from findme_io.convert import frame_camera, msg_camera, msg_hypotheses, msg_lines, set_motion_estimate
+from findme_io.convert import (frame_camera, msg_camera, msg_hypotheses, msg_lines,
+                               set_motion_estimate)
 from findme_io.imageio import decode_image
 
 from ..runtime import bus

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -39,7 +40,6 @@ def session_on_disk(tmp_path_factory):
     for n, (data, v) in enumerate(zip(room.jpegs, room.views)):
         paths.append(d / f"photo_{n:02d}.jpg")
         _write(paths[-1], data, v.camera)
-    import cv2
     nv = render(ROOM, NEW, 640, 480, hfov_deg=70.0, supersample=1)
     new = d / "new.jpg"
     _write(new, cv2.imencode(".jpg", nv.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes(),
