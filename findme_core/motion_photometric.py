@@ -15,6 +15,7 @@ numpy / OpenCV.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -64,6 +65,17 @@ class Surface:
     values: np.ndarray
     layout: Layout | None
 
+    @cached_property
+    def homogeneous(self) -> np.ndarray:
+        """(4, S) the samples' points as homogeneous columns [x; y; z; 1], metres."""
+        return np.vstack([self.points.T, np.ones((1, len(self.points)))])
+
+    @cached_property
+    def scan_middles(self) -> np.ndarray:
+        """(K - 1,) azimuths halfway between the layout's consecutive scan samples, radians:
+        which sample is nearest to an azimuth is where it falls among them."""
+        return 0.5 * (self.layout.azimuth[:-1] + self.layout.azimuth[1:])
+
 
 def normalised(grey: np.ndarray, window: int, flat: float) -> np.ndarray:
     """(H, W) grey -> (H, W) float32 locally normalised: (g - mean) / sqrt(var + flat^2)."""
@@ -103,27 +115,52 @@ def surface(image, camera: Camera, layout: Layout | None,
     return Surface(cam, img, pts, vals, layout)
 
 
+def _transforms(yaw, t, into_b: bool, R_cam: np.ndarray) -> np.ndarray:
+    """(5, C, 4) affine maps of homogeneous src level-frame points to, per motion, the dst
+    camera-frame coordinates (rows 0-2) and the dst level-frame x and z (rows 3-4).
+
+    X_A = R_y(yaw) X_B + t: into B, q = R^T X_A - R^T t; into A, q = R X_B + t; the camera
+    frame is R_cam^T q (``Camera.R_level_from_cam``)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    C = len(yaw)
+    A = np.zeros((C, 3, 3))
+    A[:, 0, 0] = A[:, 2, 2] = c
+    A[:, 1, 1] = 1.0
+    A[:, 0, 2], A[:, 2, 0] = (-s, s) if into_b else (s, -s)
+    b = -np.einsum("cij,cj->ci", A, t) if into_b else t
+    M = np.zeros((5, C, 4))
+    M[:3, :, :3] = np.einsum("ki,cij->kcj", R_cam.T, A)
+    M[:3, :, 3] = R_cam.T @ b.T
+    M[3:, :, :3] = A[:, [0, 2]].transpose(1, 0, 2)
+    M[3:, :, 3] = b[:, [0, 2]].T
+    return M
+
+
 def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricParams):
     """Sum of products (C,) and sample counts (C,) of src's samples seen by dst."""
+    C = len(yaw)
     if len(src.points) == 0:
-        return np.zeros(len(yaw)), np.zeros(len(yaw), int)
-    if into_b:   # X_B = R^T (X_A - t)
-        q = _rotate(yaw, src.points[None] - t[:, None], inverse=True)
-    else:        # X_A = R X_B + t
-        q = _rotate(yaw, src.points) + t[:, None]
-    C, S = q.shape[:2]
-    uv, front = dst.camera.project_level(q.reshape(-1, 3))
-    uv, front = uv.reshape(C, S, 2), front.reshape(C, S)
+        return np.zeros(C), np.zeros(C, int)
+    cam = dst.camera
+    # one matrix product: every sample under every motion, in dst's camera and level frame
+    g = (_transforms(yaw, t, into_b, cam.R_level_from_cam).reshape(5 * C, 4)
+         @ src.homogeneous).reshape(5, C, -1)
+    z = g[2]
+    front = z > 1e-9
+    zs = np.where(front, z, 1.0)
+    u = cam.fx * g[0] / zs + cam.cx
+    v = cam.fy * g[1] / zs + cam.cy
     h, w = dst.image.shape
-    inside = front & (uv[..., 0] >= 0) & (uv[..., 0] <= w - 1) & (uv[..., 1] >= 0) \
-        & (uv[..., 1] <= h - 1)
-    seen = inside
+    seen = front & (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
     if dst.layout is not None:   # not hidden behind dst's walls
-        d = np.hypot(q[..., 0], q[..., 2])
-        j, near = _lookup(dst.layout, np.arctan2(q[..., 0], q[..., 2]))
-        seen = seen & near & (d <= dst.layout.range[j] * 1.1 + p.hidden_m)
-    m = cv2.remap(dst.image, np.where(seen, uv[..., 0], -1).astype(np.float32),
-                  np.where(seen, uv[..., 1], -1).astype(np.float32), cv2.INTER_LINEAR,
+        L = dst.layout
+        az = np.arctan2(g[3], g[4])
+        j = np.searchsorted(dst.scan_middles, az, side="right")   # the nearest scan sample
+        bound = L.range[j] * 1.1 + p.hidden_m
+        seen &= (np.abs(az - L.azimuth[j]) < 1.5 * L.spacing) \
+            & (g[3] * g[3] + g[4] * g[4] <= bound * bound)
+    m = cv2.remap(dst.image, np.where(seen, u, -1).astype(np.float32),
+                  np.where(seen, v, -1).astype(np.float32), cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     prod = np.where(seen, m * src.values[None], 0.0)
     return prod.sum(1), seen.sum(1)
