@@ -156,11 +156,11 @@ def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricPar
         L = dst.layout
         az = np.arctan2(g[3], g[4])
         j = np.searchsorted(dst.scan_middles, az, side="right")   # the nearest scan sample
-        bound = L.range[j] * 1.1 + p.hidden_m
+        bound = L.range * 1.1 + p.hidden_m
         seen &= (np.abs(az - L.azimuth[j]) < 1.5 * L.spacing) \
-            & (g[3] * g[3] + g[4] * g[4] <= bound * bound)
-    m = cv2.remap(dst.image, np.where(seen, u, -1).astype(np.float32),
-                  np.where(seen, v, -1).astype(np.float32), cv2.INTER_LINEAR,
+            & (g[3] * g[3] + g[4] * g[4] <= (bound * bound)[j])
+    # looked up everywhere (cheaper than choosing where); only the seen samples count
+    m = cv2.remap(dst.image, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     prod = np.where(seen, m * src.values[None], 0.0)
     return prod.sum(1), seen.sum(1)
