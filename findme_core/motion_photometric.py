@@ -23,7 +23,6 @@ import numpy as np
 from .camera import Camera
 from .layout import Layout
 from .planar import _rotate
-from .register import _lookup
 from .search import SegKind
 
 
@@ -72,9 +71,22 @@ class Surface:
 
     @cached_property
     def scan_middles(self) -> np.ndarray:
-        """(K - 1,) azimuths halfway between the layout's consecutive scan samples, radians:
-        which sample is nearest to an azimuth is where it falls among them."""
-        return 0.5 * (self.layout.azimuth[:-1] + self.layout.azimuth[1:])
+        """(K - 1,) ``middles`` of the layout's scan."""
+        return middles(self.layout)
+
+
+def middles(layout: Layout) -> np.ndarray:
+    """(K - 1,) azimuths halfway between the layout's consecutive scan samples, radians:
+    which sample is nearest to an azimuth is where it falls among them (``nearest``)."""
+    return 0.5 * (layout.azimuth[:-1] + layout.azimuth[1:])
+
+
+def nearest(layout: Layout, mids: np.ndarray, az: np.ndarray):
+    """Index (...) of the scan sample nearest to each azimuth ``az`` (...) radians, and
+    whether it is near (within 1.5 sample spacings), as ``register._lookup`` but one
+    search among the ``middles`` ``mids`` (K >= 2 samples)."""
+    j = np.searchsorted(mids, az, side="right")
+    return j, np.abs(az - layout.azimuth[j]) < 1.5 * layout.spacing
 
 
 def normalised(grey: np.ndarray, window: int, flat: float) -> np.ndarray:
@@ -102,14 +114,14 @@ def surface(image, camera: Camera, layout: Layout | None,
     px = np.column_stack([u.ravel(), v.ravel()]).astype(float)
     r = cam.rays_level(px)
     horiz = np.hypot(r[:, 0], r[:, 2])
-    j, near = _lookup(layout, np.arctan2(r[:, 0], r[:, 2]))
+    j, near = nearest(layout, middles(layout), np.arctan2(r[:, 0], r[:, 2]))
     rng, kind = layout.range[j], layout.kind[j]
     with np.errstate(divide="ignore", invalid="ignore"):
         d_floor = np.where(r[:, 1] > 1e-6, layout.height * horiz / r[:, 1], np.inf)
         floor = near & (d_floor < rng) & np.isfinite(d_floor)
         wall = near & ~floor & (kind == SegKind.WALL) & np.isfinite(rng)
         scale = np.where(floor, layout.height / r[:, 1], np.where(wall, rng / horiz, np.nan))
-    keep = floor | wall
+    keep = np.flatnonzero(floor | wall)
     pts = scale[keep, None] * r[keep]
     vals = img[v.ravel()[keep], u.ravel()[keep]]
     return Surface(cam, img, pts, vals, layout)
@@ -155,10 +167,9 @@ def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricPar
     if dst.layout is not None:   # not hidden behind dst's walls
         L = dst.layout
         az = np.arctan2(g[3], g[4])
-        j = np.searchsorted(dst.scan_middles, az, side="right")   # the nearest scan sample
+        j, near = nearest(L, dst.scan_middles, az)
         bound = L.range * 1.1 + p.hidden_m
-        seen &= (np.abs(az - L.azimuth[j]) < 1.5 * L.spacing) \
-            & (g[3] * g[3] + g[4] * g[4] <= (bound * bound)[j])
+        seen &= near & (g[3] * g[3] + g[4] * g[4] <= (bound * bound)[j])
     # looked up everywhere (cheaper than choosing where); only the seen samples count
     m = cv2.remap(dst.image, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)

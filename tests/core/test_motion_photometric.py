@@ -80,3 +80,40 @@ def test_a_photo_without_layout_is_only_looked_up():
     assert corr.tolist() == [0.0] and n.tolist() == [0]
     corr, n = mp.agreement(sa, None, [0.0, 0.1], np.zeros((2, 3)))
     assert corr.tolist() == [0.0, 0.0] and n.tolist() == [0, 0]
+
+
+def test_the_nearest_scan_sample_is_the_registers():
+    """``nearest`` (one search among the middles) answers as ``register._lookup``: on the
+    samples, between them and beyond both ends of the scan; halfway between two samples
+    (a tie, up to rounding) it picks one of the two."""
+    from findme_core.register import _lookup
+    lay = _surfaces()[0].layout
+    a = lay.azimuth
+    mids = mp.middles(lay)
+    rng = np.random.default_rng(0)
+    az = np.concatenate([a, rng.uniform(a[0] - 0.5, a[-1] + 0.5, 5000),
+                         [-math.pi, math.pi, a[0] - 2 * lay.spacing, a[-1] + 2 * lay.spacing]])
+    j, near = mp.nearest(lay, mids, az)
+    j0, near0 = _lookup(lay, az)
+    assert np.array_equal(near, near0) and 1000 < near.sum() < len(az) - 1000
+    assert np.array_equal(j[near], j0[near])
+    assert not near[-2:].any()
+    j, near = mp.nearest(lay, mids, mids)
+    assert near.all() and set(j - np.arange(len(mids))) <= {0, 1}
+
+
+def test_motions_at_once_as_one_at_a_time():
+    """C motions scored together give each motion's own answer (one matrix product for all
+    of them), both ways and with a photo without layout."""
+    sa, sb = _surfaces()
+    yaw, t = _truth()
+    yaws = yaw + np.array([0.0, 0.05, -0.3, math.pi / 2])
+    ts = t + np.array([[0.0, 0.0, 0.0], [0.2, 0.0, -0.1], [-0.5, 0.0, 0.4], [0.0, 0.0, 0.0]])
+    v = render(ROOM, POSES[1], 320, 240, hfov_deg=70.0, seed=3, supersample=1)
+    bare = mp.surface(v.image, v.camera, None)
+    for a, b in ((sa, sb), (sb, sa), (sa, bare)):
+        corr, n = mp.agreement(a, b, yaws, ts)
+        for k in range(len(yaws)):
+            c1, n1 = mp.agreement(a, b, yaws[k], ts[k])
+            assert n1[0] == n[k] and c1[0] == pytest.approx(corr[k], abs=1e-9)
+        assert n.max() > 1000
