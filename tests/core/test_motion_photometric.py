@@ -83,23 +83,42 @@ def test_a_photo_without_layout_is_only_looked_up():
 
 
 def test_the_nearest_scan_sample_is_the_registers():
-    """``nearest`` (one search among the middles) answers as ``register._lookup``: on the
-    samples, between them and beyond both ends of the scan; halfway between two samples
-    (a tie, up to rounding) it picks one of the two."""
+    """``Scan.nearest`` (bins, no search) answers as ``register._lookup``: on the samples,
+    between them, at its bins' edges and one rounding step either side of them, and beyond
+    both ends of the scan; halfway between two samples (a tie, up to rounding) it picks one
+    of the two; NaN is never near. Without bins (samples closer than the bins allow) the
+    binary search gives the same."""
+    from findme_core.layout import Layout
     from findme_core.register import _lookup
     lay = _surfaces()[0].layout
     a = lay.azimuth
-    mids = mp.middles(lay)
+    scan = mp.Scan(lay)
+    assert scan.bins is not None
+    scale, first, n = scan.bins[:3]
+    edges = (first + np.arange(n)) / scale
     rng = np.random.default_rng(0)
-    az = np.concatenate([a, rng.uniform(a[0] - 0.5, a[-1] + 0.5, 5000),
+    az = np.concatenate([a, rng.uniform(a[0] - 0.5, a[-1] + 0.5, 5000), edges,
+                         np.nextafter(edges, -9.0), np.nextafter(edges, 9.0),
                          [-math.pi, math.pi, a[0] - 2 * lay.spacing, a[-1] + 2 * lay.spacing]])
-    j, near = mp.nearest(lay, mids, az)
+    j, near = scan.nearest(az)
     j0, near0 = _lookup(lay, az)
     assert np.array_equal(near, near0) and 1000 < near.sum() < len(az) - 1000
     assert np.array_equal(j[near], j0[near])
     assert not near[-2:].any()
-    j, near = mp.nearest(lay, mids, mids)
-    assert near.all() and set(j - np.arange(len(mids))) <= {0, 1}
+    m = scan.middles
+    for ties in (m, np.nextafter(m, -9.0), np.nextafter(m, 9.0)):
+        j, near = scan.nearest(ties)
+        assert near.all() and set(j - np.arange(len(m))) <= {0, 1}
+        assert np.array_equal(j, np.searchsorted(m, ties, side="right"))
+    assert not scan.nearest(np.array([np.nan]))[1].any()
+    close = Layout(lay.walls, lay.ends, np.concatenate([a[:3], a[3] - [2e-8, 1e-8], a[3:]]),
+                   *(np.insert(x, 3, [x[3], x[3]]) for x in (lay.range, lay.kind, lay.sigma,
+                                                             lay.wall)), lay.height)
+    slow = mp.Scan(close)
+    assert slow.bins is None
+    j, near = slow.nearest(az)
+    j0, near0 = _lookup(close, az)
+    assert np.array_equal(near, near0) and np.array_equal(j[near], j0[near])
 
 
 def test_motions_at_once_as_one_at_a_time():
