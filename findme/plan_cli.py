@@ -18,11 +18,13 @@ import re
 import sys
 
 import cv2
+import numpy as np
 
 from findme_core import relocalise, session
 from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.floorplan import Plan
+from findme_core.planar import wrap
 
 from findme_io.imageio import read_image
 from findme_io.plan_svg import plan_svg
@@ -49,9 +51,12 @@ def register(sub) -> None:
     q = sub.add_parser("locate-in", help="where a photo was taken on a floor plan",
                        description="Register the photo's walls to the plan's walls: its pose "
                                    "in the plan's frame, and the other poses a symmetric room "
-                                   "allows.")
+                                   "allows. Several photos taken standing at one place "
+                                   "(turning round) are found together: more walls and "
+                                   "matches than one photo has.")
     q.add_argument("plan", metavar="PLAN.json")
-    q.add_argument("photo", metavar="PHOTO")
+    q.add_argument("photo", nargs="+", metavar="PHOTO",
+                   help="one photo, or several taken at one place")
     add_camera_args(q)
     q.add_argument("--camera-height", type=float, metavar="M")
     q.add_argument("--photos", nargs="+", metavar="SESSION_PHOTO",
@@ -127,44 +132,73 @@ def cmd_locate_in(args) -> int:
         plan, plan_names = Plan.from_dict(d), list(d.get("poses", {}))
     except (OSError, KeyError, TypeError, ValueError) as e:
         raise InputError(f"{args.plan}: not a plan from findme plan --json ({e})") from None
-    img, cam, h, _ = photo_inputs(args.photo, args)
-    photo = session.analyse(img, cam, h)
-    if photo.layout is None:
-        raise FindmeError(f"the photo shows no usable floor boundary: {photo.reason}")
+    photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photo]
+    if all(p.layout is None for p in photos):
+        raise FindmeError("no photo shows a usable floor boundary: "
+                          + "; ".join(f"{n}: {p.reason}" for n, p in zip(args.photo, photos)))
     if args.photos:
-        poses = _find_with_photos(plan, plan_names, args, photo)
+        cands, scores = _find_with_photos(plan, plan_names, args, photos)
+        agreeing = [None] * len(scores)
     else:
-        found = relocalise.locate(plan, photo.layout)
-        poses = [{"x_m": round(p.x, 3), "z_m": round(p.z, 3),
-                  "yaw_deg": round(math.degrees(p.yaw), 2), "score": round(p.score, 2),
-                  "agreeing": p.agreeing} for p in found]
+        cands, scores, agreeing = _find_by_walls(plan, photos)
+    names = [os.path.basename(p) for p in args.photo]
+    first = int(np.flatnonzero(np.isfinite(cands[0, :, 0]))[0])   # the first photo placed
+    poses = [{"photo": names[first], **_pose(c[first]), "score": round(float(s), 2),
+              **({"agreeing": a} if a is not None else {})}
+             for c, s, a in zip(cands, scores, agreeing)]
     best = poses[0]
     amb = (poses[1]["score"] / best["score"] if len(poses) > 1 and best["score"] > 0 else 0.0)
     out = {"pose": best, "alternatives": poses[1:], "ambiguity": round(amb, 3)}
+    if len(photos) > 1:
+        out["photos"] = {n: _pose(c) if np.isfinite(c[0]) else None
+                         for n, c in zip(names, cands[0])}
     if args.json:
         print(json.dumps(out))
         return 0
     print(f"you are at x {best['x_m']:+.2f} z {best['z_m']:+.2f}, facing "
-          f"{best['yaw_deg']:+.1f} deg" + (f" ({best['agreeing']} wall samples agree)"
-                                           if "agreeing" in best else ""))
+          f"{best['yaw_deg']:+.1f} deg" + (f" in {best['photo']}" if len(photos) > 1 else "")
+          + (f" ({best['agreeing']} wall samples agree)" if "agreeing" in best else ""))
+    lost = [n for n, c in zip(names, cands[0]) if not np.isfinite(c[0])]
+    if lost:
+        print(f"  not placed (no view shared with the other photos): {', '.join(lost)}")
     if amb > 0.8:
         print(f"  ambiguous: {len(poses) - 1} other pose(s) fit almost as well "
               f"(runner-up {amb:.0%} of the best score)")
     return 0
 
 
-def _find_with_photos(plan: Plan, plan_names: list, args, photo) -> list[dict]:
-    """Poses of ``photo`` on ``plan`` with the plan's photos (``--photos``, in the plan's
-    order: its pose keys are their file names): ``session.find``."""
+def _pose(c) -> dict:
+    return {"x_m": round(float(c[0]), 3), "z_m": round(float(c[1]), 3),
+            "yaw_deg": round(math.degrees(float(c[2])), 2)}
+
+
+def _find_by_walls(plan: Plan, photos):
+    """(poses (C, K, 3), scores (C,), agreeing samples (C,)) of K photos taken at one place
+    on the plan's walls alone: the photos the turn links (rotation-only yaws) with the most
+    layouts, merged (``relocalise.locate_turn``); NaN rows for the others."""
+    block, rel = session.turn(photos) if len(photos) > 1 else (np.zeros(1, int), np.zeros(1))
+    has = np.array([p.layout is not None for p in photos])
+    main = int(np.argmax(np.bincount(block, weights=has)))
+    idx = [k for k in range(len(photos)) if block[k] == main and has[k]]
+    found = relocalise.locate_turn(plan, [photos[k].layout for k in idx],
+                                   [rel[k] - rel[idx[0]] for k in idx])
+    cands = np.full((len(found), len(photos), 3), np.nan)
+    for c, p in enumerate(found):
+        for k in np.flatnonzero(block == main):
+            cands[c, k] = (p.x, p.z, wrap(p.yaw + rel[k] - rel[idx[0]]))
+    return cands, np.array([p.score for p in found]), [p.agreeing for p in found]
+
+
+def _find_with_photos(plan: Plan, plan_names: list, args, photos):
+    """(poses (C, K, 3), scores (C,)) of K photos taken at one place on ``plan`` with the
+    plan's photos (``--photos``, in the plan's order: its pose keys are their file names):
+    ``session.find``."""
     names = [os.path.basename(p) for p in args.photos]
     if names != plan_names:
         raise InputError(f"--photos {names} are not the plan's photos {plan_names} (the same "
                          "files in the same order as given to findme plan)")
-    photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photos]
-    cands, scores = session.find(photos, plan.poses, photo)
-    return [{"x_m": round(float(c[0]), 3), "z_m": round(float(c[1]), 3),
-             "yaw_deg": round(math.degrees(float(c[2])), 2), "score": round(float(s), 2)}
-            for c, s in zip(cands, scores)]
+    plan_photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photos]
+    return session.find(plan_photos, plan.poses, photos)
 
 
 def room_photos(room_dir: str, view_dir: str, rid: str) -> tuple[list, list]:

@@ -190,7 +190,7 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
         members = np.flatnonzero(block == b)
         nxt = []
         for total, ps, sp, info in beam:
-            r = _try(layouts, ps, rel, block, spot, sp, matches, motions, b, params)
+            r = place_block(layouts, ps, rel, block, spot, sp, matches, motions, b, params)
             if isinstance(r, str):
                 nxt.append((total, ps, sp, {**info, b: (0.0, float("nan"), r)}))
                 continue
@@ -213,43 +213,19 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
     return Placement(poses, block, rel, spot, scores, amb, reasons, order)
 
 
-def place_photo(layouts, poses, layout, matches=None, motions=(),
-                params: FuseParams = FuseParams()) -> tuple[np.ndarray, np.ndarray]:
-    """Where one more photo was taken, given N placed photos ("find me" with the session's
-    photos): candidates from its layout against each placed photo's and from its two-photo
-    motions, scored as ``place`` scores a block (layouts, feature matches, motions).
-
-    Args:
-        layouts: N layouts of the placed photos (None: none); poses: (N, 3) their poses in
-            the room frame (NaN rows: not placed).
-        layout: the new photo's layout (index N).
-        matches: {(i, N): (a (M, 3), b (M, 3))} level bearings of its matches with photo i.
-        motions: ``Link`` (i, N, yaw, sigma, t): its pose in photo i's level frame.
-
-    Returns:
-        (poses (K, 3), scores (K,)): the best pose first, then the best of each clearly
-        different one (a symmetric room gives several).
-
-    Raises:
-        GeometryError: it cannot be placed (no layout, no wall in common), with the reason.
-    """
-    n = len(layouts)
-    if layout is None:
-        raise GeometryError("the photo has no layout to register")
-    L = list(layouts) + [layout]
-    P = np.vstack([np.asarray(poses, float).reshape(n, 3), np.full((1, 3), np.nan)])
-    idx = np.arange(n + 1)
-    r = _try(L, P, np.zeros(n + 1), idx, idx, {}, matches, motions, n, params)
-    if isinstance(r, str):
-        raise GeometryError(r)
-    return r
-
-
-def _try(layouts, poses, rel, block, spot, placed_spot, matches, motions, b,
-         params: FuseParams):
+def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions, b,
+                params: FuseParams):
     """Poses of block b against the photos placed so far: (poses (K, 3), scores (K,)), the
     best first and then the best of each clearly different pose (10 deg or 0.3 m apart), or
-    the reason it cannot be placed (str)."""
+    the reason it cannot be placed (str).
+
+    Args:
+        layouts: (N,) ``Layout`` or None; poses: (N, 3) room-frame poses, NaN rows for the
+            photos not placed yet; rel: (N,) yaw of each photo in its block, radians;
+            block, spot: (N,) block and spot index of each photo; placed_spot: {spot:
+            (2,) position} of the spots placed so far (a block of one of them turns in
+            place); matches, motions: as ``place``.
+    """
     members = np.flatnonzero(block == b)
     placed = np.flatnonzero(np.isfinite(poses[:, 0]) & np.array([L is not None for L in layouts]))
     mine = [i for i in members if layouts[i] is not None]

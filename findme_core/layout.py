@@ -252,3 +252,40 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
     keep = ~step & ((kind != SegKind.WALL) | np.isfinite(rng))
     o = np.argsort(az[keep], kind="stable")
     return az[keep][o], rng[keep][o], kind[keep][o], sigma[keep][o], wall[keep][o]
+
+
+def turned(L: Layout, yaw: float) -> Layout:
+    """``L`` seen from a frame the photo is turned ``yaw`` in (radians, > 0 right): a floor
+    point p becomes R(yaw) p (``register.rot2``), an azimuth a becomes a + yaw (wrapped to
+    (-pi, pi]; the samples are re-sorted). The camera stays at the origin, so the ranges,
+    kinds and sigmas are unchanged."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, s], [-s, c]])
+    az = np.angle(np.exp(1j * (L.azimuth + yaw)))
+    o = np.argsort(az, kind="stable")
+    return Layout(L.walls @ R.T, L.ends, az[o], L.range[o], L.kind[o], L.sigma[o], L.wall[o],
+                  L.height, L.rank)
+
+
+def merged(layouts, yaws) -> Layout:
+    """One layout of the photos a camera turned through at one place (a spot): each layout
+    (``turned`` by its yaw in the first photo's frame) contributes its walls and samples.
+    Azimuths that several photos see are sampled by each (the scan is then denser there).
+
+    Raises:
+        HypothesisError: no layout, or the photos' camera heights differ (not one place).
+    """
+    if not len(layouts):
+        raise HypothesisError("no layout to merge")
+    hs = [L.height for L in layouts]
+    if max(hs) - min(hs) > 1e-6:
+        raise HypothesisError(f"photos at one place share a camera height, not {hs}")
+    parts = [turned(L, y) for L, y in zip(layouts, yaws)]
+    offs = np.cumsum([0] + [len(p.walls) for p in parts[:-1]])
+    az = np.concatenate([p.azimuth for p in parts])
+    o = np.argsort(az, kind="stable")
+    cat = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
+    wall = np.concatenate([np.where(p.wall >= 0, p.wall + k, -1) for p, k in zip(parts, offs)])
+    return Layout(np.concatenate([p.walls for p in parts]).reshape(-1, 2, 2),
+                  np.concatenate([p.ends for p in parts]).reshape(-1, 2), az[o], cat("range")[o],
+                  cat("kind")[o], cat("sigma")[o], wall[o], hs[0], layouts[0].rank)

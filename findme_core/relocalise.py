@@ -24,7 +24,7 @@ import numpy as np
 from . import register
 from .errors import GeometryError
 from .floorplan import Plan
-from .layout import Layout
+from .layout import Layout, merged
 from .planar import wrap
 from .search import SegKind
 
@@ -116,3 +116,16 @@ def _score(pose, pts, a, b, seen, poly, gate):
     sc = float(np.sum(1.0 - (dist[agree] / gate) ** 2) - viol.sum())
     rms = float(np.sqrt(np.mean(dist[agree] ** 2))) if agree.any() else float("nan")
     return sc, int(agree.sum()), rms
+
+
+def locate_turn(plan: Plan, layouts, yaws, **kw) -> list[Located]:
+    """Poses of the FIRST of several photos taken at one place (a turn: ``yaws`` (K,) each
+    photo's yaw relative to the first, radians, > 0 right) on ``plan``, best first: their
+    layouts merged into one (``layout.merged``: more walls than any one photo shows) and
+    located as ``locate`` locates one photo (keyword arguments as there). Photo k's pose is
+    (x, z, yaw + yaws[k]).
+
+    Raises:
+        GeometryError: as ``locate``.
+    """
+    return locate(plan, merged(list(layouts), list(yaws)), **kw)

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import features, floorplan, fuse, layout, motion, planar, spot
+from . import features, find_spot, floorplan, fuse, layout, motion, planar, spot
 from .camera import Camera
 from .errors import FindmeError, GeometryError
 from .methods import hypothesize
@@ -207,28 +207,62 @@ def _motion(pa: Photo, pb: Photo, m):
         return None
 
 
-def relate_to(photos, new: Photo, params: SessionParams = SessionParams()):
-    """Feature matches and two-photo motions between each of N photos and a new one (index
-    N): ({(i, N): (a, b) bearings}, [``fuse.Link`` (i, N, ...)]), as ``fuse.place_photo``
-    takes them."""
+def relate_to(photos, new, params: SessionParams = SessionParams()):
+    """Feature matches and two-photo motions between each of N photos and K new ones
+    (indices N .., in the order of ``new``), and the rotation-only links between the new
+    ones (taken at one place): ({(i, j): (a, b) bearings}, [``fuse.Link`` (i, j, ..., t)],
+    [``fuse.Link`` (j1, j2, yaw, sigma)]), as ``find_spot.place`` takes them."""
     n, matches, motions = len(photos), {}, []
-    for i, p in enumerate(photos):
-        m = features.match(p.features, new.features, params.features)
-        bear, link = _across(i, n, p, new, m, params, lambda: _motion(p, new, m))
-        if bear is not None:
-            matches[(i, n)] = bear
-        if link is not None:
-            motions.append(link)
-    return matches, motions
+    for q, pn in enumerate(new):
+        for i, p in enumerate(photos):
+            m = features.match(p.features, pn.features, params.features)
+            bear, link = _across(i, n + q, p, pn, m, params, lambda: _motion(p, pn, m))
+            if bear is not None:
+                matches[(i, n + q)] = bear
+            if link is not None:
+                motions.append(link)
+    return matches, motions, _rotation_links(new, n, params)
 
 
-def find(photos, poses, new: Photo, params: SessionParams = SessionParams()):
-    """"Find me" with the session's photos: where ``new`` was taken, given the analysed
-    photos of a plan and their poses (N, 3) in its frame. Returns (poses (K, 3), scores
-    (K,)), best first (``fuse.place_photo``); raises GeometryError with the reason."""
-    matches, motions = relate_to(photos, new, params)
-    return fuse.place_photo([p.layout for p in photos], poses, new.layout, matches, motions,
-                            params.fuse)
+def turn(photos, params: SessionParams = SessionParams()) -> tuple[np.ndarray, np.ndarray]:
+    """(block (K,), rel_yaw (K,)) of K photos taken at one place: the photos joined by
+    rotation-only yaws (``spot.rotation_yaw`` of every pair) and each one's yaw relative to
+    its block's first photo, radians (``fuse.blocks``)."""
+    return fuse.blocks(len(photos), _rotation_links(photos, 0, params))
+
+
+def _rotation_links(photos, first: int, params: SessionParams) -> list:
+    """``fuse.Link`` s (indices ``first`` + k) of every pair of ``photos`` with a
+    rotation-only yaw (taken at one place)."""
+    links = []
+    for j in range(len(photos)):
+        for i in range(j):
+            rot = spot.rotation_yaw(features.match(photos[i].features, photos[j].features,
+                                                   params.features),
+                                    photos[i].camera, photos[j].camera)
+            if rot is not None:
+                links.append(fuse.Link(first + i, first + j, rot.yaw, rot.sigma))
+    return links
+
+
+def find(photos, poses, new, params: SessionParams = SessionParams()):
+    """"Find me" with the session's photos: where ``new`` (one ``Photo``, or several taken
+    at one place, a user turning round) was taken, given the analysed photos of a plan and
+    their poses (N, 3) in its frame (``find_spot.place``).
+
+    Returns:
+        (poses, scores (C,)), best first: poses (C, 3) for one photo, (C, K, 3) for K.
+
+    Raises:
+        GeometryError: it cannot be placed, with the reason.
+    """
+    one = isinstance(new, Photo)
+    group = [new] if one else list(new)
+    matches, motions, links = relate_to(photos, group, params)
+    cands, scores = find_spot.place([p.layout for p in photos], poses,
+                                    [p.layout for p in group], links, matches, motions,
+                                    params.fuse)
+    return (cands[:, 0], scores) if one else (cands, scores)
 
 
 def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time.perf_counter,

@@ -8,7 +8,10 @@ For every room set (zind-rooms) and every spot s of it (spots from the view ids,
 first photo o), then each photo v of s on it, alone, two ways: "walls",
 from v's layout against the plan's walls alone (``findme locate-in PLAN.json PHOTO``), and
 "photos", with the plan's photos too (``session.find``: v's feature matches and two-photo
-motions with them, scored as the session places a photo). The truth (used only to score) is v's pose in o's frame from the room's
+motions with them, scored as the session places a photo); then the spot's photos together,
+as a user turning round at the new place would take them ("turn walls": their layouts merged by
+the turn's rotation-only yaws, ``findme locate-in PLAN.json PHOTO...``; "turn photos": with the
+plan's photos, ``session.find`` of the group). The truth (used only to score) is v's pose in o's frame from the room's
 ``poses_planar``. Success: within 0.25 m and 5 deg (issue 16's bar). Also: whether any of
 the returned poses (best first; a symmetric room gives several) is right, and the
 ambiguity (runner-up score / best score). --cache keeps each room's analysed photos.
@@ -57,9 +60,56 @@ def room(dataset, rid, cache=None) -> list[dict]:
                      for v in range(len(views)) if spots[v] == s]
             continue
         o = rest[0]                  # the plan's frame: its first photo's level frame
-        for v in [k for k in range(len(views)) if spots[k] == s]:
-            rows.append(_locate(plan, [photos[k] for k in rest], photos[v],
-                                fuse.relative(T[o], T[v]), {"room": rid, "view": views[v]}))
+        mine = [k for k in range(len(views)) if spots[k] == s]
+        new = [_locate(plan, [photos[k] for k in rest], photos[v], fuse.relative(T[o], T[v]),
+                       {"room": rid, "view": views[v]}) for v in mine]
+        rows += _locate_turn(plan, [photos[k] for k in rest], [photos[v] for v in mine],
+                             [fuse.relative(T[o], T[v]) for v in mine], new)
+    return rows
+
+
+def _errors(cands, truth) -> dict:
+    """Errors of candidate poses (C, 3), best first, against ``truth`` (yaw, t (2,))."""
+    yaw_t, t_t = truth
+    errs = [(float(np.hypot(c[0] - t_t[0], c[1] - t_t[1])),
+             abs(math.degrees(float(fuse.wrap(c[2] - yaw_t))))) for c in cands]
+    ok = [e <= 0.25 and y <= 5.0 for e, y in errs]
+    return {"t_m": errs[0][0], "yaw_deg": errs[0][1], "ok": ok[0], "any_ok": any(ok),
+            "candidates": len(cands)}
+
+
+def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
+    """``rows`` (one per photo of ``new``, photos taken at one spot) with each photo's errors
+    when the spot's photos are found together: "turn walls" (their layouts merged by the
+    turn's rotation-only yaws, on the plan's walls: ``findme locate-in PLAN.json PHOTO...``)
+    and "turn photos" (with the plan's photos: ``session.find`` of the group)."""
+    block, rel = session.turn(new)
+    has = np.array([p.layout is not None for p in new])
+    main = int(np.argmax(np.bincount(block, weights=has)))
+    idx = [k for k in range(len(new)) if block[k] == main and has[k]]
+    try:
+        found = relocalise.locate_turn(plan, [new[k].layout for k in idx],
+                                       [rel[k] - rel[idx[0]] for k in idx])
+        first = np.array([(p.x, p.z, p.yaw) for p in found])
+        for k, row in enumerate(rows):
+            if k not in idx:
+                row["turn walls"] = {"error": "not linked to the turn's other photos"}
+                continue
+            c = first.copy()
+            c[:, 2] = fuse.wrap(c[:, 2] + rel[k] - rel[idx[0]])
+            row["turn walls"] = _errors(c, truths[k])
+    except FindmeError as e:
+        for row in rows:
+            row["turn walls"] = {"error": str(e).splitlines()[0]}
+    try:
+        cands, _ = session.find(photos, plan.poses, new)
+        for k, row in enumerate(rows):
+            ok = np.isfinite(cands[:, k, 0])
+            row["turn photos"] = (_errors(cands[ok, k], truths[k]) if ok.any() else
+                                  {"error": "not placed with the turn"})
+    except FindmeError as e:
+        for row in rows:
+            row["turn photos"] = {"error": str(e).splitlines()[0]}
     return rows
 
 
@@ -102,14 +152,17 @@ def main(argv=None) -> int:
     for rid in rooms:
         rr = room(a.dataset, rid, a.cache)
         rows += rr
-        for how in ("walls", "photos"):
+        for how in HOW:
             print(_line(rid, how, rr), flush=True)
-    for how in ("walls", "photos"):
+    for how in HOW:
         print(_line("pooled", how, rows))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
     return 0
+
+
+HOW = ("walls", "photos", "turn walls", "turn photos")
 
 
 def _line(name, how, rows) -> str:

@@ -26,6 +26,9 @@ true baseline) of those within 10 deg of it. The failure's reason then reads: ``
 ``scale`` (right yaw and direction, no right length), ``outscored`` (a right candidate lost
 the score: its rank), ``refine`` (the best candidate was right, the answer is not).
 
+The summary line also counts the answers within 2 of their own 1-sigmas (translation: the
+rms of the x and z sigmas; an honest sigma has ~95 % there).
+
 ``--pred`` writes score.py predictions (pairs only) of the first method; the others go to
 PRED.<method>.json. Reads only the photos' inputs, as ``findme eval``; the truth is used only
 to diagnose.
@@ -160,6 +163,8 @@ def diagnose(job):
                      for x in mo.alternatives)
         out[meth] = {"x_m": mo.x, "z_m": mo.z, "yaw_deg": math.degrees(mo.yaw), "err_t": et,
                      "err_yaw": ey, "success": succ, "inliers": mo.n_inliers,
+                     "sigma_t": math.hypot(mo.sigma_x, mo.sigma_z),
+                     "sigma_yaw": math.degrees(mo.sigma_yaw),
                      "alternatives": len(mo.alternatives), "alt_ok": alt_ok,
                      "cause": "ok" if succ else ("wrong-yaw" if ey > 5 else "wrong-t")}
     if why and "findme" in out:
@@ -170,6 +175,13 @@ def diagnose(job):
         if out[meth]["cause"] != "ok":
             out[meth]["cause"] += lack
     return out
+
+
+def _within(ans, err, sigma) -> str:
+    """How many answers lie within 2 of their own 1-sigmas (an honest sigma: ~95 %; the
+    translation's sigma is the rms of its x and z sigmas, so ~98 % there)."""
+    k = sum(d[err] <= 2.0 * d[sigma] for d in ans)
+    return f"{k}/{len(ans)}"
 
 
 def main(argv=None) -> int:
@@ -228,7 +240,9 @@ def main(argv=None) -> int:
             print(f"  {subset:20s} {m:9s} answered {len(ans)}/{len(res)}  "
                   f"t med {np.median(et) if et else float('nan'):.3f} m  "
                   f"yaw med {np.median(ey) if ey else float('nan'):.2f} deg  "
-                  f"success {succ}/{len(res)} = {succ / max(len(res), 1):.2f}")
+                  f"success {succ}/{len(res)} = {succ / max(len(res), 1):.2f}  "
+                  f"within 2 sigma: t {_within(ans, 'err_t', 'sigma_t')} "
+                  f"yaw {_within(ans, 'err_yaw', 'sigma_yaw')}")
     if a.out:
         a.out.write_text(json.dumps(rows, indent=1, default=float))
     if a.pred:

@@ -129,7 +129,7 @@ def _locate_rows(rows) -> list[str]:
     rooms = sorted({r["room"] for r in rows})
     for name in rooms + ["all"]:
         rr = [r for r in rows if name in ("all", r["room"])]
-        for how in ("walls", "photos"):
+        for how in ("walls", "photos", "turn walls", "turn photos"):
             done = [r[how] for r in rr if how in r and "error" not in r[how]]
             med = (lambda k, f: format(statistics.median(d[k] for d in done), f) if done else "–")
             out.append(f"| {name} | {len(rr)} | {how} | "
@@ -205,7 +205,9 @@ def main(argv=None):
         "room's plan and found, one by one, on the plan of the other spots, as new photos from "
         "a new place: \"walls\" from the plan's walls alone (`findme locate-in PLAN.json "
         "PHOTO`), \"photos\" with the plan's photos too (`--photos`: the new photo's feature "
-        "matches and motions with them). Localised: within 0.25 m and 5°.", "",
+        "matches and motions with them); \"turn\": the spot's photos found together (`findme "
+        "locate-in PLAN.json PHOTO...`: a user turning round at the new place). Localised: "
+        "within 0.25 m and 5°.", "",
         *_locate_rows(locate), "",
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)

@@ -92,3 +92,37 @@ def test_photos_that_are_not_the_plans_are_refused(session_on_disk):
     p = run_findme("locate-in", plan_path, new, "--photos", *paths[::-1], check=False)
     assert p.returncode == 2 and "not the plan's photos" in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+
+
+@pytest.fixture(scope="module")
+def turn_on_disk(session_on_disk, tmp_path_factory):
+    """Two more photos at the new photo's place, turned 50 and 100 deg right of it: (their
+    paths with the new photo's first, the truth of each in the plan's frame)."""
+    d = tmp_path_factory.mktemp("turn")
+    _, _, _, new, _, _ = session_on_disk
+    paths, poses = [new], [NEW]
+    for k, turn in enumerate((50.0, 100.0)):
+        pose = Pose(NEW.x, NEW.z, H, NEW.yaw_deg + turn, NEW.pitch_deg, 0.0)
+        v = render(ROOM, pose, 640, 480, hfov_deg=70.0, supersample=1)
+        paths.append(d / f"turn_{k}.jpg")
+        _write(paths[-1], cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1]
+               .tobytes(), v.camera)
+        poses.append(pose)
+    first = Pose(SPOTS[0][0], SPOTS[0][1], H, 0.0, 28.0, 0.0)
+    truth, _ = first_frame_truth(ROOM, [first, *poses])
+    return paths, truth[1:]
+
+
+def test_a_turn_at_a_new_place_is_found_together(session_on_disk, turn_on_disk):
+    paths, plan_path, _, _, _, _ = session_on_disk
+    turn, truth = turn_on_disk
+    out = as_json(run_findme("locate-in", plan_path, *turn, "--photos", *paths, "--json",
+                             timeout=300))
+    assert out["pose"]["photo"] == turn[0].name
+    assert set(out["photos"]) == {p.name for p in turn}
+    for p, want in zip(turn, truth):   # every photo of the turn, each with its own heading
+        t, y = _err(out["photos"][p.name], want)
+        assert t < 0.15 and y < 3.0, (p.name, out["photos"][p.name], want)
+    walls = as_json(run_findme("locate-in", plan_path, *turn, "--json"))
+    errs = [_err(q, truth[0]) for q in [walls["pose"], *walls["alternatives"]]]
+    assert any(t < 0.2 and y < 3.0 for t, y in errs), (walls, truth[0])
