@@ -4,7 +4,7 @@ three terms ``fuse.place`` adds up for each candidate.
 * layout: ``register.scores`` of every (placed photo, block photo) pair, both ways
   (agreeing wall samples minus samples on floor the other photo sees);
 * features: feature matches the pose puts on their epipolar planes, in front of both
-  cameras (planar motion, no height change; MSAC);
+  cameras (planar motion, no height change; full within a few pixels, then fading);
 * motions: two-photo motions (``fuse.Link`` with ``t``) between a placed photo and a block
   photo, a Gaussian in the position error (relative to the distance) and in the yaw error.
 
@@ -65,12 +65,13 @@ def layout_score(layouts, poses, rel, placed, mine, cands, params) -> np.ndarray
 
 def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
     """(C,) feature matches between placed photos and the block's photos that C block poses
-    put within ``feature_px`` (at 500 px focal length) of their epipolar planes, in front
-    of both cameras (planar motion, no height change: t = (x, 0, z)); each scores up to
-    ``feature_weight`` (MSAC: 1 - (r / gate)^2)."""
+    put near their epipolar planes, in front of both cameras (planar motion, no height
+    change: t = (x, 0, z)); each scores ``feature_weight`` within ``feature_px`` (at 500 px
+    focal length), falling linearly to 0 at ``feature_fade_px`` (``fuse.FuseParams``); with
+    ``feature_fade_px`` <= ``feature_px``, MSAC: 1 - (r / ``feature_px``)^2 within it."""
     total = np.zeros(len(cands))
     mem = set(int(m) for m in members)
-    pix = params.feature_px / 500.0
+    pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
     for (i, j), (a, b) in matches.items():
         if (i in mem) == (j in mem):
             continue
@@ -82,8 +83,12 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
         t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
         r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
         la, lb = planar.depths(yaw, t, a, b)
-        ok = (r < pix) & (la > 0) & (lb > 0)
-        total += params.feature_weight * np.sum(np.where(ok, 1.0 - (r / pix) ** 2, 0.0), 1)
+        front = (la > 0) & (lb > 0)
+        if fade > pix:
+            s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
+        else:          # MSAC
+            s = np.where(front & (r < pix), 1.0 - (r / pix) ** 2, 0.0)
+        total += params.feature_weight * np.sum(s, 1)
     return total
 
 

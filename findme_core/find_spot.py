@@ -16,6 +16,8 @@ numpy; no I/O.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from . import fuse
@@ -47,6 +49,9 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
         GeometryError: no new photo, or none can be placed (no layout, no wall in common),
             with the reason.
     """
+    # the matches scored sharply (MSAC): nothing refines a found photo's pose after, so its
+    # candidate must be the best aligned one (a plan's placement is refined: ``fuse``)
+    params = replace(params, feature_fade_px=0.0)
     n, k = len(layouts), len(new_layouts)
     if k == 0:
         raise GeometryError("no new photo to find")
@@ -81,3 +86,4 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
         out[c] = Q[n:]
     o = np.argsort(-total, kind="stable")
     return out[o], total[o]
+

@@ -58,14 +58,23 @@ class FuseParams:
             scale along the baseline, which the epipolar score cannot see).
         beam: placements kept at each step of the search (and distinct poses tried per
             block): a block's best pose alone may be wrong where a later block tells.
-        feature_px, feature_weight: a feature match within ``feature_px`` (at focal
-            length 500 px; loose: a block's candidate poses are not refined yet) of its
-            epipolar plane, in front of both cameras, scores up to ``feature_weight``
-            (MSAC); the ``feature_top`` best candidates by layout are scored
-            so. A match is independent evidence (the wall's appearance) where neighbouring
-            layout samples (6 px apart on one boundary line) are not: one match weighs as
-            12 layout samples (3.0 / 0.25; chosen on dev among 1, 3: it turns zr_r10's
-            flipped corridor spots right and changes no other room).
+        feature_px, feature_fade_px, feature_weight: a feature match within
+            ``feature_px`` (at focal length 500 px) of its epipolar plane, in front of both
+            cameras, scores ``feature_weight``, falling linearly to 0 at
+            ``feature_fade_px``; the ``feature_top`` best candidates by layout are scored
+            so. Flat, not MSAC: a block's candidate poses are not refined (their
+            directions are ~1 deg off), and the matches' residuals within that say nothing
+            about which candidate is right; the layouts do (dev zr_r06: the poses put ~1.9x
+            too far, along the line of three spots where the matches cannot tell the
+            distance, won over a candidate 0.05 m from the truth by 0.8 deg of direction,
+            i.e. by 16 of ~830 MSAC points; flat within 8 px, 0 at 20-32 px: 10 of 14 right
+            instead of 2, the other rooms unchanged; flat within 6 or 12 px, or 0 at 16 or
+            40 px: 2 of 14). ``feature_fade_px`` <= ``feature_px``: MSAC within
+            ``feature_px``, as ``find_spot`` scores a found photo (nothing refines it after;
+            a plan's poses are refined, ``adjust``). A match is independent evidence (the wall's appearance) where
+            neighbouring layout samples (6 px apart on one boundary line) are not: one match
+            weighs as 12 layout samples (3.0 / 0.25; chosen on dev among 1, 3: it turns
+            zr_r10's flipped corridor spots right and changes no other room).
         register: the layout terms (``register.scores``). Samples count in full up to a
             1-sigma of 1 m (``sigma_ref``): the gate already scales with the sigma, and in a
             session every photo's far walls are the other photos' near ones (down-weighting
@@ -78,6 +87,7 @@ class FuseParams:
     yaw_grid_deg: float = 2.0
     min_score: float = 1.0
     feature_px: float = 8.0
+    feature_fade_px: float = 24.0
     feature_top: int = 200
     beam: int = 6
     motion_weight: float = 10.0
