@@ -105,11 +105,12 @@ class Scan:
     def nearest(self, az: np.ndarray):
         """(...) index of the nearest sample to each azimuth of ``az`` (...), and (...)
         whether it is near (within 1.5 sample spacings; NaN: never)."""
+        az = np.asarray(az, float)
         if self.bins is None:
             j = np.searchsorted(self.middles, az, side="right")
         else:
             scale, first, n, below, after = self.bins
-            k = np.floor(az * scale)
+            k = np.floor(az * scale, out=np.empty(az.shape))
             k -= first
             np.fmax(k, 0.0, out=k)          # (NaN -> bin 0: not near)
             np.fmin(k, n - 1.0, out=k)

@@ -111,6 +111,8 @@ def test_the_nearest_scan_sample_is_the_registers():
         assert near.all() and set(j - np.arange(len(m))) <= {0, 1}
         assert np.array_equal(j, np.searchsorted(m, ties, side="right"))
     assert not scan.nearest(np.array([np.nan]))[1].any()
+    one = scan.nearest(float(a[4]))
+    assert np.shape(one[0]) == () and one[0] == 4 and one[1]
     close = Layout(lay.walls, lay.ends, np.concatenate([a[:3], a[3] - [2e-8, 1e-8], a[3:]]),
                    *(np.insert(x, 3, [x[3], x[3]]) for x in (lay.range, lay.kind, lay.sigma,
                                                              lay.wall)), lay.height)
