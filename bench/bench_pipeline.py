@@ -18,7 +18,9 @@ For the first photo of a pair (no motion of its own) the motion part is the pair
 handler is timed as a whole; its parts are timed again with the core calls it makes.
 
 Baselines in the same run: plain Canny + HoughLinesP of the photo (the paper's first step
-alone), and the same pipeline without reuse (each motion prepares both its photos: the cost
+alone), odometry's motion without the photos' appearance (``photometric_weight`` 0, no
+surfaces; the appearance's other part, a photo's surface, is timed on its own), and the
+same pipeline without reuse (each motion prepares both its photos: the cost
 per photo when features and layouts are not kept between motions). Goal (issue 15): <= 50 ms
 CPU per photo median, so that 40 photos/s fit on two cores.
 """
@@ -31,6 +33,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
@@ -40,6 +43,8 @@ import cv2  # noqa: E402
 
 import schemas  # noqa: E402
 from findme.evaluate import view_inputs  # noqa: E402
+from findme_core import motion_photometric  # noqa: E402
+from findme_core.motion import MotionParams  # noqa: E402
 from findme_core.pair import photo_lines, prepare  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from findme_io.imageio import decode_image  # noqa: E402
@@ -154,10 +159,21 @@ def odometry_parts(photos) -> dict[str, float]:
             parts[k].append(ready[-1].timing_ms[k])
     res = motion_photos(*ready, ("findme",), clock=CPU)["findme"]
     t = getattr(res, "timing_ms", {})
+    # the photos' appearance (motion_photometric): B's surface, and the motion without it
+    b, grey = ready[1], cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)   # prepare's grey (shared)
+    t0 = CPU()
+    motion_photometric.surface(grey, b.camera, b.layouts[0] if b.layouts else None)
+    surface_ms = 1e3 * (CPU() - t0)
+    bare = motion_photos(*(replace(r, surface=None) for r in ready), ("findme",),
+                         params=replace(MotionParams(), photometric_weight=0.0),
+                         clock=CPU)["findme"]
     return {"decode": parts["decode"][1], "features": parts["features"][1],
             "layout (walls, orientation)": parts["layout"][1],
             "matching": t.get("matching", float("nan")), "lift": t.get("lift", float("nan")),
             "motion": t.get("motion", float("nan")),
+            "motion without appearance": bare.timing_ms["motion"]
+            if hasattr(bare, "timing_ms") else float("nan"),
+            "appearance: B's surface (in layout)": surface_ms,
             "prepare A": parts["decode"][0] + parts["features"][0] + parts["layout"][0]}
 
 

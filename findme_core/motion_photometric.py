@@ -15,6 +15,7 @@ numpy / OpenCV.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -22,7 +23,6 @@ import numpy as np
 from .camera import Camera
 from .layout import Layout
 from .planar import _rotate
-from .register import _lookup
 from .search import SegKind
 
 
@@ -64,6 +64,60 @@ class Surface:
     values: np.ndarray
     layout: Layout | None
 
+    @cached_property
+    def homogeneous(self) -> np.ndarray:
+        """(4, S) the samples' points as homogeneous columns [x; y; z; 1], metres."""
+        return np.vstack([self.points.T, np.ones((1, len(self.points)))])
+
+    @cached_property
+    def scan(self) -> "Scan":
+        """The layout's ``Scan`` (the photo must have a layout)."""
+        return Scan(self.layout)
+
+
+class Scan:
+    """A layout's scan samples looked up by azimuth (radians, atan2(x, z) in the level
+    frame): the nearest sample, as ``register._lookup`` (halfway between two samples, up to
+    rounding, either), in a few array passes and no search.
+
+    The middles between consecutive samples split the azimuth axis. Bins of width 2^-p, at
+    most half the smallest gap between middles (so a bin holds at most one middle), each
+    know how many middles lie at or below their start; floor(az 2^p) is exact, so an
+    azimuth's bin is, and one comparison with the next middle completes the count. Without
+    such bins (fewer than 3 samples, or middles closer than 1e-6 rad) a binary search."""
+
+    MAX_BINS = 1 << 16
+
+    def __init__(self, layout: Layout):
+        a = layout.azimuth   # (K,) ascending, K >= 2
+        self.azimuth, self.spacing = a, layout.spacing
+        self.middles = m = 0.5 * (a[:-1] + a[1:])
+        self.bins = None
+        gap = float(np.diff(m).min()) if len(m) > 1 else 0.0
+        if gap > 1e-6:
+            scale = 2.0 ** (int(np.ceil(-np.log2(gap))) + 1)
+            first = np.floor(m[0] * scale) - 1.0            # starts below the first middle
+            n = int(np.floor(m[-1] * scale) - first) + 2    # the last starts above the last
+            if n <= self.MAX_BINS:
+                below = np.searchsorted(m, (first + np.arange(n)) / scale, side="right")
+                self.bins = (scale, first, n, below, np.append(m, np.inf))
+
+    def nearest(self, az: np.ndarray):
+        """(...) index of the nearest sample to each azimuth of ``az`` (...), and (...)
+        whether it is near (within 1.5 sample spacings; NaN: never)."""
+        az = np.asarray(az, float)
+        if self.bins is None:
+            j = np.searchsorted(self.middles, az, side="right")
+        else:
+            scale, first, n, below, after = self.bins
+            k = np.floor(az * scale, out=np.empty(az.shape))
+            k -= first
+            np.fmax(k, 0.0, out=k)          # (NaN -> bin 0: not near)
+            np.fmin(k, n - 1.0, out=k)
+            j = below[k.astype(np.intp)]
+            j += az >= after[j]
+        return j, np.abs(az - self.azimuth[j]) < 1.5 * self.spacing
+
 
 def normalised(grey: np.ndarray, window: int, flat: float) -> np.ndarray:
     """(H, W) grey -> (H, W) float32 locally normalised: (g - mean) / sqrt(var + flat^2)."""
@@ -90,40 +144,64 @@ def surface(image, camera: Camera, layout: Layout | None,
     px = np.column_stack([u.ravel(), v.ravel()]).astype(float)
     r = cam.rays_level(px)
     horiz = np.hypot(r[:, 0], r[:, 2])
-    j, near = _lookup(layout, np.arctan2(r[:, 0], r[:, 2]))
+    j, near = Scan(layout).nearest(np.arctan2(r[:, 0], r[:, 2]))
     rng, kind = layout.range[j], layout.kind[j]
     with np.errstate(divide="ignore", invalid="ignore"):
         d_floor = np.where(r[:, 1] > 1e-6, layout.height * horiz / r[:, 1], np.inf)
         floor = near & (d_floor < rng) & np.isfinite(d_floor)
         wall = near & ~floor & (kind == SegKind.WALL) & np.isfinite(rng)
         scale = np.where(floor, layout.height / r[:, 1], np.where(wall, rng / horiz, np.nan))
-    keep = floor | wall
+    keep = np.flatnonzero(floor | wall)
     pts = scale[keep, None] * r[keep]
     vals = img[v.ravel()[keep], u.ravel()[keep]]
     return Surface(cam, img, pts, vals, layout)
 
 
+def _transforms(yaw, t, into_b: bool, R_cam: np.ndarray) -> np.ndarray:
+    """(5, C, 4) affine maps of homogeneous src level-frame points to, per motion, the dst
+    camera-frame coordinates (rows 0-2) and the dst level-frame x and z (rows 3-4).
+
+    X_A = R_y(yaw) X_B + t: into B, q = R^T X_A - R^T t; into A, q = R X_B + t; the camera
+    frame is R_cam^T q (``Camera.R_level_from_cam``)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    C = len(yaw)
+    A = np.zeros((C, 3, 3))
+    A[:, 0, 0] = A[:, 2, 2] = c
+    A[:, 1, 1] = 1.0
+    A[:, 0, 2], A[:, 2, 0] = (-s, s) if into_b else (s, -s)
+    b = -np.einsum("cij,cj->ci", A, t) if into_b else t
+    M = np.zeros((5, C, 4))
+    M[:3, :, :3] = np.einsum("ki,cij->kcj", R_cam.T, A)
+    M[:3, :, 3] = R_cam.T @ b.T
+    M[3:, :, :3] = A[:, [0, 2]].transpose(1, 0, 2)
+    M[3:, :, 3] = b[:, [0, 2]].T
+    return M
+
+
 def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricParams):
     """Sum of products (C,) and sample counts (C,) of src's samples seen by dst."""
+    C = len(yaw)
     if len(src.points) == 0:
-        return np.zeros(len(yaw)), np.zeros(len(yaw), int)
-    if into_b:   # X_B = R^T (X_A - t)
-        q = _rotate(yaw, src.points[None] - t[:, None], inverse=True)
-    else:        # X_A = R X_B + t
-        q = _rotate(yaw, src.points) + t[:, None]
-    C, S = q.shape[:2]
-    uv, front = dst.camera.project_level(q.reshape(-1, 3))
-    uv, front = uv.reshape(C, S, 2), front.reshape(C, S)
+        return np.zeros(C), np.zeros(C, int)
+    cam = dst.camera
+    # one matrix product: every sample under every motion, in dst's camera and level frame
+    g = (_transforms(yaw, t, into_b, cam.R_level_from_cam).reshape(5 * C, 4)
+         @ src.homogeneous).reshape(5, C, -1)
+    z = g[2]
+    front = z > 1e-9
+    zs = np.where(front, z, 1.0)
+    u = cam.fx * g[0] / zs + cam.cx
+    v = cam.fy * g[1] / zs + cam.cy
     h, w = dst.image.shape
-    inside = front & (uv[..., 0] >= 0) & (uv[..., 0] <= w - 1) & (uv[..., 1] >= 0) \
-        & (uv[..., 1] <= h - 1)
-    seen = inside
+    seen = front & (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
     if dst.layout is not None:   # not hidden behind dst's walls
-        d = np.hypot(q[..., 0], q[..., 2])
-        j, near = _lookup(dst.layout, np.arctan2(q[..., 0], q[..., 2]))
-        seen = seen & near & (d <= dst.layout.range[j] * 1.1 + p.hidden_m)
-    m = cv2.remap(dst.image, np.where(seen, uv[..., 0], -1).astype(np.float32),
-                  np.where(seen, uv[..., 1], -1).astype(np.float32), cv2.INTER_LINEAR,
+        L = dst.layout
+        az = np.arctan2(g[3], g[4])
+        j, near = dst.scan.nearest(az)
+        bound = L.range * 1.1 + p.hidden_m
+        seen &= near & (g[3] * g[3] + g[4] * g[4] <= (bound * bound)[j])
+    # looked up everywhere (cheaper than choosing where); only the seen samples count
+    m = cv2.remap(dst.image, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     prod = np.where(seen, m * src.values[None], 0.0)
     return prod.sum(1), seen.sum(1)

@@ -79,7 +79,8 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
             (LSD) when None.
     """
     t0 = clock()
-    f = features.detect(image, feature_params)
+    grey = features._grey(image)   # once, for the features and the surface
+    f = features.detect(grey, feature_params)
     t1 = clock()
     hyps = list(hypotheses)
     order = ([rank - 1] if 1 <= rank <= len(hyps) else []) + \
@@ -98,7 +99,7 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
         segments = line_segments(image)
     o = room_orientation(segments, camera)
     t3 = clock()
-    surf = motion_photometric.surface(image, camera, lays[0] if lays else None)
+    surf = motion_photometric.surface(grey, camera, lays[0] if lays else None)
     t4 = clock()
     return Photo(camera, float(height), f, scene, lays, o,
                  {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t4 - t1)}, surf)

@@ -80,3 +80,61 @@ def test_a_photo_without_layout_is_only_looked_up():
     assert corr.tolist() == [0.0] and n.tolist() == [0]
     corr, n = mp.agreement(sa, None, [0.0, 0.1], np.zeros((2, 3)))
     assert corr.tolist() == [0.0, 0.0] and n.tolist() == [0, 0]
+
+
+def test_the_nearest_scan_sample_is_the_registers():
+    """``Scan.nearest`` (bins, no search) answers as ``register._lookup``: on the samples,
+    between them, at its bins' edges and one rounding step either side of them, and beyond
+    both ends of the scan; halfway between two samples (a tie, up to rounding) it picks one
+    of the two; NaN is never near. Without bins (samples closer than the bins allow) the
+    binary search gives the same."""
+    from findme_core.layout import Layout
+    from findme_core.register import _lookup
+    lay = _surfaces()[0].layout
+    a = lay.azimuth
+    scan = mp.Scan(lay)
+    assert scan.bins is not None
+    scale, first, n = scan.bins[:3]
+    edges = (first + np.arange(n)) / scale
+    rng = np.random.default_rng(0)
+    az = np.concatenate([a, rng.uniform(a[0] - 0.5, a[-1] + 0.5, 5000), edges,
+                         np.nextafter(edges, -9.0), np.nextafter(edges, 9.0),
+                         [-math.pi, math.pi, a[0] - 2 * lay.spacing, a[-1] + 2 * lay.spacing]])
+    j, near = scan.nearest(az)
+    j0, near0 = _lookup(lay, az)
+    assert np.array_equal(near, near0) and 1000 < near.sum() < len(az) - 1000
+    assert np.array_equal(j[near], j0[near])
+    assert not near[-2:].any()
+    m = scan.middles
+    for ties in (m, np.nextafter(m, -9.0), np.nextafter(m, 9.0)):
+        j, near = scan.nearest(ties)
+        assert near.all() and set(j - np.arange(len(m))) <= {0, 1}
+        assert np.array_equal(j, np.searchsorted(m, ties, side="right"))
+    assert not scan.nearest(np.array([np.nan]))[1].any()
+    one = scan.nearest(float(a[4]))
+    assert np.shape(one[0]) == () and one[0] == 4 and one[1]
+    close = Layout(lay.walls, lay.ends, np.concatenate([a[:3], a[3] - [2e-8, 1e-8], a[3:]]),
+                   *(np.insert(x, 3, [x[3], x[3]]) for x in (lay.range, lay.kind, lay.sigma,
+                                                             lay.wall)), lay.height)
+    slow = mp.Scan(close)
+    assert slow.bins is None
+    j, near = slow.nearest(az)
+    j0, near0 = _lookup(close, az)
+    assert np.array_equal(near, near0) and np.array_equal(j[near], j0[near])
+
+
+def test_motions_at_once_as_one_at_a_time():
+    """C motions scored together give each motion's own answer (one matrix product for all
+    of them), both ways and with a photo without layout."""
+    sa, sb = _surfaces()
+    yaw, t = _truth()
+    yaws = yaw + np.array([0.0, 0.05, -0.3, math.pi / 2])
+    ts = t + np.array([[0.0, 0.0, 0.0], [0.2, 0.0, -0.1], [-0.5, 0.0, 0.4], [0.0, 0.0, 0.0]])
+    v = render(ROOM, POSES[1], 320, 240, hfov_deg=70.0, seed=3, supersample=1)
+    bare = mp.surface(v.image, v.camera, None)
+    for a, b in ((sa, sb), (sb, sa), (sa, bare)):
+        corr, n = mp.agreement(a, b, yaws, ts)
+        for k in range(len(yaws)):
+            c1, n1 = mp.agreement(a, b, yaws[k], ts[k])
+            assert n1[0] == n[k] and c1[0] == pytest.approx(corr[k], abs=1e-9)
+        assert n.max() > 1000
