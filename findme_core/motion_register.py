@@ -223,8 +223,8 @@ class Registration:
                 continue
             q, cov = self.fit.refine(cy[i], ct[i], which[i])
             s, w = self.fit.score(q[0], q[1:4])
-            results.append((q, cov, float(s[0] + self._photometric(q[:1], q[None, 1:4])[0][0]),
-                            w[0]))
+            ph, corr, n = self._photometric(q[:1], q[None, 1:4])
+            results.append((q, cov, float(s[0] + ph[0]), w[0], (float(corr[0]), int(n[0]))))
         results.sort(key=lambda r: -r[2])
         out = []
         for r in results:
@@ -249,9 +249,10 @@ class Registration:
     def _photometric(self, yaw, t3):
         """(C,) score of C motions by the photos' appearance (``motion_photometric``: the
         summed products of the normalised images over the samples each photo sees of the
-        other's surfaces, times ``photometric_weight``) and (C,) their correlation."""
+        other's surfaces, times ``photometric_weight``), (C,) their correlation and (C,)
+        sample counts."""
         corr, n = motion_photometric.agreement(*self.surfaces, yaw, t3)
-        return self.p.photometric_weight * corr * n, corr
+        return self.p.photometric_weight * corr * n, corr, n
 
     def _check_determined(self, m: PlanarMotion, pair) -> None:
         if m.n_inliers < self.p.min_inliers:
@@ -264,7 +265,7 @@ class Registration:
         return (abs(np.angle(np.exp(1j * (y1 - y2)))) < np.radians(3.0)
                 and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
 
-    def _result(self, q, cov, score, pair) -> PlanarMotion:
+    def _result(self, q, cov, score, pair, appearance) -> PlanarMotion:
         t3 = q[1:4]
         e_in, ta, tb = self.fit.inliers(q[0], t3)
         i, j = max(pair[0], 0), max(pair[1], 0)
@@ -272,9 +273,7 @@ class Registration:
                if self.la and self.lb else None)
         r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
                           e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
-        corr, n = motion_photometric.agreement(*self.surfaces, q[:1], q[None, 1:4])
-        return _model_error(replace(r, layout=lay, score=score,
-                                    appearance=(float(corr[0]), int(n[0]))), self.p)
+        return _model_error(replace(r, layout=lay, score=score, appearance=appearance), self.p)
 
     def _refusal(self, k: int) -> MotionError:
         walls = ("the photos' boundaries share no wall" if self.la and self.lb else
