@@ -71,10 +71,11 @@ class FuseParams:
             instead of 2, the other rooms unchanged; flat within 6 or 12 px, or 0 at 16 or
             40 px: 2 of 14). ``feature_fade_px`` <= ``feature_px``: MSAC within
             ``feature_px``, as ``find_spot`` scores a found photo (nothing refines it after;
-            a plan's poses are refined, ``adjust``). A match is independent evidence (the wall's appearance) where
-            neighbouring layout samples (6 px apart on one boundary line) are not: one match
-            weighs as 12 layout samples (3.0 / 0.25; chosen on dev among 1, 3: it turns
-            zr_r10's flipped corridor spots right and changes no other room).
+            a plan's poses are refined, ``adjust``). A match is independent evidence (the
+            wall's appearance) where neighbouring layout samples (6 px apart on one boundary
+            line) are not: one match weighs as 12 layout samples (3.0 / 0.25; chosen on dev
+            among 1, 3: it turns zr_r10's flipped corridor spots right and changes no other
+            room).
         register: the layout terms (``register.scores``). Samples count in full up to a
             1-sigma of 1 m (``sigma_ref``): the gate already scales with the sigma, and in a
             session every photo's far walls are the other photos' near ones (down-weighting
