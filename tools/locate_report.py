@@ -9,10 +9,10 @@ first photo o), then each photo v of s on it, alone, two ways: "walls",
 from v's layout against the plan's walls alone (``findme locate-in PLAN.json PHOTO``), and
 "photos", with the plan's photos too (``session.find``: v's feature matches and two-photo
 motions with them, scored as the session places a photo); then the spot's photos together,
-as a user turning round at the new place would take them ("turn walls": their layouts merged by
-the turn's rotation-only yaws, ``findme locate-in PLAN.json PHOTO...``; "turn photos": with the
-plan's photos, ``session.find`` of the group). The truth (used only to score) is v's pose in o's frame from the room's
-``poses_planar``. Success: within 0.25 m and 5 deg (issue 16's bar). Also: whether any of
+as a user turning round at the new place would take them ("turn walls": their layouts merged
+by the turn's rotation-only yaws, ``findme locate-in PLAN.json PHOTO...``; "turn photos":
+with the plan's photos, ``session.find`` of the group). The truth (used only to score) is
+v's pose in o's frame from the room's ``poses_planar``. Success: within 0.25 m and 5 deg (issue 16's bar). Also: whether any of
 the returned poses (best first; a symmetric room gives several) is right, and the
 ambiguity (runner-up score / best score). --cache keeps each room's analysed photos.
 """
