@@ -27,6 +27,7 @@ import numpy as np
 
 from .camera import Camera
 from .errors import HypothesisError
+from .scan import Scan
 from .search import SegKind
 
 
@@ -97,6 +98,11 @@ class Layout:
     def spacing(self) -> float:
         """Median azimuth step between samples, radians (0 with fewer than 2)."""
         return float(np.median(np.diff(self.azimuth))) if len(self.azimuth) > 1 else 0.0
+
+    @cached_property
+    def scan(self) -> Scan:
+        """Its samples looked up by azimuth (``scan.Scan``; at least 2 samples)."""
+        return Scan(self)
 
     @cached_property
     def normals(self) -> np.ndarray:

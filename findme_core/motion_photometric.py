@@ -22,7 +22,6 @@ import numpy as np
 
 from .camera import Camera
 from .layout import Layout
-from .planar import _rotate
 from .search import SegKind
 
 
@@ -69,55 +68,6 @@ class Surface:
         """(4, S) the samples' points as homogeneous columns [x; y; z; 1], metres."""
         return np.vstack([self.points.T, np.ones((1, len(self.points)))])
 
-    @cached_property
-    def scan(self) -> "Scan":
-        """The layout's ``Scan`` (the photo must have a layout)."""
-        return Scan(self.layout)
-
-
-class Scan:
-    """A layout's scan samples looked up by azimuth (radians, atan2(x, z) in the level
-    frame): the nearest sample, as ``register._lookup`` (halfway between two samples, up to
-    rounding, either), in a few array passes and no search.
-
-    The middles between consecutive samples split the azimuth axis. Bins of width 2^-p, at
-    most half the smallest gap between middles (so a bin holds at most one middle), each
-    know how many middles lie at or below their start; floor(az 2^p) is exact, so an
-    azimuth's bin is, and one comparison with the next middle completes the count. Without
-    such bins (fewer than 3 samples, or middles closer than 1e-6 rad) a binary search."""
-
-    MAX_BINS = 1 << 16
-
-    def __init__(self, layout: Layout):
-        a = layout.azimuth   # (K,) ascending, K >= 2
-        self.azimuth, self.spacing = a, layout.spacing
-        self.middles = m = 0.5 * (a[:-1] + a[1:])
-        self.bins = None
-        gap = float(np.diff(m).min()) if len(m) > 1 else 0.0
-        if gap > 1e-6:
-            scale = 2.0 ** (int(np.ceil(-np.log2(gap))) + 1)
-            first = np.floor(m[0] * scale) - 1.0            # starts below the first middle
-            n = int(np.floor(m[-1] * scale) - first) + 2    # the last starts above the last
-            if n <= self.MAX_BINS:
-                below = np.searchsorted(m, (first + np.arange(n)) / scale, side="right")
-                self.bins = (scale, first, n, below, np.append(m, np.inf))
-
-    def nearest(self, az: np.ndarray):
-        """(...) index of the nearest sample to each azimuth of ``az`` (...), and (...)
-        whether it is near (within 1.5 sample spacings; NaN: never)."""
-        az = np.asarray(az, float)
-        if self.bins is None:
-            j = np.searchsorted(self.middles, az, side="right")
-        else:
-            scale, first, n, below, after = self.bins
-            k = np.floor(az * scale, out=np.empty(az.shape))
-            k -= first
-            np.fmax(k, 0.0, out=k)          # (NaN -> bin 0: not near)
-            np.fmin(k, n - 1.0, out=k)
-            j = below[k.astype(np.intp)]
-            j += az >= after[j]
-        return j, np.abs(az - self.azimuth[j]) < 1.5 * self.spacing
-
 
 def normalised(grey: np.ndarray, window: int, flat: float) -> np.ndarray:
     """(H, W) grey -> (H, W) float32 locally normalised: (g - mean) / sqrt(var + flat^2)."""
@@ -144,7 +94,7 @@ def surface(image, camera: Camera, layout: Layout | None,
     px = np.column_stack([u.ravel(), v.ravel()]).astype(float)
     r = cam.rays_level(px)
     horiz = np.hypot(r[:, 0], r[:, 2])
-    j, near = Scan(layout).nearest(np.arctan2(r[:, 0], r[:, 2]))
+    j, near = layout.scan.nearest(np.arctan2(r[:, 0], r[:, 2]))
     rng, kind = layout.range[j], layout.kind[j]
     with np.errstate(divide="ignore", invalid="ignore"):
         d_floor = np.where(r[:, 1] > 1e-6, layout.height * horiz / r[:, 1], np.inf)
@@ -197,7 +147,7 @@ def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricPar
     if dst.layout is not None:   # not hidden behind dst's walls
         L = dst.layout
         az = np.arctan2(g[3], g[4])
-        j, near = dst.scan.nearest(az)
+        j, near = L.scan.nearest(az)
         bound = L.range * 1.1 + p.hidden_m
         seen &= near & (g[3] * g[3] + g[4] * g[4] <= (bound * bound)[j])
     # looked up everywhere (cheaper than choosing where); only the seen samples count

@@ -86,13 +86,9 @@ def rot2(yaw, p) -> np.ndarray:
 def _lookup(L: Layout, az: np.ndarray):
     """Index of the nearest scan sample of L at each azimuth, and whether one is near (within
     1.5 sample spacings)."""
-    n = len(L.azimuth)
-    if n < 2:
+    if len(L.azimuth) < 2:
         return np.zeros(az.shape, int), np.zeros(az.shape, bool)
-    i = np.clip(np.searchsorted(L.azimuth, az), 1, n - 1)
-    left = az - L.azimuth[i - 1] < L.azimuth[i] - az
-    j = np.where(left, i - 1, i)
-    return j, np.abs(az - L.azimuth[j]) < 1.5 * L.spacing
+    return L.scan.nearest(az)
 
 
 def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):

@@ -82,17 +82,26 @@ def test_a_photo_without_layout_is_only_looked_up():
     assert corr.tolist() == [0.0, 0.0] and n.tolist() == [0, 0]
 
 
+def _lookup(L, az):
+    """The nearest scan sample by a binary search, as the registration looked it up before
+    ``Scan``: the reference."""
+    n = len(L.azimuth)
+    i = np.clip(np.searchsorted(L.azimuth, az), 1, n - 1)
+    j = np.where(az - L.azimuth[i - 1] < L.azimuth[i] - az, i - 1, i)
+    return j, np.abs(az - L.azimuth[j]) < 1.5 * L.spacing
+
+
 def test_the_nearest_scan_sample_is_the_registers():
-    """``Scan.nearest`` (bins, no search) answers as ``register._lookup``: on the samples,
+    """``Scan.nearest`` (bins, no search) answers as a binary search: on the samples,
     between them, at its bins' edges and one rounding step either side of them, and beyond
     both ends of the scan; halfway between two samples (a tie, up to rounding) it picks one
     of the two; NaN is never near. Without bins (samples closer than the bins allow) the
     binary search gives the same."""
     from findme_core.layout import Layout
-    from findme_core.register import _lookup
+    from findme_core.scan import Scan
     lay = _surfaces()[0].layout
     a = lay.azimuth
-    scan = mp.Scan(lay)
+    scan = Scan(lay)
     assert scan.bins is not None
     scale, first, n = scan.bins[:3]
     edges = (first + np.arange(n)) / scale
@@ -116,7 +125,7 @@ def test_the_nearest_scan_sample_is_the_registers():
     close = Layout(lay.walls, lay.ends, np.concatenate([a[:3], a[3] - [2e-8, 1e-8], a[3:]]),
                    *(np.insert(x, 3, [x[3], x[3]]) for x in (lay.range, lay.kind, lay.sigma,
                                                              lay.wall)), lay.height)
-    slow = mp.Scan(close)
+    slow = Scan(close)
     assert slow.bins is None
     j, near = slow.nearest(az)
     j0, near0 = _lookup(close, az)
