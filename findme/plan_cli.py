@@ -24,7 +24,6 @@ from findme_core import relocalise, session
 from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.floorplan import Plan
-from findme_core.planar import wrap
 
 from findme_io.imageio import read_image
 from findme_io.plan_svg import plan_svg
@@ -174,18 +173,10 @@ def _pose(c) -> dict:
 
 def _find_by_walls(plan: Plan, photos):
     """(poses (C, K, 3), scores (C,), agreeing samples (C,)) of K photos taken at one place
-    on the plan's walls alone: the photos the turn links (rotation-only yaws) with the most
-    layouts, merged (``relocalise.locate_turn``); NaN rows for the others."""
+    on the plan's walls alone (``relocalise.locate_turn``); NaN rows for the photos the turn
+    does not link."""
     block, rel = session.turn(photos) if len(photos) > 1 else (np.zeros(1, int), np.zeros(1))
-    has = np.array([p.layout is not None for p in photos])
-    main = int(np.argmax(np.bincount(block, weights=has)))
-    idx = [k for k in range(len(photos)) if block[k] == main and has[k]]
-    found = relocalise.locate_turn(plan, [photos[k].layout for k in idx],
-                                   [rel[k] - rel[idx[0]] for k in idx])
-    cands = np.full((len(found), len(photos), 3), np.nan)
-    for c, p in enumerate(found):
-        for k in np.flatnonzero(block == main):
-            cands[c, k] = (p.x, p.z, wrap(p.yaw + rel[k] - rel[idx[0]]))
+    cands, found = relocalise.locate_turn(plan, [p.layout for p in photos], block, rel)
     return cands, np.array([p.score for p in found]), [p.agreeing for p in found]
 
 

@@ -118,14 +118,28 @@ def _score(pose, pts, a, b, seen, poly, gate):
     return sc, int(agree.sum()), rms
 
 
-def locate_turn(plan: Plan, layouts, yaws, **kw) -> list[Located]:
-    """Poses of the FIRST of several photos taken at one place (a turn: ``yaws`` (K,) each
-    photo's yaw relative to the first, radians, > 0 right) on ``plan``, best first: their
-    layouts merged into one (``layout.merged``: more walls than any one photo shows) and
-    located as ``locate`` locates one photo (keyword arguments as there). Photo k's pose is
-    (x, z, yaw + yaws[k]).
+
+def locate_turn(plan: Plan, layouts, block, rel, **kw) -> tuple[np.ndarray, list[Located]]:
+    """Poses of K photos taken at one place (a turn) on ``plan``, best first: the block of
+    photos its rotation-only yaws join (``block`` (K,), ``rel`` (K,) each photo's yaw in its
+    block, radians, ``fuse.blocks``) with the most layouts has its layouts merged into one
+    (``layout.merged``: more walls than any one photo shows), located as ``locate`` locates
+    one photo (keyword arguments as there).
+
+    Returns:
+        (poses (C, K, 3): every photo of that block, NaN rows for the others; the C
+        ``Located`` of its first photo with a layout).
 
     Raises:
-        GeometryError: as ``locate``.
+        GeometryError: as ``locate``; HypothesisError: no layout.
     """
-    return locate(plan, merged(list(layouts), list(yaws)), **kw)
+    has = np.array([L is not None for L in layouts])
+    main = int(np.argmax(np.bincount(block, weights=has)))
+    idx = [k for k in range(len(layouts)) if block[k] == main and has[k]]
+    found = locate(plan, merged([layouts[k] for k in idx], [rel[k] - rel[idx[0]] for k in idx]),
+                   **kw)
+    poses = np.full((len(found), len(layouts), 3), np.nan)
+    for c, p in enumerate(found):
+        for k in np.flatnonzero(block == main):
+            poses[c, k] = (p.x, p.z, wrap(p.yaw + rel[k] - rel[idx[0]]))
+    return poses, found

@@ -84,20 +84,11 @@ def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
     turn's rotation-only yaws, on the plan's walls: ``findme locate-in PLAN.json PHOTO...``)
     and "turn photos" (with the plan's photos: ``session.find`` of the group)."""
     block, rel = session.turn(new)
-    has = np.array([p.layout is not None for p in new])
-    main = int(np.argmax(np.bincount(block, weights=has)))
-    idx = [k for k in range(len(new)) if block[k] == main and has[k]]
     try:
-        found = relocalise.locate_turn(plan, [new[k].layout for k in idx],
-                                       [rel[k] - rel[idx[0]] for k in idx])
-        first = np.array([(p.x, p.z, p.yaw) for p in found])
+        cands, _ = relocalise.locate_turn(plan, [p.layout for p in new], block, rel)
         for k, row in enumerate(rows):
-            if k not in idx:
-                row["turn walls"] = {"error": "not linked to the turn's other photos"}
-                continue
-            c = first.copy()
-            c[:, 2] = fuse.wrap(c[:, 2] + rel[k] - rel[idx[0]])
-            row["turn walls"] = _errors(c, truths[k])
+            row["turn walls"] = (_errors(cands[:, k], truths[k]) if np.isfinite(cands[0, k, 0])
+                                 else {"error": "not linked to the turn's other photos"})
     except FindmeError as e:
         for row in rows:
             row["turn walls"] = {"error": str(e).splitlines()[0]}
@@ -115,7 +106,6 @@ def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
 
 def _locate(plan, photos, new, truth, row) -> dict:
     """``row`` with photo ``new``'s errors on ``plan`` (made from ``photos``) both ways."""
-    yaw_t, t_t = truth
     for how in ("walls", "photos"):
         try:
             if how == "walls":       # findme locate-in PLAN.json PHOTO: the plan's walls only
@@ -129,11 +119,7 @@ def _locate(plan, photos, new, truth, row) -> dict:
         except FindmeError as e:
             row[how] = {"error": str(e).splitlines()[0]}
             continue
-        errs = [(float(np.hypot(c[0] - t_t[0], c[1] - t_t[1])),
-                 abs(math.degrees(float(fuse.wrap(c[2] - yaw_t))))) for c in cands]
-        ok = [e <= 0.25 and y <= 5.0 for e, y in errs]
-        row[how] = {"t_m": errs[0][0], "yaw_deg": errs[0][1], "ok": ok[0], "any_ok": any(ok),
-                    "candidates": len(cands),
+        row[how] = {**_errors(cands, truth),
                     "ambiguity": float(sc[1] / sc[0]) if len(sc) > 1 and sc[0] > 0 else 0.0}
     return row
 

@@ -89,7 +89,7 @@ def test_a_merged_turn_is_located_on_the_plans_walls():
     yaws = [math.radians(y - 30) for y in (30, 90, 150)]
     m = layout.merged(new, yaws)
     assert len(m.walls) == sum(len(x.walls) for x in new)
-    found = relocalise.locate_turn(plan, new, yaws)
+    _, found = relocalise.locate_turn(plan, new, np.zeros(3, int), np.array(yaws))
     best = np.array([found[0].x, found[0].z, found[0].yaw])
     assert _near(best, want[0], t=0.08, deg=1.5), (best, want[0])
 
