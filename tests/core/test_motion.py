@@ -119,7 +119,7 @@ POSES = [  # (A, B): level, tilted phone-like, sideways, and different heights (
 # the fit's own covariance, without the model errors the defaults add for real photos
 FIT_ONLY = MotionParams(scale_sigma=0.0, direction_sigma_deg=0.0, yaw_sigma_deg=0.0,
                         findme_scale_sigma=0.0, findme_direction_sigma_deg=0.0,
-                        findme_yaw_sigma_deg=0.0)
+                        findme_yaw_sigma_deg=0.0, findme_position_sigma_m=0.0)
 
 
 @pytest.mark.parametrize("method", ["findme", "features", "lifted"])
@@ -203,7 +203,8 @@ def test_sigma_covers_the_error_with_noisy_pixels():
 @pytest.mark.parametrize("method", ["findme", "features", "lifted", "paper"])
 def test_model_errors_are_added_along_and_across_the_baseline(method):
     """Defaults = the fit's covariance + (scale_sigma * baseline)^2 along the baseline,
-    (direction_sigma * baseline)^2 across it and yaw_sigma^2 on the yaw."""
+    (direction_sigma * baseline)^2 across it, position_sigma^2 on x and z and yaw_sigma^2
+    on the yaw."""
     poses = POSES[1]
     m, (ca, cb), la, lb = exact_pair(*poses)
     p = MotionParams()
@@ -212,12 +213,12 @@ def test_model_errors_are_added_along_and_across_the_baseline(method):
     assert (full.x, full.z, full.yaw) == (fit.x, fit.z, fit.yaw)
     base = math.hypot(fit.x, fit.z)
     ux, uz = fit.x / base, fit.z / base
-    scale, direction_deg, yaw_deg = p.model_errors(method)
+    scale, direction_deg, yaw_deg, position_m = p.model_errors(method)
     along, across = scale * base, math.radians(direction_deg) * base
     assert full.sigma_x ** 2 == pytest.approx(fit.sigma_x ** 2 + (along * ux) ** 2
-                                              + (across * uz) ** 2)
+                                              + (across * uz) ** 2 + position_m ** 2)
     assert full.sigma_z ** 2 == pytest.approx(fit.sigma_z ** 2 + (along * uz) ** 2
-                                              + (across * ux) ** 2)
+                                              + (across * ux) ** 2 + position_m ** 2)
     assert full.sigma_yaw == pytest.approx(math.hypot(fit.sigma_yaw, math.radians(yaw_deg)))
 
 

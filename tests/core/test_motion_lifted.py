@@ -24,7 +24,7 @@ from layout_rooms import exact_orientation
 POSE_A = Pose(0.0, -1.5, 1.4, 10.0, 20.0)
 POSE_B = Pose(0.8, 2.6, 1.4, -5.0)
 FIT_ONLY = MotionParams(findme_scale_sigma=0.0, findme_direction_sigma_deg=0.0,
-                        findme_yaw_sigma_deg=0.0)
+                        findme_yaw_sigma_deg=0.0, findme_position_sigma_m=0.0)
 
 
 def wall_pair(n=60, seed=0, pose_a=POSE_A, pose_b=POSE_B):
