@@ -65,3 +65,36 @@ def test_no_photo_and_one_photo():
     assert session.auto_spots([], None) == ([], [])
     photos = _photos([Pose(0.0, 0.0, H, 0.0, 25.0, 0.0)])
     assert session.auto_spots(photos, _match(photos)) == ([0], [])
+
+
+def _tilted(cam, dpitch, droll):
+    from findme_core.manhattan import gravity_of, pitch_roll_deg
+    p, r = pitch_roll_deg(cam.gravity)
+    return cam.with_gravity(gravity_of(p + dpitch, r + droll))
+
+
+def test_a_turn_is_found_when_the_photos_gravities_disagree(turn_with_gaps):
+    """A phone's gravity is never exact: B's 1.5 deg off moves its bearings ~12 px, and the
+    yaw alone finds no turn; the whole rotation does, with the true yaw."""
+    from findme_core import spot
+    photos, poses = turn_with_gaps
+    m = features.match(photos[0].features, photos[1].features)
+    cam_a, cam_b = photos[0].camera, _tilted(photos[1].camera, 1.2, -0.9)
+    assert spot._yaw_only(*_level(m, cam_a, cam_b), spot.SpotParams()) is None
+    found = spot.rotation_yaw(m, cam_a, cam_b)
+    true = math.radians(poses[1].yaw_deg - poses[0].yaw_deg)
+    assert found is not None and found.inliers >= 10 and found.rms_px < 2.0
+    # B's level frame is itself off by its tilt: ~ droll sin(pitch) = 0.4 deg leaks into yaw
+    assert abs(np.angle(np.exp(1j * (found.yaw - true)))) < math.radians(0.6)
+    # two spots stay apart (parallax), and a tilt beyond the tolerance is not a turn
+    for i, j in ((0, 4), (1, 5)):
+        mm = features.match(photos[i].features, photos[j].features)
+        assert spot.rotation_yaw(mm, photos[i].camera, _tilted(photos[j].camera, 1.0, 0.5)) is None
+    assert spot.rotation_yaw(m, cam_a, _tilted(photos[1].camera, 4.0, 0.0)) is None
+
+
+def _level(m, cam_a, cam_b):
+    from findme_core import spot
+    ba, bb = spot._bearings(cam_a, m.ua), spot._bearings(cam_b, m.ub)
+    yaws = np.arctan2(ba[:, 0], ba[:, 2]) - np.arctan2(bb[:, 0], bb[:, 2])
+    return ba, bb, yaws, spot.SpotParams().residual_px / cam_a.fx
