@@ -4,9 +4,10 @@
 
 Per photo, once, when its frame arrives: its camera and ORB features (the image is then
 dropped). When its hypotheses and selection are in (in any order: what is missing is fetched
-from the bus when someone caches it, else awaited): its layout under the selected boundary
-(a new selection rebuilds it); a photo whose hypothesis set is empty takes part without a
-layout. Between photos, as ``findme plan`` relates them (``session.relate``): spots found
+from the bus when someone caches it, else awaited): its layout under the selected boundary,
+with the camera the hypotheses were built with (their gravity: the frame's refined by the
+image, or the image's own; a new selection rebuilds it); a photo whose hypothesis set is
+empty takes part without a layout. Between photos, as ``findme plan`` relates them (``session.relate``): spots found
 from the photos (``session.auto_spots``: a photo joins a spot when it turned from any photo
 of it, so a turn with left-out views stays one spot), feature matches and two-photo
 motions; each pair's matches, turn and motion are computed once and kept (a motion again
@@ -43,7 +44,7 @@ import schemas
 from findme_core import features, fuse, layout, plan_pose, session as plan_session
 from findme_core.errors import FindmeError, HypothesisError, InputError
 from findme_core.scene import Scene
-from findme_io.convert import frame_camera, msg_hypotheses
+from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from findme_io.imageio import decode_image
 
 from ..runtime import bus
@@ -179,16 +180,24 @@ class MapperHandler(Handler):
         if ph.photo is not None and ph.key == (rank, height):
             return
         h = 1.0 if height is None else float(height)
+        # the camera the hypotheses were built with: its gravity is the one the boundary was
+        # found under (estimated from the image, or the frame's refined by it)
+        cam = ph.camera
         L, sc, why = None, None, ph.hset.reason or "no hypotheses"
+        try:
+            if ph.hset.HasField("camera"):
+                cam = msg_camera(ph.hset.camera)
+        except FindmeError as e:
+            hyps, why = [], f"its hypotheses' camera: {str(e).splitlines()[0][:200]}"
         if hyps:
             hyp = hyps[rank - 1]
             try:
-                L = layout.from_hypothesis(ph.camera, h, hyp.polyline, hyp.kinds, 1)
-                sc = Scene(ph.camera, h, hyp.polyline, hyp.kinds)
+                L = layout.from_hypothesis(cam, h, hyp.polyline, hyp.kinds, 1)
+                sc = Scene(cam, h, hyp.polyline, hyp.kinds)
                 why = None
             except FindmeError as e:
                 why = str(e).splitlines()[0][:200]
-        ph.photo = plan_session.Photo(ph.camera, h, L, sc, ph.features, why)
+        ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why)
         ph.key = (rank, height)
         for pk in [pk for pk in st.pairs if pk[0] == "motion" and n in pk[1:]]:
             del st.pairs[pk]   # motions lift with the scene; matches and turns stay

@@ -18,7 +18,9 @@ import pytest
 import schemas
 from findme_core import fuse, polygon, session as plan_session
 from findme_core.errors import HypothesisError, InputError
+from findme_core.provenance import Provenance, tilt_cov
 from findme_core.room import Room
+from findme_io.convert import camera_msg
 from services.pipeline.mapper import MapperHandler
 from services.runtime.service import Service
 from tests.services.conftest import Collector
@@ -73,6 +75,28 @@ def test_the_plan_of_the_rendered_room_is_exact(room, mapped):
     assert all(0 < q.sigma_x_m < 0.1 and 0 < q.sigma_z_m < 0.1 for q in plan.poses[6:])
     assert all(0 < q.sigma_yaw_rad < math.radians(3) for q in plan.poses[1:])
     assert set(plan.timing_ms) == {"relate", "place", "plan"}
+
+
+def test_the_layouts_lift_with_the_camera_the_hypotheses_were_built_with(room):
+    """Frames without gravity (a photo without sensors): the hypotheses service estimated
+    it from the image and built the boundary under it, and its hypothesis set carries that
+    camera. The mapper lifts the boundary with that camera: with the frame's (level, here
+    28 deg from the truth) the walls would land metres off."""
+    m = MapperHandler()
+    plans = []
+    for key, msg in room.messages():
+        kind, n = key.split("/")[2], int(key.split("/")[3])
+        if kind in ("frame", "hypotheses"):
+            msg = type(msg).FromString(msg.SerializeToString())
+            if kind == "frame":
+                msg.ClearField("gravity")
+            else:
+                msg.camera.CopyFrom(camera_msg(room.views[n].camera,
+                                               Provenance("input", "image", tilt_cov(0.005))))
+        plans += [o.msg for o in m.on_message(key, msg)]
+    V, T = _vertices(plans[-1]), room.polygon
+    assert plans[-1].closed and len(V) == len(T)
+    assert np.linalg.norm(V[:, None] - T[None], axis=2).min(1).max() < 0.04
 
 
 def test_the_plan_grows_photo_by_photo(mapped):
