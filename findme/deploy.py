@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 import sys
 import threading
@@ -143,10 +144,14 @@ def _open(args, mode=None, connect_timeout_s: float | None = None) -> zenoh.Sess
 
 
 def _lens(args) -> Lens:
+    if args.gravity_sigma is not None and not 0.0 <= args.gravity_sigma <= 20.0:
+        raise InputError(f"--gravity-sigma must be 0-20 degrees, got {args.gravity_sigma:g}")
     return Lens(intrinsics=floats(args.intrinsics, 4, "--intrinsics") if args.intrinsics else None,
                 hfov_deg=args.hfov,
                 gravity=floats(args.gravity, 3, "--gravity") if args.gravity else None,
-                camera_height_m=args.camera_height)
+                camera_height_m=args.camera_height,
+                gravity_sigma_rad=(None if args.gravity_sigma is None
+                                   else math.radians(args.gravity_sigma)))
 
 
 def _logging(level=logging.INFO, args=None):

@@ -7,12 +7,19 @@ only its two view ids (``a``, ``b``): the motion comes from the two views' image
 (rank-1 hypothesis of each chosen, the next ranks as candidate layouts). The result is the same on a copy of the dataset with its ground
 truth removed.
 
+A view's ``gravity_cam`` (exact: from the panorama, the depth's floor plane) is taken as it
+is, with a 1-sigma of ``--gravity-sigma`` degrees (default
+``provenance.INPUT_GRAVITY_SIGMA_DEG``) for the 3D sigmas. ``--gravity-refine`` does what the
+services do with a phone's gravity: combine it with the photo's vanishing directions near it
+(``gravity_fusion``). ``--gravity-noise DEG`` simulates a phone's sensor error: every view's
+gravity is tilted by a random N(0, DEG) in pitch and in roll, seeded by the view's id.
 ``--no-gravity`` withholds every view's ``gravity_cam``: gravity then comes from the image
-(vanishing directions) or is assumed level, as for a photo without sensors. Each view's
-prediction says which gravity it used (``gravity_cam``), where it came from
-(``gravity_source``: input, image or level), its 1-sigma (``gravity_sigma_deg``) and the
-1-sigma of every 3D point (``<kind>_sigma_m``, metres), so the estimate can be scored against
-the dataset's gravity and the sigmas against the errors (``tools/gravity_report.py``).
+(vanishing directions) or is assumed level, as for a photo without sensors. Pairs
+take the gravity their views end with, as the services do. Each view's prediction says which
+gravity it used (``gravity_cam``), where it came from (``gravity_source``: input,
+input+image, image or level), its 1-sigma (``gravity_sigma_deg``) and the 1-sigma of every 3D
+point (``<kind>_sigma_m``, metres), so the estimate can be scored against the dataset's
+gravity and the sigmas against the errors (``tools/gravity_report.py``).
 """
 
 from __future__ import annotations
@@ -21,16 +28,20 @@ import json
 import math
 import os
 import sys
+import zlib
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 
 import multiprocessing as mp
 
 import cv2
+import numpy as np
 from tqdm import tqdm
 
 from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
-from findme_core.provenance import Provenance
+from findme_core.manhattan import gravity_of, pitch_roll_deg
+from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
 from findme_core.methods import METHODS
 from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.scene import Scene, boundary_sigma_px
@@ -56,8 +67,18 @@ def register(sub) -> None:
                         "findme; features = the matches alone, the default before layouts); "
                         "with several, the first goes to --out and each other one to "
                         "OUT.<name>.json, from the same features and hypotheses")
-    p.add_argument("--no-gravity", action="store_true",
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--no-gravity", action="store_true",
                    help="withhold the views' gravity_cam: gravity from the image, else level")
+    g.add_argument("--gravity-noise", type=float, default=0.0, metavar="DEG",
+                   help="simulate a phone's sensor: tilt every view's gravity by a random "
+                        "N(0, DEG) in pitch and roll (seeded by the view id)")
+    p.add_argument("--gravity-sigma", type=float, default=None, metavar="DEG",
+                   help="declared 1-sigma of the given gravity (default %.1f, a phone held "
+                        "still)" % INPUT_GRAVITY_SIGMA_DEG)
+    p.add_argument("--gravity-refine", action="store_true",
+                   help="combine the given gravity with the photo's vanishing directions, as "
+                        "the services do with a phone's")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
     p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
                    help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
@@ -75,25 +96,81 @@ def view_inputs(meta: dict) -> tuple[Camera, float, dict]:
     return cam, float(meta.get("camera_height_m") or 1.0), queries
 
 
-def view_camera(meta: dict, image, use_gravity: bool = True) -> tuple[Camera, Provenance]:
-    """A view's camera from its intrinsics, and its gravity: ``gravity_cam`` (source input)
-    or, when withheld or absent, the image's estimate (``camera_source.with_gravity``)."""
+@dataclass(frozen=True)
+class GravityInput:
+    """How a view's ``gravity_cam`` reaches the estimator (see the module doc).
+
+    Attributes:
+        given: False withholds it (``--no-gravity``).
+        sigma_deg: its declared 1-sigma per axis, degrees (None:
+            ``INPUT_GRAVITY_SIGMA_DEG``; 0: exact).
+        noise_deg: a simulated sensor's error: N(0, noise) degrees on pitch and on roll,
+            seeded by the view id.
+        refine: combined with the photo's vanishing directions (``gravity_fusion``), as the
+            services do; else taken as it is.
+    """
+
+    given: bool = True
+    sigma_deg: float | None = None
+    noise_deg: float = 0.0
+    refine: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_deg", "noise_deg"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and 0.0 <= v <= 20.0):
+                raise InputError(f"gravity {name.replace('_deg', '')} must be 0-20 degrees, "
+                                 f"got {v!r}")
+
+    def describe(self) -> str:
+        """How the gravity was given, for the predictions file."""
+        if not self.given:
+            return "withheld: from the image, else level"
+        sigma = INPUT_GRAVITY_SIGMA_DEG if self.sigma_deg is None else self.sigma_deg
+        return ("given" + (f" with simulated sensor noise N(0, {self.noise_deg:g} deg) per axis"
+                           if self.noise_deg else "")
+                + f", declared 1-sigma {sigma:g} deg"
+                + (", combined with the image's vanishing directions" if self.refine else ""))
+
+    def of(self, meta: dict):
+        """(gravity (3,) or None, declared 1-sigma in radians or None) of a view."""
+        g = meta.get("gravity_cam") if self.given else None
+        if g is None:
+            return None, None
+        if self.noise_deg > 0:
+            rng = np.random.default_rng(zlib.crc32(str(meta.get("id", "")).encode()))
+            pitch, roll = pitch_roll_deg(np.asarray(g, float) / np.linalg.norm(g))
+            g = gravity_of(*(np.array([pitch, roll]) + rng.normal(0.0, self.noise_deg, 2)))
+        return g, None if self.sigma_deg is None else math.radians(self.sigma_deg)
+
+
+def _gravity_input(gravity) -> GravityInput:
+    return gravity if isinstance(gravity, GravityInput) else GravityInput(given=bool(gravity))
+
+
+def view_camera(meta: dict, image, gravity: GravityInput | bool = True
+                ) -> tuple[Camera, Provenance]:
+    """A view's camera from its intrinsics, and its gravity as ``gravity`` gives it
+    (``GravityInput``; True: as it is, False: withheld) through
+    ``camera_source.with_gravity``: the given one (combined with the image's vanishing
+    directions when refined), or the image's estimate alone when withheld or absent."""
     cam, _, _ = view_inputs(meta)
-    g = meta.get("gravity_cam") if use_gravity else None
-    return with_gravity(cam, image, g)
+    gi = _gravity_input(gravity)
+    g, sigma = gi.of(meta)
+    return with_gravity(cam, image, g, sigma, estimate=g is None or gi.refine)
 
 
 def predict_view(args) -> tuple[str, dict | None, str | None]:
     """Prediction for one view: ranked polylines and the 3D of each query pixel."""
     view_dir, vid, method, max_n, *rest = args
-    use_gravity = rest[0] if rest else True
+    gravity = rest[0] if rest else True
     cv2.setNumThreads(1)
     try:
         with open(os.path.join(view_dir, vid + ".json")) as f:
             meta = json.load(f)
         _, h, queries = view_inputs(meta)
         image = read_image(os.path.join(view_dir, meta["image"]))
-        cam, prov = view_camera(meta, image, use_gravity)
+        cam, prov = view_camera(meta, image, gravity)
         hs, cam, prov = hypothesize_photo(image, cam, prov, method, max_n)
         pred = {"hypotheses": [h_.polyline.round(3).tolist() for h_ in hs.hypotheses],
                 "gravity_cam": [round(float(x), 6) for x in cam.gravity],
@@ -121,20 +198,21 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
         return vid, None, str(e)
 
 
-def pair_inputs(pair_dir, view_dir, pid: str, use_gravity: bool = True) -> tuple[dict, list]:
+def pair_inputs(pair_dir, view_dir, pid: str, gravity: GravityInput | bool = True
+                ) -> tuple[dict, list]:
     """A dataset pair's record and, for its photos A and B, (image, camera, camera height);
-    of each view only its inputs are read (``view_inputs``; ``view_camera`` estimates gravity
-    when ``use_gravity`` is False)."""
+    of each view only its inputs are read (``view_inputs``), its camera with the gravity the
+    view's own prediction ends with (``view_camera``, then ``hypothesize_photo``)."""
     with open(os.path.join(pair_dir, pid + ".json")) as f:
         pair = json.load(f)
     photos = []
     for which in ("a", "b"):
         with open(os.path.join(view_dir, pair[which] + ".json")) as f:
             meta = json.load(f)
-        cam, h, _ = view_inputs(meta)
+        _, h, _ = view_inputs(meta)
         image = read_image(os.path.join(view_dir, meta["image"]))
-        if not use_gravity:   # the gravity the view's own prediction ends with
-            cam, prov = view_camera(meta, image, False)
+        cam, prov = view_camera(meta, image, gravity)
+        if prov.estimate is not None:   # the gravity the view's own prediction ends with
             cam = hypothesize_photo(image, cam, prov, max_n=1)[1]
         photos.append((image, cam, h))
     return pair, photos
@@ -143,11 +221,11 @@ def pair_inputs(pair_dir, view_dir, pid: str, use_gravity: bool = True) -> tuple
 def predict_pair(args) -> tuple[str, dict, dict]:
     """Motion of one pair by each method: ({method: {x_m, z_m, yaw_deg, ...}}, {method: error})."""
     pair_dir, view_dir, pid, hyp_method, methods, *rest = args
-    use_gravity = rest[0] if rest else True
+    gravity = rest[0] if rest else True
     cv2.setNumThreads(1)
     preds, errs = {}, {}
     try:
-        _, photos = pair_inputs(pair_dir, view_dir, pid, use_gravity)
+        _, photos = pair_inputs(pair_dir, view_dir, pid, gravity)
         pa, pb = [photo_of(image, cam, h, 1, hyp_method, which)
                   for (image, cam, h), which in zip(photos, "AB")]
         for method, r in motion_photos(pa, pb, methods).items():
@@ -189,11 +267,11 @@ def cmd_eval(args) -> int:
         raise InputError(f"{args.dataset}: no index.json (not a findme-eval dataset)") from None
     view_dir = os.path.join(args.dataset, index.get("views_dir", "views"))
     views = sorted({v for ss in index["subsets"].values() for v in ss.get("views", [])})
-    use_gravity = not args.no_gravity
-    preds = {"views": {}, "pairs": {}, "method": args.method, "gravity": "given" if use_gravity
-             else "withheld: from the image, else level"}
+    gravity = GravityInput(not args.no_gravity, args.gravity_sigma, args.gravity_noise,
+                           args.gravity_refine)
+    preds = {"views": {}, "pairs": {}, "method": args.method, "gravity": gravity.describe()}
     failures = []
-    jobs = [(view_dir, v, args.method, args.max, use_gravity) for v in views]
+    jobs = [(view_dir, v, args.method, args.max, gravity) for v in views]
     bar = tqdm(total=len(jobs), desc=f"views ({args.method})", unit="view", file=sys.stderr)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=mp.get_context("spawn")) as ex:
@@ -209,7 +287,7 @@ def cmd_eval(args) -> int:
     pairs = sorted({p for ss in index["subsets"].values() for p in ss.get("pairs", [])})
     by_method = {m: {} for m in motion_methods}
     pair_failures = {m: [] for m in motion_methods}
-    jobs = [(pair_dir, view_dir, p, args.method, motion_methods, use_gravity) for p in pairs]
+    jobs = [(pair_dir, view_dir, p, args.method, motion_methods, gravity) for p in pairs]
     bar = tqdm(total=len(jobs), desc=f"pairs ({','.join(motion_methods)})", unit="pair",
                file=sys.stderr)
 

@@ -90,7 +90,8 @@ def cmd_motion(args) -> int:
     for path, grav, flag in ((args.image_a, args.gravity_a, "--gravity-a"),
                              (args.image_b, args.gravity_b, "--gravity-b")):
         photo = read_photo(path)   # lens: flags, else EXIF; gravity: flag, else the image
-        cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, grav, flag)
+        cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, grav, flag,
+                                      getattr(args, "gravity_sigma", None))
         images.append(photo.image)
         cams.append(cam)
         sources.append(camera_json(cam, prov))
@@ -130,6 +131,7 @@ def cmd_motion(args) -> int:
     for which, s in zip("AB", sources):
         g = s["gravity"]
         note = {"input": "given", "image": f"from the photo's lines, ± {g['sigma_deg']:.1f} deg",
+                "input+image": f"given, refined by the photo's lines, ± {g['sigma_deg']:.1f} deg",
                 "level": "NOT KNOWN: level assumed"}[g["source"]]
         print(f"  photo {which}: camera {s['camera']['hfov_deg']:.1f} deg ({s['camera']['source']}), "
               f"pitch {g['pitch_deg']:+.1f} roll {g['roll_deg']:+.1f} deg ({note})", file=sys.stderr)

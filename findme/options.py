@@ -9,8 +9,9 @@ from __future__ import annotations
 import argparse
 import math
 
-from findme_core.camera import DEFAULT_HFOV_DEG, Camera
+from findme_core.camera import DEFAULT_HFOV_DEG
 from findme_core.errors import CameraError, InputError
+from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG
 
 
 def floats(text: str, n: int, name: str) -> tuple[float, ...]:
@@ -48,35 +49,31 @@ def add_camera_args(p: argparse.ArgumentParser, gravity_flags=("--gravity",)) ->
     for flag in gravity_flags:
         p.add_argument(flag, metavar="GX,GY,GZ",
                        help="gravity in camera coordinates (x right, y down, z forward), e.g. "
-                            "from the phone's accelerometer; default: estimated from the "
-                            "photo's vertical and horizontal lines, else level (0,1,0)")
-
-
-def camera_from(width: int, height: int, hfov: float | None = None,
-                intrinsics: str | None = None, gravity: str | None = None,
-                gravity_name: str = "--gravity") -> Camera:
-    """A Camera for an image of the given size from user-facing flag values."""
-    g = floats(gravity, 3, gravity_name) if gravity else None
-    try:
-        if intrinsics:
-            fx, fy, cx, cy = floats(intrinsics, 4, "--intrinsics")
-            return Camera(fx, fy, cx, cy, width, height, g)
-        return Camera.from_hfov(DEFAULT_HFOV_DEG if hfov is None else hfov, width, height, g)
-    except CameraError as e:
-        raise InputError(str(e)) from None
+                            "from the phone's accelerometer, refined by the photo's vertical "
+                            "and horizontal lines near it; default: estimated from those "
+                            "lines, else level (0,1,0)")
+    p.add_argument("--gravity-sigma", type=finite_float, metavar="DEG",
+                   help=f"1-sigma of the given gravity's tilt per axis, degrees (default "
+                        f"{INPUT_GRAVITY_SIGMA_DEG:g}, a phone held still; 0: exact, taken as "
+                        "it is)")
 
 
 def photo_camera_from(photo, hfov: float | None = None, intrinsics: str | None = None,
-                      gravity: str | None = None, gravity_name: str = "--gravity"):
+                      gravity: str | None = None, gravity_name: str = "--gravity",
+                      gravity_sigma_deg: float | None = None):
     """(Camera, Provenance) of a decoded ``findme_io.imageio.Photo`` from flag values: flags
-    first, then the photo's EXIF and its vanishing directions, then the defaults."""
+    first (a given gravity refined by the photo's lines unless its sigma is 0), then the
+    photo's EXIF and its vanishing directions, then the defaults."""
     from findme_io.camera_source import photo_camera
     g = floats(gravity, 3, gravity_name) if gravity else None
     k = floats(intrinsics, 4, "--intrinsics") if intrinsics else None
     if hfov is not None and not (0.0 < hfov < 180.0):
         raise InputError(f"--hfov: the horizontal field of view must be in (0, 180) degrees, got {hfov:g}")
+    if gravity_sigma_deg is not None and not 0.0 <= gravity_sigma_deg <= 20.0:
+        raise InputError(f"--gravity-sigma must be 0-20 degrees, got {gravity_sigma_deg:g}")
+    sigma = None if gravity_sigma_deg is None else math.radians(gravity_sigma_deg)
     try:
-        return photo_camera(photo.image, photo.exif, k, hfov, g)
+        return photo_camera(photo.image, photo.exif, k, hfov, g, sigma)
     except CameraError as e:
         raise InputError(str(e)) from None
 

@@ -5,8 +5,10 @@ Photos are given in capture order: stand at a spot, turn right taking photos til
 see the floor, move to the next spot. Each photo's camera comes from its sidecar
 ``PHOTO.json`` when there is one (the findme-eval view format: ``intrinsics``,
 ``gravity_cam``, ``camera_height_m``), else from ``--hfov`` / ``--gravity`` /
-``--camera-height``. The plan's frame is the level frame of the first photo (x right, z
-forward, metres); degrees only here, at the edge.
+``--camera-height`` and the photo's EXIF; its gravity is refined by the photo's own lines
+(``--gravity-sigma 0``: exact), or estimated from them when none is given. The plan's frame
+is the level frame of the first photo (x right, z forward, metres); degrees only here, at
+the edge.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from findme_core.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.floorplan import Plan
 
-from findme_io.imageio import read_image
+from findme_io.camera_source import hypothesize_photo, with_gravity
+from findme_io.imageio import read_image, read_photo
 from findme_io.plan_svg import plan_svg
-from .options import add_camera_args, camera_from, camera_height
+from .options import add_camera_args, camera_height, photo_camera_from
 
 _SPOT = re.compile(r"_p(\d+)_")
 
@@ -67,23 +70,31 @@ def register(sub) -> None:
 
 
 def photo_inputs(path: str, args) -> tuple:
-    """(image, camera, height, metric) of one photo: the sidecar's inputs, else the flags."""
-    img = read_image(path)
+    """(image, camera, height, metric) of one photo: the sidecar's inputs, else the flags,
+    then the photo's EXIF; its gravity as ``findme hypotheses`` takes it (a given one refined
+    by the photo's lines unless ``--gravity-sigma 0``, else estimated from them)."""
+    photo = read_photo(path)
+    img = photo.image
+    sigma = None if args.gravity_sigma is None else math.radians(args.gravity_sigma)
     side = os.path.splitext(path)[0] + ".json"
     if os.path.exists(side):
         try:
             with open(side) as f:
                 meta = json.load(f)
             k = meta["intrinsics"]
-            cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], img.shape[1], img.shape[0],
-                         meta.get("gravity_cam"))
-            if args.camera_height is None and meta.get("camera_height_m"):
-                return img, cam, float(meta["camera_height_m"]), True
-            h, metric = camera_height(args.camera_height)
-            return img, cam, h, metric
+            cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], img.shape[1], img.shape[0])
+            height = meta.get("camera_height_m")
+            cam, prov = with_gravity(cam, img, meta.get("gravity_cam"), sigma)
         except (OSError, KeyError, TypeError, ValueError) as e:
             raise InputError(f"{side}: not a camera sidecar ({e})") from None
-    cam = camera_from(img.shape[1], img.shape[0], args.hfov, args.intrinsics, args.gravity)
+    else:
+        height = None
+        cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, args.gravity,
+                                      gravity_sigma_deg=args.gravity_sigma)
+    if prov.estimate is not None:      # the gravity the photo's hypotheses end with
+        cam = hypothesize_photo(img, cam, prov, max_n=1)[1]
+    if args.camera_height is None and height:
+        return img, cam, float(height), True
     h, metric = camera_height(args.camera_height)
     return img, cam, h, metric
 

@@ -67,7 +67,8 @@ def argparse_suppress():
 def _load(args):
     """(image, Camera, Provenance) of the photo: flags, else EXIF and the image, else defaults."""
     photo = read_photo(args.image)
-    cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, getattr(args, "gravity", None))
+    cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, getattr(args, "gravity", None),
+                                  gravity_sigma_deg=getattr(args, "gravity_sigma", None))
     return photo.image, cam, prov
 
 
@@ -134,6 +135,7 @@ def _say_sources(out: dict) -> None:
     c, g = out["camera"], out["gravity"]
     text = {"input": "given", "exif": "from the photo's EXIF", "default": "assumed"}[c["source"]]
     gtext = {"input": "given", "image": f"from the photo's lines (± {g['sigma_deg']:.1f} deg)",
+             "input+image": f"given, refined by the photo's lines (± {g['sigma_deg']:.1f} deg)",
              "level": f"NOT KNOWN: level assumed (± {g['sigma_deg']:.0f} deg), give --gravity"}
     print(f"  camera {c['hfov_deg']:.1f} deg wide ({text}); gravity pitch {g['pitch_deg']:+.1f} "
           f"roll {g['roll_deg']:+.1f} deg ({gtext[g['source']]})", file=sys.stderr)

@@ -89,13 +89,12 @@ class Camera:
         if not (0.0 < float(hfov_deg) < 180.0):
             raise CameraError(f"horizontal field of view must be in (0, 180) degrees, got {hfov_deg}")
         f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-        return cls(f, f, (width - 1) / 2.0, (height - 1) / 2.0, width, height,
-                   _as_gravity(gravity))
+        return cls(f, f, (width - 1) / 2.0, (height - 1) / 2.0, width, height, gravity)
 
     def with_gravity(self, gravity) -> "Camera":
-        """The same intrinsics with another gravity vector."""
-        return Camera(self.fx, self.fy, self.cx, self.cy, self.width, self.height,
-                      _as_gravity(gravity))
+        """The same intrinsics with another gravity vector (normalised once, as the
+        constructor does: the same vector gives the same camera either way)."""
+        return Camera(self.fx, self.fy, self.cx, self.cy, self.width, self.height, gravity)
 
     def scaled(self, s: float) -> "Camera":
         """The camera of the image resized by factor ``s`` (pixel-centre convention kept)."""

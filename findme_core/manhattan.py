@@ -115,6 +115,12 @@ def pitch_roll_deg(g: np.ndarray) -> tuple[float, float]:
             math.degrees(math.atan2(g[0], g[1])))
 
 
+def gravity_of(pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """(3,) unit gravity of a tilt, the inverse of ``pitch_roll_deg``."""
+    P, R = math.radians(pitch_deg), math.radians(roll_deg)
+    return np.array([math.cos(P) * math.sin(R), math.cos(P) * math.cos(R), math.sin(P)])
+
+
 def level_axes(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(x, z) of the level frames of gravities G (M, 3): x = right, z = forward, both
     horizontal (z is the optical axis projected)."""

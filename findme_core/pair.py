@@ -122,6 +122,13 @@ def photo_lines(hs, image) -> np.ndarray:
     return _full_size(np.asarray(hs.lines.ends, float).reshape(-1, 4), _work_scale(image))
 
 
+def segment_lines(segments, image) -> np.ndarray:
+    """(N, 4) the merged lines of a whole-frame detection (``segments.photo_segments``, as a
+    gravity estimate carries it) in the photo's pixels: what ``line_segments`` detects,
+    without detecting again."""
+    return _full_size(merge_collinear(segments.segs).ends, _work_scale(image))
+
+
 def line_segments(image) -> np.ndarray:
     """(N, 4) the photo's merged straight lines [u1, v1, u2, v2] in its pixels, as
     ``methods.hypothesize`` finds them (same working size, detector and settings), for a

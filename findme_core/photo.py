@@ -1,6 +1,8 @@
-"""A photo without gravity to its hypotheses: gravity and boundary from one detection.
+"""A photo's gravity and hypotheses from one detection of its lines.
 
-With gravity (a phone's sensors) a photo goes straight to ``methods.hypothesize``. Without:
+With an exact gravity a photo goes straight to ``methods.hypothesize``. Without gravity, or
+with a sensor's (``gravity_fusion.with_sensor``: steps 1-2 near the sensor's tilt, combined
+with it):
 
 1. the whole-frame segments at the working size are detected once
    (``segments.photo_segments``);
@@ -23,6 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from .camera import Camera
+from .gravity_fusion import FUSED, fused
 from .hypotheses import HypothesisSet
 from .methods import hypothesize
 from .segments import WORK_SIZE
@@ -43,16 +46,19 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
     Args:
         image: (H, W, 3) uint8 BGR, the size of ``camera``.
         camera: the photo's intrinsics (its gravity is replaced by the estimate's).
-        est: ``estimate_gravity`` of this photo (its segments are reused).
+        est: ``estimate_gravity`` of this photo, or ``gravity_fusion.with_sensor`` (its
+            segments are reused; a re-estimate is combined with the sensor's again).
     Returns:
         (hypotheses under the final gravity, the final estimate).
     """
     hs = hypothesize(image, camera.with_gravity(est.vector), method, max_n, work_size, clock,
                      segments=est.segments)
-    if not hs.hypotheses or est.source != "image":
+    if not hs.hypotheses or est.source not in ("image", FUSED):
         return hs, est
     t0 = clock() if clock else 0.0
     joint = with_floor(est, hs.hypotheses[0].polyline, params)
+    if joint is not est and est.prior is not None:
+        joint = fused(joint, est.prior)    # the sensor's gravity still counts
     timing = dict(hs.timing_ms)
     if clock:
         timing["gravity_floor"] = 1e3 * (clock() - t0)

@@ -2,9 +2,10 @@
 
 * camera source: "input" (given: flags, the frame's lens, a dataset's intrinsics), "exif"
   (the photo's EXIF focal length), "default" (``camera.DEFAULT_HFOV_DEG``);
-* gravity source: "input" (given: the phone's sensors, flags, a dataset), "image"
-  (vanishing directions, ``vanishing.estimate_gravity``), "level" (assumed: the image could
-  not tell).
+* gravity source: "input" (given: the phone's sensors, flags, a dataset; exact, or the
+  image could not refine it), "input+image" (a given gravity combined with the image's
+  vanishing directions near it, ``gravity_fusion``), "image" (vanishing directions alone,
+  ``vanishing.estimate_gravity``), "level" (assumed: the image could not tell).
 
 ``gravity_cov`` is the (2, 2) covariance (rad^2) of gravity's tilt about the level frame's
 x axis (pitch) and z axis (roll); ``scene.Scene`` propagates it into every 3D sigma.
@@ -20,7 +21,7 @@ import numpy as np
 from .errors import CameraError
 
 CAMERA_SOURCES = ("input", "exif", "default")
-GRAVITY_SOURCES = ("input", "image", "level")
+GRAVITY_SOURCES = ("input", "input+image", "image", "level")
 #: 1-sigma of a given gravity (a phone held still: its accelerometer's tilt error), degrees.
 INPUT_GRAVITY_SIGMA_DEG = 0.5
 

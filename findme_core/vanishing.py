@@ -91,12 +91,15 @@ class GravityEstimate:
         vector: (3,) unit gravity (down) in camera coordinates.
         cov: (2, 2) covariance of gravity's tilt, rad^2, about the level frame's x axis
             (pitch) and z axis (roll) of ``vector``.
-        source: "image" (vanishing directions) or "level" (assumed).
+        source: "image" (vanishing directions), "level" (assumed), or with a sensor's
+            gravity (``gravity_fusion``): "input+image" (both combined) or "input" (the
+            sensor's alone).
         lines: (vertical, horizontal) inlier line counts.
-        reason: why "level" was assumed, else None.
+        reason: why "level" (or the sensor's alone) was taken, else None.
         segments: the whole-frame segments it was estimated from (for the hypotheses of
             the same photo: ``methods.hypothesize(segments=...)``), or None.
         evidence: (lines, K of the working size) it was estimated from, for ``with_floor``.
+        prior: (gravity (3,), tilt covariance (2, 2)) of the sensor it was combined with.
     """
 
     vector: np.ndarray
@@ -106,6 +109,7 @@ class GravityEstimate:
     reason: str | None = None
     segments: Segments | None = field(default=None, compare=False, repr=False)
     evidence: tuple | None = field(default=None, compare=False, repr=False)
+    prior: tuple | None = field(default=None, compare=False, repr=False)
 
     @property
     def sigma(self) -> float:
@@ -260,7 +264,8 @@ def with_floor(est: GravityEstimate, polyline: np.ndarray,
     horizontal in unknown directions, so they may only count as vertical lines. Without
     them the frame is searched within ``floor_window_deg`` of ``est`` and refined; the new
     estimate is taken when it explains the remaining lines better by ``min_gain``.
-    Nothing changes when ``est`` is not from the image, when the floor region holds more
+    Nothing changes when ``est`` is not from the image (alone or combined with a sensor's:
+    the new estimate is then the image's alone), when the floor region holds more
     than ``max_floor_vertical_px`` of vertical lines (objects stand there: it is not the
     floor's edge) or less than ``min_floor_px`` of other lines (nothing pulls).
 
@@ -271,7 +276,7 @@ def with_floor(est: GravityEstimate, polyline: np.ndarray,
         ``est`` itself, or the joint estimate.
     """
     p = params
-    if est.source != "image" or est.evidence is None:
+    if est.source not in ("image", "input+image") or est.evidence is None:
         return est
     L, K, s = est.evidence
     poly = (np.asarray(polyline, float).reshape(-1, 2) + 0.5) * s - 0.5   # to working pixels

@@ -17,6 +17,7 @@ import numpy as np
 from dataclasses import replace
 
 from findme_core.camera import DEFAULT_HFOV_DEG, Camera
+from findme_core.gravity_fusion import with_sensor
 from findme_core.hypotheses import HypothesisSet
 from findme_core.methods import hypothesize
 from findme_core.photo import hypothesize_estimated
@@ -57,20 +58,30 @@ def lens_camera(width: int, height: int, intrinsics=None, hfov_deg: float | None
 def with_gravity(camera: Camera, image: np.ndarray | None, gravity=None,
                  gravity_sigma_rad: float | None = None, estimate: bool = True,
                  camera_source: str = "input", notes=()) -> tuple[Camera, Provenance]:
-    """The camera with its gravity: the given one, else the image's estimate (when
-    ``estimate`` and an image is given), else level; and the provenance of both.
+    """The camera with its gravity and the provenance of both: the given one combined with
+    the image's vanishing directions near it (``gravity_fusion.with_sensor``: source
+    "input+image", or "input" when the image cannot tell); the given one as it is when
+    ``estimate`` is off, no image is given or its sigma is 0 (exact); without a given one,
+    the image's estimate (when ``estimate`` and an image is given), else level.
 
     Args:
         camera: intrinsics (its own gravity is ignored).
         image: (H, W, 3) uint8 BGR of ``camera``'s size, or None.
         gravity: (3,) given gravity in camera coordinates, or None.
         gravity_sigma_rad: 1-sigma of a given gravity per axis (default
-            ``INPUT_GRAVITY_SIGMA_DEG``).
+            ``INPUT_GRAVITY_SIGMA_DEG``; 0: exact).
     """
     if gravity is not None:
         s = math.radians(INPUT_GRAVITY_SIGMA_DEG) if gravity_sigma_rad is None else gravity_sigma_rad
-        return camera.with_gravity(gravity), Provenance(camera_source, "input", tilt_cov(s),
-                                                        tuple(notes))
+        cov = tilt_cov(s)
+        if not (estimate and image is not None) or s == 0.0:
+            return camera.with_gravity(gravity), Provenance(camera_source, "input", cov,
+                                                            tuple(notes))
+        camera.with_gravity(gravity)          # a bad vector is named as the caller gave it
+        est = with_sensor(image, camera, gravity, cov)
+        extra = (est.reason,) if est.reason else ()
+        return (camera.with_gravity(est.vector),
+                Provenance(camera_source, est.source, est.cov, tuple(notes) + extra, est))
     if not (estimate and image is not None):
         est = level_estimate("no gravity given and the image was not used: level assumed")
         return (camera.with_gravity(est.vector),

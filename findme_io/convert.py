@@ -148,7 +148,8 @@ def provenance_text(msg) -> str:
     k = msg.intrinsics
     hfov = math.degrees(2 * math.atan(k.width / (2 * k.fx))) if k.fx > 0 else float("nan")
     lens = {"input": "given", "exif": "from EXIF", "default": "assumed"}.get(msg.lens_source, "?")
-    grav = {"input": "given", "image": "from the image", "level": "LEVEL ASSUMED"}.get(
+    grav = {"input": "given", "input+image": "given, refined by the image",
+            "image": "from the image", "level": "LEVEL ASSUMED"}.get(
         msg.gravity_source, "?")
     return (f"camera {hfov:.1f} deg ({lens}); gravity {grav} "
             f"(± {math.degrees(msg.gravity_sigma_rad):.1f} deg)")

@@ -121,7 +121,7 @@ def _height(p: Problems, msg: Message, field: str = "camera_height_m",
 
 
 LENS_SOURCES = ("", "input", "exif", "default")
-GRAVITY_SOURCES = ("", "input", "image", "level")
+GRAVITY_SOURCES = ("", "input", "input+image", "image", "level")
 
 
 def _camera(p: Problems, name: str, c: common_pb2.Camera) -> None:

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from findme.evaluate import pair_inputs  # noqa: E402
+from findme.evaluate import GravityInput, pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion import MotionParams  # noqa: E402
 from findme_core.pair import motion_photos, photo_of  # noqa: E402
@@ -117,10 +117,10 @@ def _traced(methods):
 
 
 def diagnose(job):
-    split, pid, methods, params, why = job
+    split, pid, methods, params, why, gravity = job
     import cv2
     cv2.setNumThreads(1)
-    pair, photos = pair_inputs(split / "pairs", split / "views", pid)
+    pair, photos = pair_inputs(split / "pairs", split / "views", pid, gravity)
     g = pair["motion"]
     base = math.hypot(g["x_m"], g["z_m"])
     out = {"pair": pid, "baseline_m": base, "truth": g}
@@ -198,7 +198,14 @@ def main(argv=None) -> int:
                     help="what findme's registration weighed against the truth (module doc)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a MotionParams field (e.g. orientation_weight=20); repeatable")
+    ap.add_argument("--gravity-noise", type=float, default=0.0, metavar="DEG",
+                    help="as findme eval: a simulated sensor's N(0, DEG) tilt error")
+    ap.add_argument("--gravity-sigma", type=float, default=None, metavar="DEG",
+                    help="as findme eval: the given gravity's declared 1-sigma")
+    ap.add_argument("--gravity-refine", action="store_true",
+                    help="as findme eval: combined with the photo's vanishing directions")
     a = ap.parse_args(argv)
+    gravity = GravityInput(True, a.gravity_sigma, a.gravity_noise, a.gravity_refine)
     index = json.loads((a.split / "index.json").read_text())
     methods = tuple(a.methods.split(","))
     params = replace(MotionParams(), **{k: type(getattr(MotionParams(), k))(v) for k, v in
@@ -206,7 +213,7 @@ def main(argv=None) -> int:
     rows = {}
     for subset in a.subsets.split(","):
         pids = index["subsets"][subset]["pairs"]
-        jobs = [(a.split, p, methods, params, a.why) for p in pids]
+        jobs = [(a.split, p, methods, params, a.why, gravity) for p in pids]
         with ProcessPoolExecutor(a.jobs, mp_context=mp.get_context("spawn")) as ex:
             res = list(ex.map(diagnose, jobs))
         rows[subset] = res

@@ -12,7 +12,8 @@ and why it may be off:
 * ``deg``: how far below the horizon the true boundary is in that column (degrees);
 * the predicted segment kind of the column (WALL / STEP / OPEN / NONE).
 
-    python tools/walls_report.py DATASET [--no-gravity] [--subsets a,b] [--csv OUT.csv]
+    python tools/walls_report.py DATASET [--no-gravity | --gravity-noise DEG]
+                                 [--gravity-sigma DEG] [--subsets a,b] [--csv OUT.csv]
                                  [--max-rel-sigma X | --max-rel-sigma none]
 
 Prints per subset the median relative error (answered points), the coverage, the share below
@@ -35,7 +36,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.evaluate import view_camera, view_inputs  # noqa: E402
+from findme.evaluate import GravityInput, view_camera, view_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.scene import MAX_REL_SIGMA, Scene, boundary_sigma_px  # noqa: E402
 from findme_core.search import SegKind  # noqa: E402
@@ -82,7 +83,7 @@ def _visible(poly, kinds, u, H):
 
 
 def view_rows(args):
-    view_dir, vid, subset, use_gravity, max_rel = args
+    view_dir, vid, subset, gravity, max_rel = args
     cv2.setNumThreads(1)
     with open(os.path.join(view_dir, vid + ".json")) as f:
         meta = json.load(f)
@@ -91,7 +92,7 @@ def view_rows(args):
     _, h, queries = view_inputs(meta)
     image = read_image(os.path.join(view_dir, meta["image"]))
     labels = cv2.imread(os.path.join(view_dir, meta["labels"]), cv2.IMREAD_UNCHANGED)
-    cam, prov = view_camera(meta, image, use_gravity)
+    cam, prov = view_camera(meta, image, gravity)
     hs, cam, prov = hypothesize_photo(image, cam, prov, "findme", 10)
     scene = None
     if hs.hypotheses:
@@ -142,6 +143,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dataset")
     ap.add_argument("--no-gravity", action="store_true")
+    ap.add_argument("--gravity-noise", type=float, default=0.0, metavar="DEG",
+                    help="as findme eval: a simulated sensor's N(0, DEG) tilt error")
+    ap.add_argument("--gravity-sigma", type=float, default=None, metavar="DEG",
+                    help="as findme eval: the given gravity's declared 1-sigma")
+    ap.add_argument("--gravity-refine", action="store_true",
+                    help="as findme eval: combined with the photo's vanishing directions")
     ap.add_argument("--subsets", default=",".join(ZIND))
     ap.add_argument("--csv")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
@@ -152,7 +159,8 @@ def main() -> int:
         index = json.load(f)
     view_dir = os.path.join(a.dataset, index.get("views_dir", "views"))
     max_rel = None if a.max_rel_sigma.lower() == "none" else float(a.max_rel_sigma)
-    jobs = [(view_dir, v, s, not a.no_gravity, max_rel) for s in a.subsets.split(",")
+    gravity = GravityInput(not a.no_gravity, a.gravity_sigma, a.gravity_noise, a.gravity_refine)
+    jobs = [(view_dir, v, s, gravity, max_rel) for s in a.subsets.split(",")
             for v in index["subsets"][s].get("views", [])]
     with ProcessPoolExecutor(a.jobs) as ex:
         rows = [r for rs in ex.map(view_rows, jobs, chunksize=2) for r in rs]

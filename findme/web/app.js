@@ -33,7 +33,8 @@
  * Where gravity comes from (shown under the photo, from the server's answer):
  *   - the phone's sensors, when allowed: listening starts by itself where no permission is
  *     asked (Android), or with "Turn on motion sensors" (iOS asks); a live-camera capture
- *     sends the reading of that moment, and "Use phone tilt now" fills the fields;
+ *     sends the reading of that moment, and "Use phone tilt now" fills the fields; the
+ *     server refines a sent (or typed) gravity with the photo's own lines near it;
  *   - else the photo itself: the server estimates gravity from its vertical and horizontal
  *     lines (a photo from the camera app or the gallery was taken at another moment than
  *     any reading the page has, so the page does not guess);
@@ -561,8 +562,9 @@
     const e = $('sources'), c = p.camera;
     if (!c) { e.textContent = ''; e.dataset.gravitySource = ''; e.dataset.lensSource = ''; return; }
     const lens = {input: 'as set', exif: "from the photo's EXIF", default: 'a typical phone assumed'}[c.lens_source] || '';
-    const g = c.gravity_source === 'input'
-      ? (p.gravitySent === 'sensors' ? "from the phone's motion sensors" : 'as typed')
+    const given = p.gravitySent === 'sensors' ? "from the phone's motion sensors" : 'as typed';
+    const g = c.gravity_source === 'input' ? given
+      : c.gravity_source === 'input+image' ? `${given}, refined by the photo's lines (± ${c.gravity_sigma_deg.toFixed(1)}°)`
       : c.gravity_source === 'image' ? `estimated from the photo's lines (± ${c.gravity_sigma_deg.toFixed(1)}°)`
       : `NOT KNOWN: level assumed (± ${c.gravity_sigma_deg.toFixed(0)}°)`;
     const pitch = Math.asin(Math.max(-1, Math.min(1, c.gravity[2]))) * DEG;

@@ -57,6 +57,7 @@ class Lens:
     hfov_deg: float | None = None
     gravity: tuple | None = None
     camera_height_m: float | None = None
+    gravity_sigma_rad: float | None = None   # of ``gravity`` (None: the services' default)
 
 
 def _sidecar(path: Path) -> dict:
@@ -166,6 +167,7 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
         yield make_frame(session, n, data, intrinsics=intr,
                          hfov_deg=None if intr else lens.hfov_deg,
                          gravity=side.get("gravity_cam", lens.gravity),
+                         gravity_sigma_rad=lens.gravity_sigma_rad,
                          camera_height_m=side.get("camera_height_m", lens.camera_height_m),
                          device=f"file:{name}",
                          time_ns=side.get("capture_time_ns") or time.time_ns())

@@ -15,7 +15,7 @@ import time
 
 import schemas
 from ..runtime import authority, bus
-from findme_core.pair import photo_lines
+from findme_core.pair import photo_lines, segment_lines
 from findme_io.camera_source import hypothesize_photo
 from findme_io.convert import frame_photo_camera, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output
@@ -41,13 +41,14 @@ class HypothesesHandler(Handler):
         n = k.index()
         image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
         t1 = time.perf_counter()
-        whole = prov.estimate is None   # else the lines are those below the estimated horizon
+        est = prov.estimate   # gravity from (or refined by) the image: its whole-frame lines
         hs, cam, prov = hypothesize_photo(image, cam, prov, self.method, self.max_n,
                                           clock=time.perf_counter)
         self.done += 1
-        # the photo's lines, for odometry's room orientation (it detects them itself when
-        # the hypotheses saw only part of them)
-        lines = photo_lines(hs, image) if whole else None
+        # the photo's lines, for odometry's room orientation: the hypotheses' own, or (when
+        # they took only those below the horizon) the gravity estimate's whole detection
+        lines = (photo_lines(hs, image) if est is None else
+                 segment_lines(est.segments, image) if est.segments is not None else None)
         msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov, lines)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)

@@ -64,6 +64,25 @@ def test_the_plan_is_the_rendered_room(session_on_disk):
     assert np.degrees(np.abs(fuse.wrap(got[:, 2] - room.poses[:, 2]))).max() < 2.0
 
 
+def test_plain_photos_take_the_flags_camera(session_on_disk, tmp_path):
+    """Plain photos (no sidecar: the camera app's JPEGs) with the camera given by flags, as
+    exact (``--gravity-sigma 0``; every photo is pitched 28 deg down, unrolled: one gravity
+    vector for all): the plan is the room's, as from the sidecars."""
+    paths, _, _, _, _, room = session_on_disk
+    plain = []
+    for p in paths:
+        plain.append(tmp_path / p.name)
+        plain[-1].write_bytes(p.read_bytes())
+    c = room.views[0].camera
+    plan = as_json(run_findme("plan", *plain, "--intrinsics", f"{c.fx},{c.fy},{c.cx},{c.cy}",
+                              "--gravity", ",".join(f"{g:.9f}" for g in c.gravity),
+                              "--gravity-sigma", "0", "--camera-height", str(H), "--json",
+                              timeout=300))
+    V = np.array(plan["floor_polygon_m"])
+    dist = np.linalg.norm(V[:, None] - room.polygon[None], axis=2)
+    assert len(V) == 4 and dist.min(1).max() < 0.15, V.round(3)
+
+
 def _err(pose, truth):
     return (math.hypot(pose["x_m"] - truth[0], pose["z_m"] - truth[1]),
             abs(math.degrees(float(fuse.wrap(math.radians(pose["yaw_deg"]) - truth[2])))))

@@ -51,7 +51,8 @@ def test_locate_matches_the_rendered_scene(level_jpg, level_view, tmp_path):
     pts = tmp_path / "p.json"
     pts.write_text(json.dumps({"points": pick + [[320, 50]]}))
     out = as_json(run_findme("locate", level_jpg, "--intrinsics", intrinsics_flag(cam),
-                             "--gravity", "0,1,0", "--camera-height", level_view.camera_height,
+                             "--gravity", "0,1,0", "--gravity-sigma", "0",
+                             "--camera-height", level_view.camera_height,
                              "--points", pts, "--json"))
     assert out["metric"] is True and len(out["points"]) == 4 and len(out["distances_m"]) == 3
     assert out["camera"]["source"] == "input" and out["gravity"]["source"] == "input"
@@ -68,7 +69,8 @@ def test_locate_matches_the_rendered_scene(level_jpg, level_view, tmp_path):
 def test_locate_without_height_is_up_to_scale(level_jpg, level_view):
     out = as_json(run_findme("locate", level_jpg, "--intrinsics",
                              intrinsics_flag(level_view.camera), "--gravity", "0,1,0",
-                             "--point", "320,470", "--point=-4,2", "--json"))
+                             "--gravity-sigma", "0", "--point", "320,470", "--point=-4,2",
+                             "--json"))
     assert out["metric"] is False and out["camera_height_m"] == 1.0
     assert out["points"][0]["xyz_m"][1] == pytest.approx(1.0)      # on the floor, y = h = 1
     assert "outside" in out["points"][1]["error"] and out["distances_m"] == [None]

@@ -14,9 +14,11 @@ def level_camera(v):
     return Camera(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
 
 
-def test_given_gravity_is_used_as_it_is(tilted_view):
+def test_an_exact_given_gravity_is_used_as_it_is(tilted_view):
+    """Sigma 0: exact (a tripod, a dataset); any other given gravity is refined by the
+    photo's lines (tests/core/test_gravity_fusion.py)."""
     v = tilted_view
-    cam, prov = with_gravity(level_camera(v), v.image, v.camera.gravity)
+    cam, prov = with_gravity(level_camera(v), v.image, v.camera.gravity, 0.0)
     assert prov.gravity == "input" and prov.estimate is None
     hs, cam2, prov2 = hypothesize_photo(v.image, cam, prov)
     ref = hypothesize(v.image, v.camera)

@@ -201,3 +201,18 @@ def start_tls_router(tmp, users: dict[str, str]):
     proc = spawn_findme("router", "--config", tmp / "router.json5")
     wait_logged(proc, "listening on")
     return proc, endpoint, {"root_ca_certificate": str(tmp / "ca.pem")}, tmp / "service.json5"
+
+
+def assert_example_motion(out: str, tol_m: float = 0.01, tol_deg: float = 0.2) -> None:
+    """The bundled example pair's motion line in a run report (``findme run`` / ``send``)
+    is the rendered truth (findme/examples/pair.json) within ``tol_m`` and ``tol_deg``."""
+    import json
+    import re
+    from pathlib import Path
+    truth = json.loads((Path(__file__).resolve().parents[2] / "findme" / "examples"
+                        / "pair.json").read_text())["motion"]
+    m = re.search(r"motion 0 -> 1: x ([+-][\d.]+) m, z ([+-][\d.]+) m, yaw ([+-][\d.]+) deg", out)
+    assert m, out
+    x, z, yaw = map(float, m.groups())
+    assert abs(x - truth["x_m"]) < tol_m and abs(z - truth["z_m"]) < tol_m, (m.group(0), truth)
+    assert abs(yaw - truth["yaw_deg"]) < tol_deg, (m.group(0), truth)

@@ -6,9 +6,12 @@ import numpy as np
 import pytest
 
 import schemas
+from findme_io.camera_source import hypothesize_photo, with_gravity
+from findme_io.convert import msg_camera
 from findme_io.imageio import decode_image
 from findme_core.errors import HypothesisError, ImageError, InputError
 from findme_core.methods import hypothesize
+from findme_core.pair import photo_lines
 from findme_core.scene import Scene
 from services.pipeline.hypotheses import HypothesesHandler
 from services.pipeline.measurement import MeasurementHandler
@@ -28,11 +31,17 @@ def pipeline(request):
 
 
 def test_hypotheses_handler_matches_the_core(pipeline):
+    """The frame's gravity refined by the photo's lines (``with_gravity``), then the
+    hypotheses (``hypothesize_photo``): the core's answer, bit for bit, and the set's camera
+    is the one they were built with."""
     view, frame, hset, _ = pipeline
     assert (hset.session, hset.index, hset.width, hset.height) == ("t1", 0, 640, 480)
     assert [h.rank for h in hset.hypotheses] == list(range(1, len(hset.hypotheses) + 1))
     image = decode_image(frame.image.data)       # the very bytes the service decoded
-    core = hypothesize(image, view.camera)
+    core, cam, prov = hypothesize_photo(image, *with_gravity(view.camera, image,
+                                                             view.camera.gravity))
+    assert prov.gravity == hset.camera.gravity_source == "input+image"
+    assert np.array_equal(msg_camera(hset.camera).gravity, cam.gravity)
     assert len(hset.hypotheses) == len(core.hypotheses)
     for m, c in zip(hset.hypotheses, core.hypotheses):
         poly, kinds = schemas.msg_to_polyline(m.polyline)
@@ -40,22 +49,28 @@ def test_hypotheses_handler_matches_the_core(pipeline):
 
 
 def test_hypotheses_handler_sends_the_photos_lines_once(pipeline, tilted_view):
-    """With the phone's gravity the set carries the lines the hypotheses were built from
-    (in the photo's pixels, as ``pair.photo_of`` hands them to the motion: the CLI and
-    odometry orient the room with the same lines), so odometry need not detect them again;
-    with gravity estimated (the hypotheses then saw only the lines below the horizon) it
-    carries none and odometry detects the whole photo's (``pair.line_segments``)."""
-    from findme_core.pair import photo_lines
+    """The set carries the whole photo's lines (in the photo's pixels, as ``pair.photo_of``
+    hands them to the motion: the CLI and odometry orient the room with the same lines), so
+    odometry need not detect them again: with the phone's gravity (refined by them) and with
+    gravity estimated from them, the gravity estimate's own detection (the hypotheses then
+    took only the part below the horizon)."""
+    from findme_core.pair import line_segments
     from findme_io.convert import msg_lines
     view, frame, hset, _ = pipeline
-    image = decode_image(frame.image.data)
     sent = msg_lines(hset)
     assert sent is not None and len(sent) > 10
-    assert np.array_equal(sent, photo_lines(hypothesize(image, view.camera), image))
+    assert np.array_equal(sent, line_segments(decode_image(frame.image.data)))
     blind = frame_of(tilted_view)
     blind.ClearField("gravity")
     (out,) = HypothesesHandler().on_message("findme/t1/frame/0", blind)
-    assert msg_lines(out.msg) is None and out.msg.hypotheses
+    assert out.msg.hypotheses and out.msg.camera.gravity_source == "image"
+    assert np.array_equal(msg_lines(out.msg), line_segments(decode_image(blind.image.data)))
+    exact = frame_of(view)
+    exact.gravity_sigma_rad = 0.0          # exact: taken as it is, the hypotheses' own lines
+    (out,) = HypothesesHandler().on_message("findme/t1/frame/0", exact)
+    assert out.msg.camera.gravity_source == "input"
+    image = decode_image(exact.image.data)
+    assert np.array_equal(msg_lines(out.msg), photo_lines(hypothesize(image, view.camera), image))
 
 
 def test_hypotheses_handler_frame_without_gravity(tilted_view):
@@ -117,7 +132,8 @@ def test_measurement_scene_and_query(pipeline):
     req.pixels.extend(schemas.pixels_to_msg([[320, 470], [100, 450], [-3, 0]]))
     rep = m.on_query("findme/t1/measure", req)
     poly, kinds = schemas.msg_to_polyline(hset.hypotheses[0].polyline)
-    truth = Scene(view.camera, view.camera_height, poly, kinds).locate([[320, 470], [100, 450]])
+    cam = msg_camera(hset.camera)          # the camera the hypotheses were built with
+    truth = Scene(cam, view.camera_height, poly, kinds).locate([[320, 470], [100, 450]])
     for p, t in zip(rep.points, truth):
         assert p.surface == schemas.SURFACE_FLOOR
         assert np.allclose(schemas.msg_to_vec3(p.xyz), t.xyz, atol=1e-4)

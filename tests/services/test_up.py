@@ -9,7 +9,7 @@ import sys
 import threading
 
 from tests.cli.conftest import run_findme
-from tests.services.conftest import free_port
+from tests.services.conftest import assert_example_motion, free_port
 
 
 def _up(tmp_path, *extra):
@@ -42,7 +42,7 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
         _wait(up, "| ready: 8 services")
         p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
         assert p.returncode == 0, p.stderr
-        assert "motion 0 -> 1: x +0.386 m" in p.stdout
+        assert_example_motion(p.stdout)
         _wait(up, "findme/up-1/frame/0 -> findme/up-1/hypotheses/0 (")   # one line per message
         _wait(up, "-> findme/up-1/scene/1")
     finally:
