@@ -67,6 +67,18 @@ def register(sub) -> None:
                         "findme; features = the matches alone, the default before layouts); "
                         "with several, the first goes to --out and each other one to "
                         "OUT.<name>.json, from the same features and hypotheses")
+    add_gravity_args(p)
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
+                   help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
+                        "the view ids, as a capture app marks a new spot) or 'auto' (from "
+                        "rotation-only feature matches)")
+    p.set_defaults(func=cmd_eval)
+
+
+def add_gravity_args(p) -> None:
+    """The flags of ``GravityInput`` (``--no-gravity``, ``--gravity-noise``,
+    ``--gravity-sigma``, ``--gravity-refine``), shared by the tools that read views."""
     g = p.add_mutually_exclusive_group()
     g.add_argument("--no-gravity", action="store_true",
                    help="withhold the views' gravity_cam: gravity from the image, else level")
@@ -79,12 +91,6 @@ def register(sub) -> None:
     p.add_argument("--gravity-refine", action="store_true",
                    help="combine the given gravity with the photo's vanishing directions, as "
                         "the services do with a phone's")
-    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
-    p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
-                   help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
-                        "the view ids, as a capture app marks a new spot) or 'auto' (from "
-                        "rotation-only feature matches)")
-    p.set_defaults(func=cmd_eval)
 
 
 def view_inputs(meta: dict) -> tuple[Camera, float, dict]:
@@ -121,6 +127,11 @@ class GravityInput:
             if v is not None and not (math.isfinite(v) and 0.0 <= v <= 20.0):
                 raise InputError(f"gravity {name.replace('_deg', '')} must be 0-20 degrees, "
                                  f"got {v!r}")
+
+    @classmethod
+    def from_args(cls, a) -> "GravityInput":
+        """From the flags of ``add_gravity_args``."""
+        return cls(not a.no_gravity, a.gravity_sigma, a.gravity_noise, a.gravity_refine)
 
     def describe(self) -> str:
         """How the gravity was given, for the predictions file."""
@@ -267,8 +278,7 @@ def cmd_eval(args) -> int:
         raise InputError(f"{args.dataset}: no index.json (not a findme-eval dataset)") from None
     view_dir = os.path.join(args.dataset, index.get("views_dir", "views"))
     views = sorted({v for ss in index["subsets"].values() for v in ss.get("views", [])})
-    gravity = GravityInput(not args.no_gravity, args.gravity_sigma, args.gravity_noise,
-                           args.gravity_refine)
+    gravity = GravityInput.from_args(args)
     preds = {"views": {}, "pairs": {}, "method": args.method, "gravity": gravity.describe()}
     failures = []
     jobs = [(view_dir, v, args.method, args.max, gravity) for v in views]

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from findme.evaluate import GravityInput, pair_inputs  # noqa: E402
+from findme.evaluate import GravityInput, add_gravity_args, pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion import MotionParams  # noqa: E402
 from findme_core.pair import motion_photos, photo_of  # noqa: E402
@@ -198,14 +198,9 @@ def main(argv=None) -> int:
                     help="what findme's registration weighed against the truth (module doc)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a MotionParams field (e.g. orientation_weight=20); repeatable")
-    ap.add_argument("--gravity-noise", type=float, default=0.0, metavar="DEG",
-                    help="as findme eval: a simulated sensor's N(0, DEG) tilt error")
-    ap.add_argument("--gravity-sigma", type=float, default=None, metavar="DEG",
-                    help="as findme eval: the given gravity's declared 1-sigma")
-    ap.add_argument("--gravity-refine", action="store_true",
-                    help="as findme eval: combined with the photo's vanishing directions")
+    add_gravity_args(ap)
     a = ap.parse_args(argv)
-    gravity = GravityInput(True, a.gravity_sigma, a.gravity_noise, a.gravity_refine)
+    gravity = GravityInput.from_args(a)
     index = json.loads((a.split / "index.json").read_text())
     methods = tuple(a.methods.split(","))
     params = replace(MotionParams(), **{k: type(getattr(MotionParams(), k))(v) for k, v in

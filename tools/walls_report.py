@@ -12,7 +12,7 @@ and why it may be off:
 * ``deg``: how far below the horizon the true boundary is in that column (degrees);
 * the predicted segment kind of the column (WALL / STEP / OPEN / NONE).
 
-    python tools/walls_report.py DATASET [--no-gravity | --gravity-noise DEG]
+    python tools/walls_report.py DATASET [--no-gravity | --gravity-noise DEG] [--gravity-refine]
                                  [--gravity-sigma DEG] [--subsets a,b] [--csv OUT.csv]
                                  [--max-rel-sigma X | --max-rel-sigma none]
 
@@ -36,7 +36,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.evaluate import GravityInput, view_camera, view_inputs  # noqa: E402
+from findme.evaluate import (GravityInput, add_gravity_args, view_camera,  # noqa: E402
+                             view_inputs)
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.scene import MAX_REL_SIGMA, Scene, boundary_sigma_px  # noqa: E402
 from findme_core.search import SegKind  # noqa: E402
@@ -142,13 +143,7 @@ def view_rows(args):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dataset")
-    ap.add_argument("--no-gravity", action="store_true")
-    ap.add_argument("--gravity-noise", type=float, default=0.0, metavar="DEG",
-                    help="as findme eval: a simulated sensor's N(0, DEG) tilt error")
-    ap.add_argument("--gravity-sigma", type=float, default=None, metavar="DEG",
-                    help="as findme eval: the given gravity's declared 1-sigma")
-    ap.add_argument("--gravity-refine", action="store_true",
-                    help="as findme eval: combined with the photo's vanishing directions")
+    add_gravity_args(ap)
     ap.add_argument("--subsets", default=",".join(ZIND))
     ap.add_argument("--csv")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
@@ -159,7 +154,7 @@ def main() -> int:
         index = json.load(f)
     view_dir = os.path.join(a.dataset, index.get("views_dir", "views"))
     max_rel = None if a.max_rel_sigma.lower() == "none" else float(a.max_rel_sigma)
-    gravity = GravityInput(not a.no_gravity, a.gravity_sigma, a.gravity_noise, a.gravity_refine)
+    gravity = GravityInput.from_args(a)
     jobs = [(view_dir, v, s, gravity, max_rel) for s in a.subsets.split(",")
             for v in index["subsets"][s].get("views", [])]
     with ProcessPoolExecutor(a.jobs) as ex:

@@ -50,6 +50,7 @@
   const COLORS = ['#e6194b', '#3cb44b', '#4363d8', '#f58231', '#911eb4', '#00a5b8',
                   '#f032e6', '#7a9c00', '#9a6324', '#469990'];
   const DEG = 180 / Math.PI;
+  const SENSOR_GRAVITY_SIGMA_DEG = 1.5;   // a phone's motion-sensor gravity in the hand (1-sigma per axis)
 
   const state = {
     ws: null, session: null, services: [], seq: 0, measureSeq: 0,
@@ -309,7 +310,11 @@
       const gravity = sensorGravity || typed;
       const filled = state.sensors.filled &&
         ['gx', 'gy', 'gz'].every((id, i) => $(id).value === state.sensors.filled[i]);
+      const fromSensors = Boolean(sensorGravity || (typed && filled));
       header = {type: 'frame', id, lens: lensFromForm(dims, reencoded ? exif.focal35 : null), gravity,
+                // a hand-held reading is good to a degree or two: the server weighs it so
+                // against the photo's own lines (gravity_fusion)
+                gravity_sigma_deg: gravity && fromSensors ? SENSOR_GRAVITY_SIGMA_DEG : undefined,
                 camera_height_m: heightFromForm(), device: $('device').value.trim(),
                 capture_time_ms: file.lastModified || Date.now()};
       const head = new TextEncoder().encode(JSON.stringify(header));
@@ -318,8 +323,7 @@
       buf.set(head, 4);
       buf.set(bytes, 4 + head.length);
       state.pending.set(id, {url, name: file.name, gravity,
-                             gravitySource: sensorGravity || (typed && filled) ? 'sensors'
-                                            : typed ? 'typed' : null});
+                             gravitySource: fromSensors ? 'sensors' : typed ? 'typed' : null});
       if (!send(buf.buffer)) { state.pending.delete(id); clearBusy('upload'); }
     } catch (e) {
       clearBusy('upload');
@@ -570,7 +574,8 @@
     const pitch = Math.asin(Math.max(-1, Math.min(1, c.gravity[2]))) * DEG;
     e.textContent = `Lens ${c.hfov_deg ? c.hfov_deg.toFixed(0) + '° wide' : ''}, ${lens}. ` +
                     `Tilt ${pitch.toFixed(1)}° down, ${g}.`;
-    e.dataset.gravitySource = c.gravity_source === 'input' && p.gravitySent === 'sensors' ? 'sensors'
+    const given_ = c.gravity_source === 'input' || c.gravity_source === 'input+image';
+    e.dataset.gravitySource = given_ && p.gravitySent === 'sensors' ? 'sensors'
                             : c.gravity_source || '';
     e.dataset.lensSource = c.lens_source || '';
     e.classList.toggle('warn', c.gravity_source === 'level');

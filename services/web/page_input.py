@@ -17,6 +17,9 @@ diagonal) or ``intrinsics`` (fx, fy, cx, cy in pixels of this photo). ``gravity`
 numbers of any length above 1e-3, pointing down, in OpenCV camera axes (x right, y down,
 z forward) of the upright photo; the page has already turned the phone's device-frame
 reading into camera axes (findme/web/app.js) and nothing here rotates it.
+``gravity_sigma_deg`` (optional, (0, 20]) is its 1-sigma per axis: the page sends 1.5 for a
+reading of the phone's motion sensors in the hand (the hypotheses service refines it by the
+photo's lines, weighing it so), nothing for a typed one (the frame's default, 0.5).
 ``camera_height_m`` is metres above the floor; ``capture_time_ms`` is Unix milliseconds (the
 server's clock is used instead when it is more than a day off).
 
@@ -233,6 +236,7 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
         gravity = _vector(gravity, 3, "gravity")
         if math.hypot(*gravity) < 1e-3:
             raise _bad("gravity must not be the zero vector", CODE.ERROR_CODE_BAD_CAMERA)
+    sigma = _number(header, "gravity_sigma_deg", 0, 20, "gravity's 1-sigma (degrees)")
     height = _number(header, "camera_height_m", 0, 100, "camera height (m)")
     device = header.get("device") or ""
     device = "web" + (": " + "".join(c for c in str(device) if c.isprintable())[:80]
@@ -242,7 +246,9 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
     t_ns = int(t * 1e6) if isinstance(t, (int, float)) and not isinstance(t, bool) \
         and math.isfinite(t) and abs(t * 1e6 - now) < 86400e9 else now
     frame = make_frame(session, index, data, intrinsics=intrinsics, hfov_deg=hfov,
-                       gravity=gravity, camera_height_m=height, device=device, time_ns=t_ns)
+                       gravity=gravity, camera_height_m=height, device=device, time_ns=t_ns,
+                       gravity_sigma_rad=None if sigma is None or gravity is None
+                       else math.radians(sigma))
     try:
         cam = frame_camera(frame, W, H)
     except (CameraError, InputError) as e:

@@ -44,6 +44,17 @@ def test_parse_upload_refuses_malformed_and_oversized():
     assert code == "TOO_LARGE" and "limit" in text
 
 
+def test_build_frame_takes_the_sensors_gravity_sigma():
+    """The page sends 1.5 deg for a motion-sensor reading (the services weigh it so against
+    the photo's lines); none for a typed gravity; no gravity, no sigma."""
+    f, _ = build_frame("s1", 0, {"gravity": [0, 0.9, 0.4], "gravity_sigma_deg": 1.5}, ROOM_A)
+    assert f.gravity_sigma_rad == pytest.approx(math.radians(1.5))
+    f, _ = build_frame("s1", 1, {"gravity": [0, 0.9, 0.4]}, ROOM_A)
+    assert not f.HasField("gravity_sigma_rad")
+    f, _ = build_frame("s1", 2, {"gravity_sigma_deg": 1.5}, ROOM_A)
+    assert not f.HasField("gravity") and not f.HasField("gravity_sigma_rad")
+
+
 def test_build_frame_lenses_gravity_height():
     f, info = build_frame("s1", 0, {"lens": {"kind": "intrinsics", "fx": 500, "fy": 501, "cx": 320,
                                              "cy": 240, "width": 640, "height": 480},
@@ -68,6 +79,9 @@ def test_build_frame_lenses_gravity_height():
     ({"lens": {"kind": "hfov", "hfov_deg": 190}}, "BAD_CAMERA", "field of view"),
     ({"lens": {"kind": "fisheye"}}, "BAD_CAMERA", "fisheye"),
     ({"gravity": [0, 0, 0]}, "BAD_CAMERA", "zero"),
+    ({"gravity": [0, 1, 0], "gravity_sigma_deg": 0}, "BAD_CAMERA", "1-sigma"),
+    ({"gravity": [0, 1, 0], "gravity_sigma_deg": "1"}, "BAD_CAMERA", "1-sigma"),
+    ({"gravity": [0, 1, 0], "gravity_sigma_deg": 45}, "BAD_CAMERA", "1-sigma"),
     ({"gravity": [0, 0, 1]}, "BAD_CAMERA", "straight down"),
     ({"gravity": [0, "1", 0]}, "BAD_CAMERA", "3 finite numbers"),
     ({"camera_height_m": -1}, "BAD_CAMERA", "camera height"),
