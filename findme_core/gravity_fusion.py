@@ -110,8 +110,10 @@ def with_sensor(image: np.ndarray, camera: Camera, sensor, sensor_cov,
     near = replace(params, pitch_range=(pitch - w, pitch + w), roll_range=(roll - w, roll + w),
                    peaks=2, candidates=1)     # the window holds one frame: refine its best
     est = estimate_gravity(image, camera, near, segments)
-    if est.source != "image":
-        return GravityEstimate(g, C, SENSOR, reason=f"the sensor's gravity kept: {est.reason}",
+    if est.source != "image":       # the estimator's reason, said of the window it searched
+        why = (est.reason or "").removesuffix(": level assumed").replace(
+            "outside the tilt of a hand-held photo", f"more than {w:.0f} deg from the sensor's")
+        return GravityEstimate(g, C, SENSOR, reason=f"the sensor's gravity kept: {why}",
                                segments=est.segments)
     return fused(est, (g, C))
 
