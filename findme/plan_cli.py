@@ -17,7 +17,6 @@ import json
 import math
 import os
 import re
-import sys
 
 import cv2
 import numpy as np

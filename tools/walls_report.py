@@ -118,7 +118,7 @@ def view_rows(args):
             lab = int(labels[max(bv - 1, 0), u]) if bv > 0 else -1
             base = ("own" if lab == 10 + q["wall"] else
                     "aperture" if 100 <= lab < 300 else
-                    "top" if bv == 0 else f"other")
+                    "top" if bv == 0 else "other")
         g = np.asarray(q["xyz_m"], float)
         err = None
         surf = None
