@@ -121,6 +121,13 @@ def test_phone_tilt_reaches_the_server_in_camera_axes(browser, app, theta, pitch
     assert err < 1.0
     assert page.get_attribute("#sources", "data-gravity-source") == "sensors"
     assert "motion sensors" in page.inner_text("#sources")
+    # the page sends a sensor reading with 1.5 deg. These made-up tilts are not the example
+    # photo's own (its lines put gravity ~6 deg away, at the edge of the window searched):
+    # kept, it carries the page's 1.5 deg; refined, the server says so
+    cam = page.evaluate("FindMe.state.photos[0].camera")
+    assert cam["gravity_source"] in ("input", "input+image"), str(cam)
+    if cam["gravity_source"] == "input":
+        assert cam["gravity_sigma_deg"] == pytest.approx(1.5), str(cam)
     close(page)
 
 
