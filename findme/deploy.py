@@ -144,8 +144,6 @@ def _open(args, mode=None, connect_timeout_s: float | None = None) -> zenoh.Sess
 
 
 def _lens(args) -> Lens:
-    if args.gravity_sigma is not None and not 0.0 <= args.gravity_sigma <= 20.0:
-        raise InputError(f"--gravity-sigma must be 0-20 degrees, got {args.gravity_sigma:g}")
     return Lens(intrinsics=floats(args.intrinsics, 4, "--intrinsics") if args.intrinsics else None,
                 hfov_deg=args.hfov,
                 gravity=floats(args.gravity, 3, "--gravity") if args.gravity else None,

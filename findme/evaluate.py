@@ -45,6 +45,7 @@ from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
 from findme_core.methods import METHODS
 from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.scene import Scene, boundary_sigma_px
+from .options import gravity_sigma
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.imageio import read_image
@@ -85,7 +86,7 @@ def add_gravity_args(p) -> None:
     g.add_argument("--gravity-noise", type=float, default=0.0, metavar="DEG",
                    help="simulate a phone's sensor: tilt every view's gravity by a random "
                         "N(0, DEG) in pitch and roll (seeded by the view id)")
-    p.add_argument("--gravity-sigma", type=float, default=None, metavar="DEG",
+    p.add_argument("--gravity-sigma", type=gravity_sigma, default=None, metavar="DEG",
                    help="declared 1-sigma of the given gravity (default %.1f, a phone held "
                         "still)" % INPUT_GRAVITY_SIGMA_DEG)
     p.add_argument("--gravity-refine", action="store_true",

@@ -39,6 +39,14 @@ def finite_float(text: str) -> float:
     return v
 
 
+def gravity_sigma(text: str) -> float:
+    """argparse type: the 1-sigma of a given gravity's tilt, degrees in [0, 20] (0: exact)."""
+    v = finite_float(text)
+    if not 0.0 <= v <= 20.0:
+        raise argparse.ArgumentTypeError(f"must be 0-20 degrees, got {v:g}")
+    return v
+
+
 def add_camera_args(p: argparse.ArgumentParser, gravity_flags=("--gravity",)) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--hfov", type=finite_float, metavar="DEG",
@@ -52,7 +60,7 @@ def add_camera_args(p: argparse.ArgumentParser, gravity_flags=("--gravity",)) ->
                             "from the phone's accelerometer, refined by the photo's vertical "
                             "and horizontal lines near it; default: estimated from those "
                             "lines, else level (0,1,0)")
-    p.add_argument("--gravity-sigma", type=finite_float, metavar="DEG",
+    p.add_argument("--gravity-sigma", type=gravity_sigma, metavar="DEG",
                    help=f"1-sigma of the given gravity's tilt per axis, degrees (default "
                         f"{INPUT_GRAVITY_SIGMA_DEG:g}, a phone held still; 0: exact, taken as "
                         "it is)")
@@ -69,8 +77,6 @@ def photo_camera_from(photo, hfov: float | None = None, intrinsics: str | None =
     k = floats(intrinsics, 4, "--intrinsics") if intrinsics else None
     if hfov is not None and not (0.0 < hfov < 180.0):
         raise InputError(f"--hfov: the horizontal field of view must be in (0, 180) degrees, got {hfov:g}")
-    if gravity_sigma_deg is not None and not 0.0 <= gravity_sigma_deg <= 20.0:
-        raise InputError(f"--gravity-sigma must be 0-20 degrees, got {gravity_sigma_deg:g}")
     sigma = None if gravity_sigma_deg is None else math.radians(gravity_sigma_deg)
     try:
         return photo_camera(photo.image, photo.exif, k, hfov, g, sigma)
