@@ -28,7 +28,6 @@ import numpy as np
 from . import evidence, register
 from .planar import wrap
 from .errors import GeometryError
-from .layout import Layout
 
 
 @dataclass(frozen=True)

@@ -94,11 +94,9 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
             lays.append(layout.from_hypothesis(camera, height, h.polyline, h.kinds, i + 1))
         except FindmeError:   # e.g. a level-camera polyline crossing a tilted horizon
             continue
-    t2 = clock()
     if segments is None:
         segments = line_segments(image)
     o = room_orientation(segments, camera)
-    t3 = clock()
     surf = motion_photometric.surface(grey, camera, lays[0] if lays else None)
     t4 = clock()
     return Photo(camera, float(height), f, scene, lays, o,

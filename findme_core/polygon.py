@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from . import register, wall_kinds, walls
+from . import wall_kinds, walls
 from .errors import GeometryError
 from .search import SegKind
 

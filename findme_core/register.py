@@ -247,7 +247,6 @@ def residual_terms(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = Re
         if len(ks) == 0:
             continue
         n, c, _ = _lines(dst)
-        count = np.bincount(w, minlength=len(dst.walls))[w]
         terms.append((into_a, src.points[ks], n[w], c[w],
                       sig * 1.0))
 

@@ -29,7 +29,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import register
-from .layout import Layout
 from .search import SegKind
 
 

@@ -40,7 +40,7 @@ def plan_svg(plan: Plan, names=None, truth=None, feet: bool = False, px_per_m: f
 
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W:.0f}" height="{H + 24:.0f}" '
            f'viewBox="0 0 {W:.0f} {H + 24:.0f}" font-family="sans-serif" font-size="12">',
-           f'<rect width="100%" height="100%" fill="white"/>']
+           '<rect width="100%" height="100%" fill="white"/>']
     if title:
         out.append(f'<text x="6" y="{H + 18:.0f}" fill="#333">{escape(title)}</text>')
     if truth is not None:
