@@ -95,14 +95,15 @@ def local_optimisation(a, b, yaw, t, e_in, planar: bool, pix: float, params: Mot
     return yaw, t, e_in, sig_elev
 
 
-def _model_error(m: PlanarMotion, params: MotionParams) -> PlanarMotion:
+def _model_error(m: PlanarMotion, params: MotionParams, depth_rel: float = 0.0) -> PlanarMotion:
     """``m`` with the model errors of ``params`` for its method (``MotionParams.model_errors``)
     added to its sigmas (along / across the baseline rotated into x, z, and the position
-    term on both)."""
+    term on both), and ``depth_rel``, the relative error its scale shares with the depths
+    it rests on (``motion_fit.common_depth_sigma``), along the baseline."""
     scale, direction_deg, yaw_deg, position_m = params.model_errors(m.method)
     base = np.hypot(m.x, m.z)
     u = np.array([m.x, m.z]) / max(base, 1e-12)
-    along, across = scale * base, np.radians(direction_deg) * base
+    along, across = np.hypot(scale, depth_rel) * base, np.radians(direction_deg) * base
     C = np.diag([m.sigma_x ** 2, m.sigma_z ** 2]) + along ** 2 * np.outer(u, u) \
         + across ** 2 * np.outer([-u[1], u[0]], [-u[1], u[0]]) + position_m ** 2 * np.eye(2)
     return replace(m, sigma_x=float(np.sqrt(C[0, 0])), sigma_z=float(np.sqrt(C[1, 1])),

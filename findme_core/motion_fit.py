@@ -36,6 +36,41 @@ def known_yaw_score(a, Rb, m, T, pix: float, thr: float, ab=None, far=None):
     return msac(np.where(inl, r, thr), thr), inl
 
 
+def common_depth_sigma(lifted) -> float:
+    """Relative 1-sigma that a baseline's length shares with the depths of the lifted points
+    it rests on.
+
+    A photo's lifted points are not independent: the camera height, the gravity and the
+    boundary of each wall move all of them together (``uncertainty.point_sigmas``), and
+    scaling every depth of both photos by (1 + e) scales the baseline by (1 + e) and leaves
+    every image residual as it was. The refinement treats the points as independent, so its
+    sigma of the length shrinks as 1 / sqrt(n); here each photo's points are taken as fully
+    correlated (the conservative limit): the photo's error is the weighted mean of its
+    points' relative sigmas s_i (weights w_i = 1 / s_i^2, as the fit weighs them), and the
+    two photos' independent errors combine by the weight each photo has in the length:
+    sqrt((W_A e_A)^2 + (W_B e_B)^2) / (W_A + W_B), W = sum of w_i.
+
+    Args:
+        lifted: per photo, (points (N, 3) metres, sigmas (N,) metres) of the lifted points
+            that fix the scale (the answer's transfer inliers); N may be 0.
+    Returns:
+        The relative sigma (0 when no point is lifted: the scale then rests on the layouts,
+        whose error the model terms carry).
+    """
+    W, E = [], []
+    for pts, sig in lifted:
+        if len(pts) == 0:
+            continue
+        s = np.asarray(sig, float) / np.maximum(np.linalg.norm(pts, axis=1), 1e-9)
+        w = 1.0 / np.maximum(s, 1e-6) ** 2
+        W.append(w.sum())
+        E.append(float((w * s).sum() / w.sum()))
+    if not W:
+        return 0.0
+    W, E = np.array(W), np.array(E)
+    return float(np.sqrt(np.sum((W * E) ** 2)) / W.sum())
+
+
 class Turned:
     """B's bearings b (M, 3) turned into A's level frame at a yaw, with what scoring at that
     known yaw needs of them, computed once per yaw (the candidates, the directions and the

@@ -49,10 +49,14 @@ class MotionParams:
             the shortest third of its baselines (0.1-0.3 m), then the others with it. Without
             the position term (0.042, 3.65, 0.71) the short pairs' errors of 3-5 cm had
             sigmas of 1-2 cm: within 1 / 3 sigma along the baseline 0.60 / 0.90, across 0.61
-            / 0.95; with it 0.67 / 0.97 and 0.67 / 0.99 (a Gaussian's: 0.68 / 0.997). Held
-            out, zind-pairs-tilted has 73-91 % of its errors within 1 sigma and 86-95 %
-            within 3, zind-pairs-level 53-68 % and 79-84 % (its gross failures stay outside;
-            its sigma also spans the alternatives, ``motion_register``).
+            / 0.95; with it 0.67 / 0.97 and 0.67 / 0.99 (a Gaussian's: 0.68 / 0.997). The
+            scale term is on top of the error the length shares with the lifted points'
+            depths (``motion_fit.common_depth_sigma``; refitted with it 0.025 -> 0.016,
+            direction 2.66 -> 2.57 deg): along the baseline within 1 sigma, tum 0.68,
+            zind-pairs-level 0.53 -> 0.58, kitti06 0.57 -> 0.71. Held out, zind-pairs-tilted
+            has 73-91 % of its errors within 1 sigma and 86-95 % within 3,
+            zind-pairs-level 58-68 % and 79-84 % (its gross failures stay outside; its sigma
+            also spans the alternatives, ``motion_register``).
         seed: RANSAC seed.
 
     ``findme`` only:
@@ -115,8 +119,8 @@ class MotionParams:
     direction_sigma_deg: float = 5.0
     yaw_sigma_deg: float = 1.4
     position_sigma_m: float = 0.0
-    findme_scale_sigma: float = 0.025
-    findme_direction_sigma_deg: float = 2.66
+    findme_scale_sigma: float = 0.016
+    findme_direction_sigma_deg: float = 2.57
     findme_yaw_sigma_deg: float = 0.71
     findme_position_sigma_m: float = 0.014
     seed: int = 0

@@ -22,7 +22,7 @@ from .motion_features import (_epipolar_ransac, _inflate, _lift_order, _model_er
                               check_matches, local_optimisation)
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result
 from .planar import bearings, rot_y
-from .motion_fit import Fit, Turned, YawScale, known_yaw_score
+from .motion_fit import Fit, Turned, YawScale, common_depth_sigma, known_yaw_score
 
 
 class Registration:
@@ -273,7 +273,10 @@ class Registration:
                if self.la and self.lb else None)
         r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
                           e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
-        return _model_error(replace(r, layout=lay, score=score, appearance=appearance), self.p)
+        depth = common_depth_sigma([(L.points[m], L.sigma[m])
+                                    for L, m in ((self.P.la, ta), (self.P.lb, tb))])
+        return _model_error(replace(r, layout=lay, score=score, appearance=appearance), self.p,
+                            depth)
 
     def _refusal(self, k: int) -> MotionError:
         walls = ("the photos' boundaries share no wall" if self.la and self.lb else

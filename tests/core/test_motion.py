@@ -302,3 +302,27 @@ def test_results_are_reproducible():
     m, (ca, cb), la, lb = exact_pair(*POSES[1])
     r1, r2 = (estimate(m, ca, cb, 1.45, 1.45, la, lb) for _ in range(2))
     assert (r1.x, r1.z, r1.yaw) == (r2.x, r2.z, r2.yaw)
+
+
+def test_the_length_keeps_the_error_it_shares_with_the_lifted_depths():
+    """Points lifted with a relative sigma s: however many, the baseline's length is not
+    known better than the depths' common error (s / sqrt 2 with both photos' points): it is
+    added along the baseline, so each of sigma_x, sigma_z holds at least its share."""
+    poses = POSES[0]
+    m, (ca, cb), la, lb = exact_pair(*poses)
+    assert len(m) > 30
+
+    def with_rel(lift, s):
+        def out(idx):
+            L = lift(idx)
+            return Lifted(L.points, s * np.linalg.norm(L.points, axis=1), L.floor)
+        return out
+    got = {}
+    for s in (0.05, 0.005):
+        r = estimate(m, ca, cb, 1.4, 1.4, with_rel(la, s), with_rel(lb, s), params=FIT_ONLY)
+        base = math.hypot(r.x, r.z)
+        share = s / math.sqrt(2) * base
+        assert r.sigma_x >= share * abs(r.x) / base - 1e-9
+        assert r.sigma_z >= share * abs(r.z) / base - 1e-9
+        got[s] = math.hypot(r.sigma_x, r.sigma_z)
+    assert got[0.05] > got[0.005]
