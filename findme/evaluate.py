@@ -183,7 +183,7 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
         _, h, queries = view_inputs(meta)
         image = read_image(os.path.join(view_dir, meta["image"]))
         cam, prov = view_camera(meta, image, gravity)
-        hs, cam, prov = hypothesize_photo(image, cam, prov, method, max_n)
+        hs, cam, prov = hypothesize_photo(image, cam, prov, method, max_n, camera_height=h)
         pred = {"hypotheses": [h_.polyline.round(3).tolist() for h_ in hs.hypotheses],
                 "gravity_cam": [round(float(x), 6) for x in cam.gravity],
                 "gravity_source": prov.gravity,
@@ -225,7 +225,7 @@ def pair_inputs(pair_dir, view_dir, pid: str, gravity: GravityInput | bool = Tru
         image = read_image(os.path.join(view_dir, meta["image"]))
         cam, prov = view_camera(meta, image, gravity)
         if prov.estimate is not None:   # the gravity the view's own prediction ends with
-            cam = hypothesize_photo(image, cam, prov, max_n=1)[1]
+            cam = hypothesize_photo(image, cam, prov, max_n=1, camera_height=h)[1]
         photos.append((image, cam, h))
     return pair, photos
 

@@ -90,11 +90,12 @@ def photo_inputs(path: str, args) -> tuple:
         height = None
         cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, args.gravity,
                                       gravity_sigma_deg=args.gravity_sigma)
-    if prov.estimate is not None:      # the gravity the photo's hypotheses end with
-        cam = hypothesize_photo(img, cam, prov, max_n=1)[1]
     if args.camera_height is None and height:
-        return img, cam, float(height), True
-    h, metric = camera_height(args.camera_height)
+        h, metric = float(height), True
+    else:
+        h, metric = camera_height(args.camera_height)
+    if prov.estimate is not None:      # the gravity the photo's hypotheses end with
+        cam = hypothesize_photo(img, cam, prov, max_n=1, camera_height=h if metric else None)[1]
     return img, cam, h, metric
 
 

@@ -100,7 +100,8 @@ def cmd_hypotheses(args) -> int:
     image, cam, prov = _load(args)
     t1 = time.perf_counter()
     hs, cam, prov = hypothesize_photo(image, cam, prov, args.method, args.max,
-                                      clock=time.perf_counter)
+                                      clock=time.perf_counter,
+                                      camera_height=getattr(args, "camera_height", None))
     out = hypotheses_json(hs, cam, prov)
     out["timing_ms"]["decode_and_camera"] = round(1e3 * (t1 - t0), 3)
     out["timing_ms"]["total"] = round(1e3 * (time.perf_counter() - t0), 3)
@@ -204,7 +205,8 @@ def cmd_locate(args) -> int:
     h, metric = camera_height(args.camera_height)
     image, cam, prov = _load(args)
     hs, cam, prov = hypothesize_photo(image, cam, prov, args.method,
-                                      max(args.max, args.hypothesis))
+                                      max(args.max, args.hypothesis),
+                                      camera_height=h if metric else None)
     if args.hypothesis < 1 or args.hypothesis > len(hs.hypotheses):
         raise HypothesisError(
             f"hypothesis {args.hypothesis} does not exist: this photo has "

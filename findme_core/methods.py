@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import hypotheses, paper
+from . import counters, hypotheses, paper
 from .camera import Camera
 from .errors import InputError
 from .segments import WORK_SIZE, Segments, photo_segments, work_image  # noqa: F401
@@ -21,7 +21,8 @@ METHODS = ("findme", "paper")
 
 def hypothesize(image: np.ndarray, camera: Camera, method: str = "findme", max_n: int = 10,
                 work_size: int = WORK_SIZE, clock=None,
-                segments: Segments | None = None) -> hypotheses.HypothesisSet:
+                segments: Segments | None = None,
+                camera_height: float | None = None) -> hypotheses.HypothesisSet:
     """Ranked hypotheses of one photo by ``method`` ("findme" or "paper").
 
     Args:
@@ -29,6 +30,8 @@ def hypothesize(image: np.ndarray, camera: Camera, method: str = "findme", max_n
         max_n: at most this many hypotheses (>= 1).
         segments: the photo's ``segments.photo_segments`` when already detected (its
             gravity came from them): then not detected again. Ignored by the paper's method.
+        camera_height: metres above the floor, when known: the best hypothesis is then
+            seen behind the kitchen counters it stands on (``counters.apply``; findme only).
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
@@ -38,6 +41,7 @@ def hypothesize(image: np.ndarray, camera: Camera, method: str = "findme", max_n
     small, cam, s = work_image(image, camera, work_size)
     if method == "findme":
         hs = hypotheses.generate(small, cam, max_n, clock=clock, segments=segments)
+        hs = counters.apply(hs, cam, camera_height, max_n)   # at the working size
     else:
         hs = paper.generate(small, cam, max_n, clock=clock)
     if s == 1.0:

@@ -146,7 +146,8 @@ def photo_of(image, camera: Camera, height: float, rank: int = 1,
     """``prepare`` with the photo's own hypotheses (``methods.hypothesize``, timed as
     "hypotheses"); a rank beyond the hypotheses found is a bad input (HypothesisError)."""
     t0 = clock()
-    hs = hypothesize(image, camera, hypothesis_method, max(rank, max_layouts, 1))
+    hs = hypothesize(image, camera, hypothesis_method, max(rank, max_layouts, 1),
+                     camera_height=height)
     ms = 1e3 * (clock() - t0)
     if rank < 1 or rank > max(1, len(hs.hypotheses)):
         raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "
@@ -167,7 +168,8 @@ def scene_of(image, camera: Camera, height: float, rank: int = 1,
     t0 = clock()
     # the first ``rank`` hypotheses do not depend on how many more are asked for (greedy
     # duplicate suppression keeps them in order): build no more than needed
-    hs = hypothesize(image, camera, hypothesis_method, rank if rank >= 1 else 10)
+    hs = hypothesize(image, camera, hypothesis_method, rank if rank >= 1 else 10,
+                     camera_height=height)
     ms = 1e3 * (clock() - t0)
     if rank < 1 or rank > max(1, len(hs.hypotheses)):
         raise HypothesisError(f"hypothesis {rank} of photo {which} does not exist: it has "

@@ -39,7 +39,8 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
                           method: str = "findme", max_n: int = 10,
                           work_size: int = WORK_SIZE, clock=None,
                           params: GravityParams = GravityParams(),
-                          rehypothesize_deg: float = REHYPOTHESIZE_DEG
+                          rehypothesize_deg: float = REHYPOTHESIZE_DEG,
+                          camera_height: float | None = None
                           ) -> tuple[HypothesisSet, GravityEstimate]:
     """Steps 3-4 for a photo whose gravity ``est`` came from its own image.
 
@@ -48,11 +49,13 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
         camera: the photo's intrinsics (its gravity is replaced by the estimate's).
         est: ``estimate_gravity`` of this photo, or ``gravity_fusion.with_sensor`` (its
             segments are reused; a re-estimate is combined with the sensor's again).
+        camera_height: metres, when known (``methods.hypothesize``: the walls behind
+            kitchen counters).
     Returns:
         (hypotheses under the final gravity, the final estimate).
     """
     hs = hypothesize(image, camera.with_gravity(est.vector), method, max_n, work_size, clock,
-                     segments=est.segments)
+                     segments=est.segments, camera_height=camera_height)
     if not hs.hypotheses or est.source not in ("image", FUSED):
         return hs, est
     t0 = clock() if clock else 0.0
@@ -66,7 +69,8 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
         moved = math.degrees(math.acos(float(np.clip(joint.vector @ est.vector, -1.0, 1.0))))
         if moved > rehypothesize_deg:
             again = hypothesize(image, camera.with_gravity(joint.vector), method, max_n,
-                                work_size, clock, segments=est.segments)
+                                work_size, clock, segments=est.segments,
+                                camera_height=camera_height)
             timing = {k: timing.get(k, 0.0) + again.timing_ms.get(k, 0.0)
                       for k in [*timing, *(k for k in again.timing_ms if k not in timing)]}
             hs = again
@@ -77,7 +81,8 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
 
 def hypothesize_without_gravity(image: np.ndarray, camera: Camera, method: str = "findme",
                                 max_n: int = 10, work_size: int = WORK_SIZE, clock=None,
-                                params: GravityParams = GravityParams()
+                                params: GravityParams = GravityParams(),
+                                camera_height: float | None = None
                                 ) -> tuple[HypothesisSet, GravityEstimate]:
     """Steps 1-4: hypotheses and gravity of a photo that came without gravity.
 
@@ -87,7 +92,8 @@ def hypothesize_without_gravity(image: np.ndarray, camera: Camera, method: str =
     t0 = clock() if clock else 0.0
     est = estimate_gravity(image, camera, params)
     ms = 1e3 * (clock() - t0) if clock else None
-    hs, est = hypothesize_estimated(image, camera, est, method, max_n, work_size, clock, params)
+    hs, est = hypothesize_estimated(image, camera, est, method, max_n, work_size, clock, params,
+                                    camera_height=camera_height)
     if ms is not None:
         hs = replace(hs, timing_ms={"gravity": ms, **hs.timing_ms})
     return hs, est

@@ -63,7 +63,7 @@ class Photo:
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams()
             ) -> Photo:
     """Per-photo stage: hypotheses, rank-1 layout and scene, features."""
-    hs = hypothesize(image, camera, params.method, 1)
+    hs = hypothesize(image, camera, params.method, 1, camera_height=height)
     L, sc, why = None, None, hs.reason
     if hs.hypotheses:
         h = hs.hypotheses[0]

@@ -93,8 +93,9 @@ def with_gravity(camera: Camera, image: np.ndarray | None, gravity=None,
 
 
 def hypothesize_photo(image: np.ndarray, camera: Camera, prov: Provenance,
-                      method: str = "findme", max_n: int = 10,
-                      clock=None) -> tuple[HypothesisSet, Camera, Provenance]:
+                      method: str = "findme", max_n: int = 10, clock=None,
+                      camera_height: float | None = None
+                      ) -> tuple[HypothesisSet, Camera, Provenance]:
     """The photo's hypotheses, and its camera and provenance after them.
 
     A photo whose gravity was estimated from its image (``with_gravity``: ``prov.estimate``)
@@ -106,11 +107,15 @@ def hypothesize_photo(image: np.ndarray, camera: Camera, prov: Provenance,
     Args:
         image: (H, W, 3) uint8 BGR of ``camera``'s size.
         camera, prov: from ``with_gravity`` / ``photo_camera`` of this image.
+        camera_height: metres above the floor when known (the walls behind kitchen
+            counters, ``counters``); None when the scale is unknown.
     """
     est = prov.estimate
     if est is None:
-        return hypothesize(image, camera, method, max_n, clock=clock), camera, prov
-    hs, new = hypothesize_estimated(image, camera, est, method, max_n, clock=clock)
+        return (hypothesize(image, camera, method, max_n, clock=clock,
+                            camera_height=camera_height), camera, prov)
+    hs, new = hypothesize_estimated(image, camera, est, method, max_n, clock=clock,
+                                    camera_height=camera_height)
     if new is est:
         return hs, camera, prov
     return hs, camera.with_gravity(new.vector), replace(prov, gravity_cov=new.cov, estimate=new)

@@ -94,7 +94,7 @@ def view_rows(args):
     image = read_image(os.path.join(view_dir, meta["image"]))
     labels = cv2.imread(os.path.join(view_dir, meta["labels"]), cv2.IMREAD_UNCHANGED)
     cam, prov = view_camera(meta, image, gravity)
-    hs, cam, prov = hypothesize_photo(image, cam, prov, "findme", 10)
+    hs, cam, prov = hypothesize_photo(image, cam, prov, "findme", 10, camera_height=h)
     scene = None
     if hs.hypotheses:
         top = hs.hypotheses[0]
