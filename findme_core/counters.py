@@ -146,8 +146,9 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
         foot, ahead = camera.project_level(np.column_stack([pb[:, 0], np.full(2, height),
                                                             pb[:, 2]]))
         if ahead.all() and abs(foot[1, 0] - foot[0, 0]) > 1e-6:
-            v_f = foot[0, 1] + (u_mid - foot[0, 0]) * (foot[1, 1] - foot[0, 1]) / (foot[1, 0] - foot[0, 0])
-            if np.interp(0.5 * (b1[0] + b2[0]), foot[:, 0], foot[:, 1]) < camera.height - p.toe_px:
+            slope = (foot[1, 1] - foot[0, 1]) / (foot[1, 0] - foot[0, 0])
+            v_f = foot[0, 1] + (u_mid - foot[0, 0]) * slope          # the foot's row (N,)
+            if foot[0, 1] + (0.5 * (b1[0] + b2[0]) - foot[0, 0]) * slope < camera.height - p.toe_px:
                 if not np.any(par & inside & (np.abs(v_mid - v_f) < p.toe_px)):
                     continue
         # 3. the counter's back edge: the first parallel line above B, past its nosing

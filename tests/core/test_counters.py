@@ -154,3 +154,19 @@ def test_apply_puts_the_wall_first_and_keeps_the_counters_edge():
     assert len(counters.apply(hs, cam, H_CAM, max_n=3).hypotheses) == 3
     plain = HypothesisSet(640, 480, [other], ls, np.zeros(len(lines), int))
     assert counters.apply(plain, cam, H_CAM, lines=lines[:1]) is plain   # nothing found
+
+
+def test_segments_that_cannot_be_a_counter_are_not_tested():
+    """Not a WALL (an occluding step), narrower than ``min_segment_px``, or above the
+    horizon (no floor line): none is a counter, whatever the lines say."""
+    cam = _camera()
+    hyp, lines = _kitchen(cam)
+    step = Hypothesis(hyp.polyline, np.array([SegKind.STEP]), 1.0, 1.0)
+    assert counters.find(cam, H_CAM, step, lines) == []
+    narrow = Hypothesis(np.array([[0.0, 300.0], [10.0, 300.0], [639.0, 300.0]]),
+                        np.array([SegKind.WALL, SegKind.NONE]), 1.0, 1.0)
+    assert counters.find(cam, H_CAM, narrow, lines) == []
+    sky = Hypothesis(np.array([[0.0, 5.0], [639.0, 5.0]]), np.array([SegKind.WALL]), 1.0, 1.0)
+    assert cam.rays_level(sky.polyline)[:, 1].max() < 0          # above the horizon
+    assert counters.find(cam, H_CAM, sky, lines) == []
+    assert counters.behind(cam, H_CAM, hyp, []) is hyp
