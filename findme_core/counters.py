@@ -31,6 +31,7 @@ import numpy as np
 
 from .camera import Camera
 from .hypotheses import Hypothesis
+from .layout import floor_xz
 from .search import SegKind
 
 
@@ -70,11 +71,11 @@ class Counter:
     doors: int
 
 
-def _on_plane(rays: np.ndarray, y: float) -> np.ndarray:
-    """Rays (N, 3) (level frame) meeting the horizontal plane y (> 0: below the camera):
-    points (N, 3), NaN for rays not going down."""
-    s = y / np.where(rays[:, 1] > 1e-9, rays[:, 1], np.nan)
-    return s[:, None] * rays
+def _row(ends: np.ndarray, u):
+    """Row at columns ``u`` of the image line through the two pixels ``ends`` (2, 2)
+    (extended past them; the caller makes sure it is not vertical)."""
+    (u0, v0), (u1, v1) = ends
+    return v0 + (np.asarray(u, float) - u0) * (v1 - v0) / (u1 - u0)
 
 
 def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
@@ -111,17 +112,17 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
         b1, b2 = poly[s], poly[s + 1]
         if kind != SegKind.WALL or b2[0] - b1[0] < p.min_segment_px:
             continue
-        pb = _on_plane(camera.rays_level(np.array([b1, b2])), height - H)
+        _, pb = floor_xz(camera, height - H, np.array([b1, b2]))   # B at the counter's height
         if not np.isfinite(pb).all():
             continue
-        d = pb[1, [0, 2]] - pb[0, [0, 2]]
+        d = pb[1] - pb[0]
         if np.linalg.norm(d) < 1e-6:
             continue
         d /= np.linalg.norm(d)
         o = np.array([d[1], -d[0]])
-        if o @ pb[0, [0, 2]] < 0:
+        if o @ pb[0] < 0:
             o = -o
-        front = float(o @ pb[0, [0, 2]])          # B at the counter's height
+        front = float(o @ pb[0])
         if front <= 0:
             continue
         par = long & (np.abs(n @ np.array([d[0], 0.0, d[1]]))
@@ -144,19 +145,17 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
         # 2. the cabinets' foot (B's plane at the floor): where the photo shows it, a line
         # parallel to B lies there (below a floor line there is floor, not a foot)
         foot, ahead = camera.project_level(np.column_stack([pb[:, 0], np.full(2, height),
-                                                            pb[:, 2]]))
-        if ahead.all() and abs(foot[1, 0] - foot[0, 0]) > 1e-6:
-            slope = (foot[1, 1] - foot[0, 1]) / (foot[1, 0] - foot[0, 0])
-            v_f = foot[0, 1] + (u_mid - foot[0, 0]) * slope          # the foot's row (N,)
-            if foot[0, 1] + (0.5 * (b1[0] + b2[0]) - foot[0, 0]) * slope < camera.height - p.toe_px:
-                if not np.any(par & inside & (np.abs(v_mid - v_f) < p.toe_px)):
-                    continue
+                                                            pb[:, 1]]))
+        if (ahead.all() and abs(foot[1, 0] - foot[0, 0]) > 1e-6
+                and _row(foot, 0.5 * (b1[0] + b2[0])) < camera.height - p.toe_px
+                and not np.any(par & inside & (np.abs(v_mid - _row(foot, u_mid)) < p.toe_px))):
+            continue
         # 3. the counter's back edge: the first parallel line above B, past its nosing
         above = np.flatnonzero(par & inside & (v_mid < v_b - 3.0))
         if not len(above):
             continue
-        q1, q2 = _on_plane(r1[above], height - H), _on_plane(r2[above], height - H)
-        behind = 0.5 * (q1[:, [0, 2]] @ o + q2[:, [0, 2]] @ o) - front
+        q1, q2 = (floor_xz(camera, height - H, ends[above, c:c + 2])[1] for c in (0, 2))
+        behind = 0.5 * (q1 @ o + q2 @ o) - front
         behind = np.where(np.isfinite(behind) & (behind >= p.nosing_m), behind, np.inf)
         j = int(np.argmin(behind))
         if p.depth_m[0] <= behind[j] <= p.depth_m[1]:
@@ -182,25 +181,25 @@ def behind(camera: Camera, height: float, hyp: Hypothesis, counters: list[Counte
     verts, kinds = [poly[0]], []
     for s, kind in enumerate(hyp.kinds):
         b1, b2 = poly[s], poly[s + 1]
-        c = by.get(s)
-        if c is None:
+        base = _base(camera, height, by[s], b1, b2) if s in by else None
+        if base is None:
             verts.append(b2)
             kinds.append(int(kind))
             continue
-        # the base's image line, from two of its points (at the segment's end azimuths)
-        rays = camera.rays_level(np.array([b1, b2]))
-        xz = rays[:, [0, 2]]
-        t = c.wall_m / np.maximum(xz @ c.normal, 1e-9)
-        base = np.column_stack([t * xz[:, 0], np.full(2, height), t * xz[:, 1]])
-        uv, _ = camera.project_level(base)
-        if abs(uv[1, 0] - uv[0, 0]) < 1e-6:
-            verts.append(b2)
-            kinds.append(int(kind))
-            continue
-        at = lambda u: uv[0, 1] + (u - uv[0, 0]) * (uv[1, 1] - uv[0, 1]) / (uv[1, 0] - uv[0, 0])  # noqa: E731
-        verts += [np.array([b1[0], at(b1[0])]), np.array([b2[0], at(b2[0])]), b2]
+        verts += [np.array([b1[0], _row(base, b1[0])]), np.array([b2[0], _row(base, b2[0])]), b2]
         kinds += [int(SegKind.STEP), int(SegKind.WALL), int(SegKind.STEP)]
     return Hypothesis(np.array(verts), np.array(kinds), hyp.score, hyp.support)
+
+
+def _base(camera: Camera, height: float, c: Counter, b1, b2) -> np.ndarray | None:
+    """(2, 2) two pixels of the image of the wall's base behind counter ``c``, at the
+    azimuths of its front edge's ends ``b1``, ``b2``; None when that image is vertical."""
+    rays = camera.rays_level(np.array([b1, b2]))
+    xz = rays[:, [0, 2]]
+    t = c.wall_m / np.maximum(xz @ c.normal, 1e-9)
+    uv, _ = camera.project_level(np.column_stack([t * xz[:, 0], np.full(2, height),
+                                                  t * xz[:, 1]]))
+    return None if abs(uv[1, 0] - uv[0, 0]) < 1e-6 else uv
 
 
 def apply(hs, camera: Camera, height: float | None, max_n: int | None = None,

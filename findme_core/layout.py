@@ -122,9 +122,10 @@ class Layout:
         return int(np.count_nonzero(self.kind == SegKind.WALL))
 
 
-def _floor(camera: Camera, h: float, pixels) -> tuple[np.ndarray, np.ndarray]:
-    """Level rays of (N, 2) pixels and their floor points (x, z) (eq. 2; NaN at or above
-    the horizon)."""
+def floor_xz(camera: Camera, h: float, pixels) -> tuple[np.ndarray, np.ndarray]:
+    """Level rays (N, 3) of (N, 2) pixels and where they meet the horizontal plane ``h``
+    metres below the camera, (N, 2) (x, z) (eq. 2 for the floor; NaN at or above the
+    horizon)."""
     r = camera.rays_level(pixels)
     with np.errstate(divide="ignore", invalid="ignore"):
         s = np.where(r[:, 1] > 1e-9, h / r[:, 1], np.nan)
@@ -155,7 +156,7 @@ def from_hypothesis(camera: Camera, height: float, polyline, kinds=None, rank: i
         raise HypothesisError(f"camera height must be a positive number of metres, got {height!r}")
     h = float(height)
     wpoly, wkinds = _simplify(poly, kinds, params.simplify_px)
-    _, q = _floor(camera, h, wpoly)
+    _, q = floor_xz(camera, h, wpoly)
     walls, ends = _walls(wpoly, wkinds, q, params)
     return Layout(walls, ends, *_scan(camera, h, poly, kinds, walls, params), h, int(rank))
 
@@ -236,7 +237,7 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
     step = kind == SegKind.STEP   # a sample falling on a step's 0.5-px width: skip it
     v = np.interp(u, poly[:, 0], poly[:, 1])
     rows = np.where(kind == SegKind.OPEN, -0.5, np.where(kind == SegKind.NONE, H - 0.5, v))
-    r, q = _floor(camera, h, np.column_stack([u, rows]))
+    r, q = floor_xz(camera, h, np.column_stack([u, rows]))
     az = np.arctan2(r[:, 0], r[:, 2])
     rng = np.hypot(q[:, 0], q[:, 1])
     rng = np.where(np.isfinite(rng), rng, np.where(kind == SegKind.NONE, np.inf, np.inf))

@@ -11,7 +11,6 @@ while no instance was up is picked up from the store when one starts (``runtime.
 
 from __future__ import annotations
 
-import math
 import time
 
 import schemas
@@ -43,9 +42,9 @@ class HypothesesHandler(Handler):
         image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
         t1 = time.perf_counter()
         est = prov.estimate   # gravity from (or refined by) the image: its whole-frame lines
-        # a frame's camera height makes the counters' height metric (``counters``)
+        # a frame's camera height (> 0, checked with the frame) makes the counters' height
+        # metric (``counters``)
         h = frame.camera_height_m if frame.HasField("camera_height_m") else None
-        h = h if h is not None and math.isfinite(h) and h > 0 else None
         hs, cam, prov = hypothesize_photo(image, cam, prov, self.method, self.max_n,
                                           camera_height=h,
                                           clock=time.perf_counter)
