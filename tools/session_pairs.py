@@ -26,8 +26,10 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from findme.plan_cli import room_spots  # noqa: E402
-from findme_core import features, fuse, motion, motion_photometric, session  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
+from findme_core.motion import features, lifting, methods as motion  # noqa: E402
+from findme_core.motion import photometric as motion_photometric  # noqa: E402
+from findme_core.plan import fuse, session
 from findme_io.imageio import read_image  # noqa: E402
 from tools.plan_report import cached_photos  # noqa: E402
 
@@ -44,7 +46,7 @@ def _surfaces(vdir, views, photos):
 
 def _estimate(pa, pb, m, extra):
     def lifter(p, px):
-        return None if p.scene is None else (lambda idx: features.lift(p.scene, px, idx))
+        return None if p.scene is None else (lambda idx: lifting.lift(p.scene, px, idx))
     try:
         return motion.estimate(m, pa.camera, pb.camera, pa.height, pb.height,
                                lifter(pa, m.ua), lifter(pb, m.ub), **extra)

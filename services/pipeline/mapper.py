@@ -13,7 +13,7 @@ of it, so a turn with left-out views stays one spot), feature matches and two-ph
 motions; each pair's matches, turn and motion are computed once and kept (a motion again
 when one of its photos gets a new layout). Then ``session.plan`` (placement of
 every photo, outline, walls, joint refinement) over the session's photos in index order;
-each placed photo's 1-sigma is the refinement's, else ``plan_pose.covariance``. The plan
+each placed photo's 1-sigma is the refinement's, else ``pose.covariance``. The plan
 frame is the level frame of the first photo with a layout (``Plan.origin_index``; photo 0
 normally).
 
@@ -41,9 +41,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import schemas
-from findme_core import features, fuse, layout, plan_pose, session as plan_session
 from findme_core.errors import FindmeError, HypothesisError, InputError
-from findme_core.scene import Scene
+from findme_core.motion import features
+from findme_core.plan import fuse, pose as plan_pose, session as plan_session
+from findme_core.single import layout
+from findme_core.single.scene import Scene
 from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from findme_io.imageio import decode_image
 

@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from findme_core.camera import Camera
-from findme_core.methods import hypothesize
+from findme_core.geometry.camera import Camera
+from findme_core.single.methods import hypothesize
 from findme_io.camera_source import hypothesize_photo, with_gravity
 
 
@@ -16,7 +16,7 @@ def level_camera(v):
 
 def test_an_exact_given_gravity_is_used_as_it_is(tilted_view):
     """Sigma 0: exact (a tripod, a dataset); any other given gravity is refined by the
-    photo's lines (tests/core/test_gravity_fusion.py)."""
+    photo's lines (tests/core/single/test_gravity_fusion.py)."""
     v = tilted_view
     cam, prov = with_gravity(level_camera(v), v.image, v.camera.gravity, 0.0)
     assert prov.gravity == "input" and prov.estimate is None

@@ -1,7 +1,7 @@
 """The mapper handler, driven directly (no bus), on a room the project renders.
 
 The session's hypothesis sets carry each photo's exact ground-wall boundary (tests/plan_room),
-so the plan must be the room within the core's tolerances (tests/core/test_floorplan.py:
+so the plan must be the room within the core's tolerances (tests/core/plan/test_floorplan.py:
 vertices 4 cm, lengths 3 cm, positions 1 cm); the frames are the rendered photos, so the spots
 and their turns come from the photos' own features (yaws within 0.5 deg, not the core tests'
 0.2 deg for exact turns).
@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import schemas
-from findme_core import fuse, polygon, session as plan_session
 from findme_core.errors import HypothesisError, InputError
-from findme_core.provenance import Provenance, tilt_cov
-from findme_core.room import Room
+from findme_core.geometry.provenance import Provenance, tilt_cov
+from findme_core.plan import fuse, polygon, session as plan_session
+from findme_core.synth.room import Room
 from findme_io.convert import camera_msg
 from services.pipeline.mapper import MapperHandler
 from services.runtime.service import Service
@@ -213,7 +213,7 @@ def test_sessions_are_bounded_and_expire(room):
 
 def test_the_registry_makes_the_mapper():
     import argparse
-    from services.runtime.registry import add_service_args, make_handler, service_names
+    from services.registry import add_service_args, make_handler, service_names
     p = argparse.ArgumentParser()
     add_service_args(p)
     assert "mapper" in service_names()

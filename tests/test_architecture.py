@@ -1,0 +1,45 @@
+"""The architecture is held by import-linter's contracts (``pyproject.toml``): the core's
+stages import only earlier stages, the core is pure, services never import the command line,
+no import cycles. The contracts pass on the code, and an upward import breaks them."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LINT = Path(sys.executable).with_name("lint-imports")
+
+
+def _lint(cwd: Path, config: Path, pythonpath: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(pythonpath)}
+    return subprocess.run([str(LINT), "--config", str(config), "--no-cache"], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_the_import_contracts_hold():
+    r = _lint(ROOT, ROOT / "pyproject.toml", ROOT)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "0 broken" in r.stdout
+
+
+def test_an_upward_import_breaks_the_stage_layers(tmp_path):
+    """geometry importing the session plan (an upward import) is named by the linter."""
+    shutil.copytree(ROOT / "findme_core", tmp_path / "findme_core",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    cam = tmp_path / "findme_core" / "geometry" / "camera.py"
+    cam.write_text(cam.read_text() + "\nfrom findme_core.plan import session  # noqa\n")
+    config = tmp_path / "contracts.toml"
+    config.write_text('[tool.importlinter]\nroot_packages = ["findme_core"]\n\n'
+                      '[[tool.importlinter.contracts]]\nname = "stages"\ntype = "layers"\n'
+                      'containers = ["findme_core"]\nlayers = ["plan", "motion", "single", '
+                      '"geometry"]\n')
+    r = _lint(tmp_path, config, tmp_path)
+    assert r.returncode != 0, r.stdout
+    assert "findme_core.geometry.camera -> findme_core.plan.session" in r.stdout, r.stdout
+    # the same copy without the upward import keeps the contract: the failure is that import
+    cam.write_text((ROOT / "findme_core" / "geometry" / "camera.py").read_text())
+    assert _lint(tmp_path, config, tmp_path).returncode == 0
