@@ -118,7 +118,10 @@ def hypothesize_photo(image: np.ndarray, camera: Camera, prov: Provenance,
                                     camera_height=camera_height)
     if new is est:
         return hs, camera, prov
-    return hs, camera.with_gravity(new.vector), replace(prov, gravity_cov=new.cov, estimate=new)
+    notes = tuple(n for n in prov.notes if n != est.reason) + ((new.reason,) if new.reason
+                                                               else ())
+    return hs, camera.with_gravity(new.vector), replace(prov, gravity_cov=new.cov, estimate=new,
+                                                        notes=notes)
 
 
 def photo_camera(image: np.ndarray, exif: ExifInfo | None = None, intrinsics=None,

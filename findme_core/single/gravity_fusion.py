@@ -108,7 +108,8 @@ def with_sensor(image: np.ndarray, camera: Camera, sensor, sensor_cov,
     pitch, roll = pitch_roll_deg(g)
     w = max(window_sigmas * sigma_deg, min_window_deg)
     near = replace(params, pitch_range=(pitch - w, pitch + w), roll_range=(roll - w, roll + w),
-                   peaks=2, candidates=1)     # the window holds one frame: refine its best
+                   peaks=2, candidates=1,     # the window holds one frame: refine its best
+                   ambiguity_candidates=0)    # (the sensor decides between frames in it)
     est = estimate_gravity(image, camera, near, segments)
     if est.source != "image":       # the estimator's reason, said of the window it searched
         why = (est.reason or "").removesuffix(": level assumed").replace(

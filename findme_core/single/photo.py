@@ -30,7 +30,7 @@ from findme_core.single.hypotheses import HypothesisSet
 from findme_core.single.methods import hypothesize
 from findme_core.single.segments import WORK_SIZE
 from findme_core.single.vanishing import (GravityEstimate, GravityParams, estimate_gravity,
-                                          with_floor)
+                                          with_alternatives, with_floor)
 
 #: a joint estimate that moves gravity less than this keeps the first hypotheses, degrees
 REHYPOTHESIZE_DEG = 0.25
@@ -75,8 +75,8 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
             timing = {k: timing.get(k, 0.0) + again.timing_ms.get(k, 0.0)
                       for k in [*timing, *(k for k in again.timing_ms if k not in timing)]}
             hs = again
-        else:
-            joint = est                    # not worth new hypotheses: keep them consistent
+        else:   # not worth new hypotheses: keep them consistent (and what the floor told)
+            joint = with_alternatives(est, joint.alternatives)
     return replace(hs, timing_ms=timing), joint
 
 

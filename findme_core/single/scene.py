@@ -36,7 +36,8 @@ from findme_core.geometry.uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_
                                               boundary_sigma_px, distances, point_sigmas)
 
 _PARALLEL = 1e-9
-_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE = range(1, 8)
+_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE, _LOOSE_GRAVITY = \
+    range(1, 9)
 #: default ``max_rel_sigma``: a point whose 1-sigma is more than half its distance is not
 #: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
 #: not fitted
@@ -54,6 +55,9 @@ REASONS = {
     _NOT_FINITE: "the pixel is not finite",
     _LOOSE: "the boundary places this point too loosely (its 1-sigma exceeds the allowed "
             "share of its distance): the wall's base is barely seen or lies near the horizon",
+    _LOOSE_GRAVITY: "gravity is too uncertain to place this point (its 1-sigma, mostly from "
+                    "which way is down, exceeds the allowed share of its distance): the photo "
+                    "does not show it clearly; give the phone's gravity",
 }
 _SURFACES = {1: "floor", 2: "wall"}
 @dataclass(frozen=True)
@@ -227,7 +231,9 @@ class Scene:
         if self.max_rel_sigma is not None:
             with np.errstate(invalid="ignore"):
                 loose = ok & ~(sigma <= self.max_rel_sigma * np.linalg.norm(P, axis=1))
-            reason = np.where(loose, _LOOSE, reason)
+            by_gravity = parts["gravity"] >= np.maximum.reduce(
+                [x for k, x in parts.items() if k != "gravity"])
+            reason = np.where(loose, np.where(by_gravity, _LOOSE_GRAVITY, _LOOSE), reason)
             ok &= ~loose
             surface = np.where(ok, surface, 0)
             P[~ok] = np.nan

@@ -23,6 +23,11 @@ Method (``estimate_gravity``):
 4. Too little evidence (fewer than 4 inlier lines, no vertical line and not two horizontal
    directions, a degenerate fit) or a 1-sigma above ``max_sigma_deg``: "level" is assumed,
    with ``level_sigma_deg``, and the reason is given.
+5. Other refined frames whose gravity lies more than ``distinct_deg`` away and that score at
+   least ``ambiguity_ratio`` of the best (one dominant family of parallel lines, such as
+   floorboards, fits many frames): the photo cannot tell which, so the estimate keeps them as
+   ``alternatives`` and its covariance covers them (``gravity_alternatives.widen``), with
+   the reason; a session's photos of one spot decide together (``plan/shared_gravity``).
 
 Jointly with a boundary (``with_floor``): once the photo has a ground-wall boundary, lines
 inside its floor region are known to lie on the floor: horizontal, but in any direction
@@ -33,13 +38,14 @@ again near the first estimate without their pull.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.manhattan import (LineSet, pitch_roll_deg, refine, residuals,
                                             score_frames, search)
+from findme_core.single import gravity_alternatives as alt
 from findme_core.single.corners import CornerParams, corner_verticals
 from findme_core.single.lines import merge_collinear, snap_to_edges
 from findme_core.single.segments import Segments, photo_segments
@@ -64,6 +70,9 @@ class GravityParams:
     fine_lines: int = 100           # the fine search scores the heaviest lines only
     candidates: int = 3             # best frames of the search refined, the best refined taken
     candidate_ratio: float = 0.7    # ... among those scoring this much of the best
+    ambiguity_candidates: int = 6   # frames refined to look for alternatives (step 5; 0: none)
+    ambiguity_ratio: float = 0.85   # an alternative scores at least this much of the best
+    distinct_deg: float = 5.0       # ... and its gravity lies this far from the best's
     iterations: int = 4
     min_line_sigma_deg: float = 0.5  # a unit-weight line's angle is known no better (dev:
                                      # residual scale p10 0.37, median 0.66 deg)
@@ -101,6 +110,9 @@ class GravityEstimate:
             the same photo: ``methods.hypothesize(segments=...)``), or None.
         evidence: (lines, K of the working size) it was estimated from, for ``with_floor``.
         prior: (gravity (3,), tilt covariance (2, 2)) of the sensor it was combined with.
+        alternatives: ((gravity (3,), score ratio), ...) other frames the lines support
+            nearly as well (step 5); ``cov`` covers them.
+        fit_cov: the covariance before it was widened over the alternatives (None without).
     """
 
     vector: np.ndarray
@@ -111,6 +123,8 @@ class GravityEstimate:
     segments: Segments | None = field(default=None, compare=False, repr=False)
     evidence: tuple | None = field(default=None, compare=False, repr=False)
     prior: tuple | None = field(default=None, compare=False, repr=False)
+    alternatives: tuple = field(default=(), compare=False, repr=False)
+    fit_cov: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def sigma(self) -> float:
@@ -166,9 +180,10 @@ def _with_corners(L: LineSet, ln, segments: Segments, K: np.ndarray,
         (L.mid, L.normal, L.n, L.w, L.half), (C.mid, C.normal, C.n, C.w, C.half))))
 
 
-def _estimate(R, cov, masks, p: GravityParams, segments, evidence) -> GravityEstimate:
+def _estimate(R, cov, masks, p: GravityParams, segments, evidence,
+              alternatives=()) -> GravityEstimate:
     """The estimate of a refined frame R with its rotation covariance, or "level" with the
-    reason when it cannot be used (step 4)."""
+    reason when it cannot be used (step 4); widened over its ``alternatives`` (step 5)."""
     nv, nh = int(masks[1].sum()), int(masks[0].sum() + masks[2].sum())
     if cov is None or nv + nh < 4 or (nv == 0 and min(masks[0].sum(), masks[2].sum()) < 2):
         return level_estimate(f"too few vertical lines ({nv}) and horizontal lines ({nh}) to "
@@ -195,23 +210,53 @@ def _estimate(R, cov, masks, p: GravityParams, segments, evidence) -> GravityEst
         return level_estimate(f"gravity from the image is too uncertain "
                               f"({math.degrees(est.sigma):.1f} deg): level assumed",
                               p.level_sigma_deg, segments)
-    return est
+    return with_alternatives(est, alternatives)
+
+
+def with_alternatives(est: GravityEstimate, alternatives) -> GravityEstimate:
+    """``est`` carrying ``alternatives`` (step 5), its covariance widened over them from its
+    fit's, the reason said; ``est`` without alternatives when there are none."""
+    base = est.fit_cov if est.fit_cov is not None else est.cov
+    if not alternatives:
+        return replace(est, cov=base, alternatives=(), fit_cov=None,
+                       reason=None if est.alternatives else est.reason)
+    return replace(est, cov=alt.widen(est.vector, base, alternatives), fit_cov=base,
+                   alternatives=tuple(alternatives),
+                   reason=alt.describe(est.vector, alternatives))
 
 
 def _frame(L: LineSet, K: np.ndarray, p: GravityParams, pitch_range, roll_range):
     """The best refined frame: the search's ``candidates`` best frames are each refined,
-    and the one whose refined frame scores highest is taken. Returns refine's (R, cov,
-    masks), or None when no frame fits."""
+    and the one whose refined frame scores highest is taken; then the alternatives among
+    up to ``ambiguity_candidates`` refined frames (step 5). Returns refine's (R, cov,
+    masks) and the alternatives, or None when no frame fits."""
+    n = max(p.candidates, p.ambiguity_candidates)
     found = search(L, K, pitch_range, roll_range, p.coarse_lines, p.inlier_deg, p.peaks,
-                   p.coarse_deg, p.fine_deg, p.span_deg, p.fine_lines, p.candidates,
-                   p.candidate_ratio)
+                   p.coarse_deg, p.fine_deg, p.span_deg, p.fine_lines, n, p.candidate_ratio)
     if not found:
         return None
     done = [refine(L, K, R, p.inlier_deg, p.iterations, p.min_line_sigma_deg) for R in found]
-    if len(done) == 1:
-        return done[0]
-    s, _ = score_frames(L, K, np.array([d[0][:, 1] for d in done]), p.inlier_deg)
-    return done[int(np.argmax(s))]
+    first = done[:p.candidates]
+    if len(first) == 1:
+        k = 0
+    else:
+        s, _ = score_frames(L, K, np.array([d[0][:, 1] for d in first]), p.inlier_deg)
+        k = int(np.argmax(s))
+    if p.ambiguity_candidates <= 0 or len(done) == 1:
+        return (*done[k], ())
+    return (*done[k], _alternatives(L, K, p, done[k][0][:, 1],
+                                    [d[0][:, 1] for i, d in enumerate(done)
+                                     if i != k and d[1] is not None]))
+
+
+def _alternatives(L: LineSet, K: np.ndarray, p: GravityParams, g, others) -> tuple:
+    """The frames among ``others`` (gravities) that the lines ``L`` support nearly as well
+    as ``g`` (``gravity_alternatives.distinct``)."""
+    if not others:
+        return ()
+    s, _ = score_frames(L, K, np.array([g, *others]), p.inlier_deg)
+    return alt.distinct(g, float(s[0]), zip(others, s[1:]), p.ambiguity_ratio,
+                        p.distinct_deg)
 
 
 def estimate_gravity(image: np.ndarray, camera: Camera,
@@ -254,7 +299,8 @@ def _from_lines(L: LineSet, K: np.ndarray, p: GravityParams, segments: Segments,
     if found is None:
         return level_estimate("no vertical or horizontal structure within the tilt a hand-held "
                               "photo has: level assumed", p.level_sigma_deg, segments)
-    return _estimate(*found, p, segments, (L, K, s))
+    R, cov, masks, alternatives = found
+    return _estimate(R, cov, masks, p, segments, (L, K, s), alternatives)
 
 
 def with_floor(est: GravityEstimate, polyline: np.ndarray,
@@ -273,6 +319,10 @@ def with_floor(est: GravityEstimate, polyline: np.ndarray,
     Args:
         est: an estimate of ``estimate_gravity`` (source "image", with its evidence).
         polyline: (M, 2) boundary vertices in pixels of the photo (u non-decreasing).
+    The alternatives of ``est`` (step 5) are scored again without the floor lines' pull:
+    those that no longer score ``ambiguity_ratio`` of the estimate are dropped (the
+    floorboards that made them were on the floor).
+
     Returns:
         ``est`` itself, or the joint estimate.
     """
@@ -291,9 +341,22 @@ def with_floor(est: GravityEstimate, polyline: np.ndarray,
     w = p.floor_window_deg
     found = _frame(L2, K, p, (pitch - w, pitch + w), (roll - w, roll + w))
     if found is None:
-        return est
-    new = _estimate(*found, p, est.segments, est.evidence)
+        return _rescored(est, est, L2, K, p)
+    new = _estimate(*found[:3], p, est.segments, est.evidence)
     if new.source != "image":
-        return est
+        return _rescored(est, est, L2, K, p)
     before, after = score_frames(L2, K, np.array([est.vector, new.vector]), p.inlier_deg)[0]
-    return new if after > (1.0 + p.min_gain) * before else est
+    return _rescored(new if after > (1.0 + p.min_gain) * before else est, est, L2, K, p)
+
+
+def _rescored(chosen: GravityEstimate, est: GravityEstimate, L2: LineSet, K: np.ndarray,
+              p: GravityParams) -> GravityEstimate:
+    """``chosen`` with those of ``est``'s alternatives that the lines ``L2`` still support
+    (``chosen`` itself when ``est`` had none)."""
+    if not est.alternatives:
+        return chosen
+    others = [g for g, _ in est.alternatives]
+    s, _ = score_frames(L2, K, np.array([chosen.vector, *others]), p.inlier_deg)
+    kept = alt.distinct(chosen.vector, float(s[0]), zip(others, s[1:]), p.ambiguity_ratio,
+                        p.distinct_deg)
+    return with_alternatives(chosen, kept)
