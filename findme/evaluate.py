@@ -318,7 +318,8 @@ def cmd_eval(args) -> int:
         for job in jobs:
             collect(*predict_pair(job))
     bar.close()
-    preds["rooms"] = predict_rooms(args.dataset, index, view_dir, args.room_spots, args.jobs)
+    preds["rooms"] = predict_rooms(args.dataset, index, view_dir, args.room_spots, args.jobs,
+                                   gravity)
     stem, ext = os.path.splitext(args.out)
     for i, m in enumerate(motion_methods):
         out = args.out if i == 0 else f"{stem}.{m}{ext or '.json'}"
@@ -342,13 +343,15 @@ def _collect(preds, failures, vid, pred, err):
         preds["views"][vid] = pred
 
 
-def predict_rooms(dataset, index, view_dir, spots: str, jobs: int) -> dict:
-    """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame."""
+def predict_rooms(dataset, index, view_dir, spots: str, jobs: int,
+                  gravity: GravityInput | bool = True) -> dict:
+    """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame; each view's
+    gravity as ``gravity`` gives it (withheld: from the photos, agreed spot by spot)."""
     from findme.plan_cli import room_job   # rooms live in plan_cli (one hunk here)
     room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
     rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
     out = {}
-    jobs_ = [(room_dir, view_dir, r, spots) for r in rooms]
+    jobs_ = [(room_dir, view_dir, r, spots, gravity) for r in rooms]
     with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("spawn")) as ex:
         for rid, pred, err in tqdm(ex.map(room_job, jobs_), total=len(jobs_), desc="rooms",
                                    unit="room", file=sys.stderr):

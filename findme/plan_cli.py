@@ -23,7 +23,7 @@ import numpy as np
 
 from findme_core.errors import FindmeError, InputError
 from findme_core.geometry.camera import Camera
-from findme_core.plan import relocalise, session
+from findme_core.plan import relocalise, session, shared_gravity
 from findme_core.plan.floorplan import Plan
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
@@ -69,9 +69,10 @@ def register(sub) -> None:
 
 
 def photo_inputs(path: str, args) -> tuple:
-    """(image, camera, height, metric) of one photo: the sidecar's inputs, else the flags,
-    then the photo's EXIF; its gravity as ``findme hypotheses`` takes it (a given one refined
-    by the photo's lines unless ``--gravity-sigma 0``, else estimated from them)."""
+    """(image, camera, height, metric, estimate) of one photo: the sidecar's inputs, else
+    the flags, then the photo's EXIF; its gravity as ``findme hypotheses`` takes it (a given
+    one refined by the photo's lines unless ``--gravity-sigma 0``, else estimated from them:
+    then ``estimate`` is that ``GravityEstimate``, else None)."""
     photo = read_photo(path)
     img = photo.image
     sigma = None if args.gravity_sigma is None else math.radians(args.gravity_sigma)
@@ -94,9 +95,30 @@ def photo_inputs(path: str, args) -> tuple:
         h, metric = float(height), True
     else:
         h, metric = camera_height(args.camera_height)
-    if prov.estimate is not None:      # the gravity the photo's hypotheses end with
-        cam = hypothesize_photo(img, cam, prov, max_n=1, camera_height=h if metric else None)[1]
-    return img, cam, h, metric
+    return (img, *_final(img, cam, prov, h, metric))
+
+
+def _final(img, cam, prov, h, metric) -> tuple:
+    """(camera, height, metric, estimate) with the gravity the photo's hypotheses end with
+    (``hypothesize_photo``); estimate: the image's when gravity came from the photo alone."""
+    est = None
+    if prov.estimate is not None:
+        _, cam, prov = hypothesize_photo(img, cam, prov, max_n=1,
+                                         camera_height=h if metric else None)
+        if prov.gravity in ("image", "level"):
+            est = prov.estimate
+    return cam, h, metric, est
+
+
+def session_photos(images, inputs) -> tuple[list, dict]:
+    """``session.Photo`` of each photo from its ``_final`` inputs: photos whose gravity came
+    from their own lines agree on it spot by spot (``shared_gravity.analyse_plain``);
+    {index: why} of those left out."""
+    photos, sg = shared_gravity.analyse_plain(images, [i[0] for i in inputs],
+                                              [i[1] for i in inputs], [i[3] for i in inputs])
+    return photos, ({} if sg is None else {i: p.reason for i, p in enumerate(photos)
+                                             if p.layout is None and p.reason
+                                             and p.reason.startswith("gravity unknown")})
 
 
 def cmd_plan(args) -> int:
@@ -105,11 +127,13 @@ def cmd_plan(args) -> int:
         spots = [s.strip() for s in args.spots.split(",")]
         if len(spots) != len(args.photos):
             raise InputError(f"--spots has {len(spots)} labels for {len(args.photos)} photos")
-    photos, metric = [], True
+    images, inputs = [], []
     for path in args.photos:
-        img, cam, h, m = photo_inputs(path, args)
-        metric &= m
-        photos.append(session.analyse(img, cam, h))
+        img, *rest = photo_inputs(path, args)
+        images.append(img)
+        inputs.append(rest)
+    metric = all(i[2] for i in inputs)
+    photos, _ = session_photos(images, inputs)
     plan, _, timing = session.plan(photos, spots)
     names = [os.path.basename(p) for p in args.photos]
     out = plan.to_dict(names)
@@ -142,7 +166,7 @@ def cmd_locate_in(args) -> int:
         plan, plan_names = Plan.from_dict(d), list(d.get("poses", {}))
     except (OSError, KeyError, TypeError, ValueError) as e:
         raise InputError(f"{args.plan}: not a plan from findme plan --json ({e})") from None
-    photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photo]
+    photos = _photos(args.photo, args)
     if all(p.layout is None for p in photos):
         raise FindmeError("no photo shows a usable floor boundary: "
                           + "; ".join(f"{n}: {p.reason}" for n, p in zip(args.photo, photos)))
@@ -177,6 +201,16 @@ def cmd_locate_in(args) -> int:
     return 0
 
 
+def _photos(paths, args) -> list:
+    """``session.Photo`` of photos taken together (``session_photos``)."""
+    images, inputs = [], []
+    for p in paths:
+        img, *rest = photo_inputs(p, args)
+        images.append(img)
+        inputs.append(rest)
+    return session_photos(images, inputs)[0]
+
+
 def _pose(c) -> dict:
     return {"x_m": round(float(c[0]), 3), "z_m": round(float(c[1]), 3),
             "yaw_deg": round(math.degrees(float(c[2])), 2)}
@@ -199,25 +233,26 @@ def _find_with_photos(plan: Plan, plan_names: list, args, photos):
     if names != plan_names:
         raise InputError(f"--photos {names} are not the plan's photos {plan_names} (the same "
                          "files in the same order as given to findme plan)")
-    plan_photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photos]
+    plan_photos = _photos(args.photos, args)
     return session.find(plan_photos, plan.poses, photos)
 
 
-def room_photos(room_dir: str, view_dir: str, rid: str) -> tuple[list, list]:
+def room_photos(room_dir: str, view_dir: str, rid: str, gravity=True) -> tuple[list, list]:
     """(view ids, analysed photos) of one findme-eval room set: only its ordered view ids
-    and their camera inputs are read."""
+    and their camera inputs are read; each view's gravity as ``gravity`` (an
+    ``evaluate.GravityInput``, or True/False) gives it (``session_photos``)."""
+    from findme.evaluate import view_camera
     with open(os.path.join(room_dir, rid + ".json")) as f:
         views = json.load(f)["views"]
-    photos = []
+    images, inputs = [], []
     for v in views:
         with open(os.path.join(view_dir, v + ".json")) as f:
             meta = json.load(f)
-        k = meta["intrinsics"]
-        cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"],
-                     meta.get("gravity_cam"))
-        photos.append(session.analyse(read_image(os.path.join(view_dir, meta["image"])),
-                                      cam, float(meta["camera_height_m"])))
-    return views, photos
+        img = read_image(os.path.join(view_dir, meta["image"]))
+        cam, prov = view_camera(meta, img, gravity)
+        images.append(img)
+        inputs.append(_final(img, cam, prov, float(meta["camera_height_m"]), True))
+    return views, session_photos(images, inputs)[0]
 
 
 def room_spots(views, spots_mode: str):
@@ -238,10 +273,10 @@ def room_prediction(views, photos, spots_mode: str) -> dict:
 def room_job(args) -> tuple[str, dict | None, str | None]:
     """Plan of one findme-eval room set (``room_photos``); spots from the ids' ``_p<N>_``
     token ('ids') or from the photos ('auto')."""
-    room_dir, view_dir, rid, spots_mode = args
+    room_dir, view_dir, rid, spots_mode, *gravity = args
     cv2.setNumThreads(1)
     try:
-        views, photos = room_photos(room_dir, view_dir, rid)
+        views, photos = room_photos(room_dir, view_dir, rid, *gravity)
         return rid, room_prediction(views, photos, spots_mode), None
     except (FindmeError, OSError, KeyError, ValueError) as e:
         return rid, None, str(e)

@@ -63,9 +63,10 @@ class Photo:
     reason: str | None = None
 
 
-def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams()
-            ) -> Photo:
-    """Per-photo stage: hypotheses, rank-1 layout and scene, features."""
+def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
+            feats: features.Features | None = None) -> Photo:
+    """Per-photo stage: hypotheses, rank-1 layout and scene, features (``feats`` when
+    already detected with ``params.features``)."""
     hs = hypothesize(image, camera, params.method, 1, camera_height=height)
     L, sc, why = None, None, hs.reason
     if hs.hypotheses:
@@ -75,7 +76,8 @@ def analyse(image, camera: Camera, height: float, params: SessionParams = Sessio
             sc = Scene(camera, height, h.polyline, h.kinds)
         except FindmeError as e:
             L, sc, why = None, None, str(e)
-    return Photo(camera, float(height), L, sc, features.detect(image, params.features), why)
+    return Photo(camera, float(height), L, sc,
+                 feats if feats is not None else features.detect(image, params.features), why)
 
 
 class Relations(NamedTuple):
