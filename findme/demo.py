@@ -9,6 +9,7 @@ between two of them, and a point on a wall.
 from __future__ import annotations
 
 import json
+import math
 import time
 from importlib import resources
 from pathlib import Path
@@ -19,7 +20,8 @@ import numpy as np
 from findme_core.geometry.camera import Camera
 from findme_core.single.methods import hypothesize
 from findme_io.overlay import draw_hypotheses
-from findme_core.single.scene import Scene, distances
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, tilt_cov
+from findme_core.single.scene import Scene, boundary_sigma_px, distances
 
 from findme_io.imageio import read_image
 
@@ -61,7 +63,10 @@ def cmd_demo(args) -> int:
     cv2.imwrite(str(sel), draw_hypotheses(image, [x.polyline for x in hs.hypotheses], selected=0))
     print(f"selection image (hypotheses numbered, 1 drawn thick): {sel}")
     best = hs.hypotheses[0]
-    scene = Scene(cam, h, best.polyline, best.kinds)
+    # the sigmas a user is shown: the calibrated boundary error and the given gravity's
+    scene = Scene(cam, h, best.polyline, best.kinds,
+                  boundary_sigma_px=boundary_sigma_px(cam.width, cam.height),
+                  gravity_cov=tilt_cov(math.radians(INPUT_GRAVITY_SIGMA_DEG)))
     truth = meta["ground_truth"]["floor_points"]
     pts = scene.locate([q["px"] for q in truth])
     print("measured under hypothesis 1 (camera frame: x right, y down, z forward; metres):")

@@ -44,7 +44,7 @@ from findme_core.geometry.manhattan import gravity_of, pitch_roll_deg
 from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
 from findme_core.motion.methods import METHODS as MOTION_METHODS
 from findme_core.single.methods import METHODS
-from findme_core.single.scene import Scene, boundary_sigma_px
+from findme_core.single.scene import Scene, boundary_sigma_px, distances
 from .options import gravity_sigma
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
@@ -54,6 +54,8 @@ from findme_core.motion.pair import motion_photos, photo_of
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 #: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``
 SIGMA_PARTS = ("boundary", "height", "pixel", "gravity")
+#: 1-sigma of a dataset view's camera height: its truth was computed with that very height
+DATASET_HEIGHT_SIGMA_M = 0.0
 
 
 def register(sub) -> None:
@@ -70,6 +72,10 @@ def register(sub) -> None:
                         "OUT.<name>.json, from the same features and hypotheses")
     add_gravity_args(p)
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    p.add_argument("--height-sigma", type=float, default=DATASET_HEIGHT_SIGMA_M, metavar="M",
+                   help="1-sigma of the views' camera heights in the 3D sigmas (default 0: a "
+                        "dataset's heights are the ones its truth was made with; a height a "
+                        "user types is known to ~0.03 m)")
     p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
                    help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
                         "the view ids, as a capture app marks a new spot) or 'auto' (from "
@@ -176,6 +182,7 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
     """Prediction for one view: ranked polylines and the 3D of each query pixel."""
     view_dir, vid, method, max_n, *rest = args
     gravity = rest[0] if rest else True
+    height_sigma = rest[1] if len(rest) > 1 else DATASET_HEIGHT_SIGMA_M
     cv2.setNumThreads(1)
     try:
         with open(os.path.join(view_dir, vid + ".json")) as f:
@@ -192,12 +199,15 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
             top = hs.hypotheses[0]
             try:
                 scene = Scene(cam, h, top.polyline, top.kinds, gravity_cov=prov.gravity_cov,
-                              boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+                              boundary_sigma_px=boundary_sigma_px(cam.width, cam.height),
+                              height_sigma=height_sigma)
             except FindmeError:  # e.g. a level-camera polyline crossing a tilted horizon:
                 scene = None     # its points have no answer, its hypotheses still count
+            located_by = {}
             for kind, px in queries.items():
                 if px:
                     located = [None] * len(px) if scene is None else scene.locate(px)
+                    located_by[kind] = located
                     pred[kind] = [None if p is None or p.xyz is None else p.xyz.round(5).tolist()
                                   for p in located]
                     pred[kind + "_sigma_m"] = [None if p is None or p.xyz is None
@@ -205,9 +215,29 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
                     pred[kind + "_sigma_parts_m"] = [
                         None if p is None or p.xyz is None else
                         [round(p.sigma_parts[k], 5) for k in SIGMA_PARTS] for p in located]
+            if scene is not None:
+                pred["distances"] = _distances(located_by, scene)
         return vid, pred, None
     except FindmeError as e:
         return vid, None, str(e)
+
+
+def _distances(located_by: dict, scene) -> list:
+    """Distances a user would measure between two points of the photo, with their 1-sigma
+    (``uncertainty.distances``): consecutive query points of one kind (0-1, 2-3, ...) and the
+    i-th floor point to the i-th wall point, each once both ends have an answer."""
+    pairs = [(k, i, k, i + 1) for k, pts in located_by.items() for i in range(0, len(pts) - 1, 2)]
+    fl, wl = located_by.get("floor_points", []), located_by.get("wall_points", [])
+    pairs += [("floor_points", i, "wall_points", i) for i in range(min(len(fl), len(wl), 10))]
+    out = []
+    for ka, i, kb, j in pairs:
+        a, b = located_by[ka][i], located_by[kb][j]
+        if a is None or b is None or a.xyz is None or b.xyz is None:
+            continue
+        d, sigma, _ = distances([a, b], scene.height, scene.height_sigma)[0]
+        out.append({"kind_a": ka, "a": i, "kind_b": kb, "b": j, "d_m": round(d, 5),
+                    "sigma_m": round(sigma, 5)})
+    return out
 
 
 def pair_inputs(pair_dir, view_dir, pid: str, gravity: GravityInput | bool = True
@@ -280,9 +310,10 @@ def cmd_eval(args) -> int:
     view_dir = os.path.join(args.dataset, index.get("views_dir", "views"))
     views = sorted({v for ss in index["subsets"].values() for v in ss.get("views", [])})
     gravity = GravityInput.from_args(args)
-    preds = {"views": {}, "pairs": {}, "method": args.method, "gravity": gravity.describe()}
+    preds = {"views": {}, "pairs": {}, "method": args.method, "gravity": gravity.describe(),
+             "height_sigma_m": args.height_sigma}
     failures = []
-    jobs = [(view_dir, v, args.method, args.max, gravity) for v in views]
+    jobs = [(view_dir, v, args.method, args.max, gravity, args.height_sigma) for v in views]
     bar = tqdm(total=len(jobs), desc=f"views ({args.method})", unit="view", file=sys.stderr)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=mp.get_context("spawn")) as ex:

@@ -150,8 +150,9 @@ def cmd_plan(args) -> int:
           f"{'m2' if metric else '(camera heights)^2'}"
           + ("" if plan.closed else f"; missing walls (not seen): {plan.missing}"))
     for k, w in enumerate(plan.walls):
-        print(f"  wall {k}: {w.length_m:.2f} ± {w.sigma_m:.2f} {unit}"
-              + ("" if w.seen else " (not seen)")
+        print(f"  wall {k}: {w.length_m:.2f} "
+              + (f"± {w.sigma_m:.2f} {unit}" if w.seen else f"{unit} (not seen: inferred, not "
+                                                            "measured)")
               + "".join(f", opening {a:.2f}-{b:.2f}" for a, b in w.apertures))
     for name, p in out["poses"].items():
         print(f"  {name}: " + ("not placed: " + out["notes"].get(name, "") if p is None else

@@ -33,8 +33,8 @@ def log_plan(rec, path: str, plan) -> None:
             w.kind, "walls")
         a, b = np.array([w.a.x_m, w.a.z_m]), np.array([w.b.x_m, w.b.z_m])
         groups[g][0].append(np.array([a, b]))
-        groups[g][1].append(f"{w.length_m:.2f} {unit} ± {w.sigma_m:.2f}"
-                            + (" (not seen)" if g == "missing" else ""))
+        groups[g][1].append(f"{w.length_m:.2f} {unit} (not seen: inferred, not measured)"
+                            if g == "missing" else f"{w.length_m:.2f} {unit} ± {w.sigma_m:.2f}")
         u = (b - a) / max(w.length_m, 1e-9)
         for o in w.openings:
             groups["openings"][0].append(np.array([a + o.from_m * u, a + o.to_m * u]))

@@ -130,9 +130,10 @@ window.FindMePlan = (function () {
     draw(svg, plan, units);
     const list = document.getElementById('plan-walls');
     list.replaceChildren(...plan.walls.map((w, i) => el('li', {'data-kind': w.kind, 'data-length-m': w.length_m},
-      `Wall ${i + 1}: ${lengthText(w.length_m, units, plan.metric)} ± ` +
-      `${units === 'ft' && plan.metric ? (w.sigma_m / IN).toFixed(1) + '″' : lengthText(w.sigma_m, 'm', plan.metric)}` +
-      (w.kind === 'missing' ? ' — not seen' : w.kind === 'opening' ? ' — an opening' : '') +
+      `Wall ${i + 1}: ${lengthText(w.length_m, units, plan.metric)}` +
+      (w.sigma_m == null ? '' : ' ± ' + (units === 'ft' && plan.metric ? (w.sigma_m / IN).toFixed(1) + '″'
+                                                                       : lengthText(w.sigma_m, 'm', plan.metric))) +
+      (w.kind === 'missing' ? ' — not seen: inferred, not measured' : w.kind === 'opening' ? ' — an opening' : '') +
       (w.openings.length ? ` — ${w.openings.length} door/opening${w.openings.length > 1 ? 's' : ''}` : ''))));
     const left = plan.poses.filter((q) => q.status !== 'placed' && q.reason && q.reason !== plan.reason);
     const notes = document.getElementById('plan-notes');

@@ -45,6 +45,13 @@ class PlanParams:
         aperture_min_m: a stretch of wall at least this long where floor was seen beyond it
             (and no wall base) is a door or opening.
         max_range_m: floor samples are cut at this distance from their camera.
+        pose_sigma_model: (k_xz, floor_xz_m, k_yaw, floor_yaw_deg): a pose's 1-sigma is
+            hypot(k * the refinement's, floor) per axis: the refinement's covariance sees the
+            samples' noise, not the layouts' shared errors. Fitted on the dev rooms so that
+            68 % of the poses lie within 1 sigma (``tools/calibrate_plan.py``,
+            leave-one-room-out figures in docs/RESULTS.md).
+        length_sigma_model: (k, floor_m): the same for a seen wall's length. A wall nobody
+            saw closes the outline: its length is inferred, not measured (1-sigma NaN).
     """
 
     polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)
@@ -54,13 +61,16 @@ class PlanParams:
     offset_floor_m: float = 0.01
     aperture_min_m: float = 0.5
     max_range_m: float = 8.0
+    pose_sigma_model: tuple = (1.0, 0.0, 1.0, 0.0)
+    length_sigma_model: tuple = (1.0, 0.0)
 
 
 @dataclass(frozen=True)
 class Wall:
-    """One edge of the outline: ends a, b (2,) metres, length and 1-sigma, whether it was
-    seen as a wall ("missing" edges close the outline where nothing was seen), and the
-    apertures (from_m, to_m measured from a) where the floor was seen beyond it."""
+    """One edge of the outline: ends a, b (2,) metres, length and 1-sigma (NaN: not
+    measured, for an edge nobody saw), whether it was seen as a wall ("missing" edges close
+    the outline where nothing was seen), and the apertures (from_m, to_m measured from a)
+    where the floor was seen beyond it."""
 
     a: np.ndarray
     b: np.ndarray
@@ -124,7 +134,8 @@ class Plan:
             "closed": self.closed,
             "manhattan": self.manhattan,
             "walls": [{"a": np.round(w.a, 4).tolist(), "b": np.round(w.b, 4).tolist(),
-                       "length_m": round(w.length_m, 4), "sigma_m": round(w.sigma_m, 4),
+                       "length_m": round(w.length_m, 4),
+                       "sigma_m": round(w.sigma_m, 4) if math.isfinite(w.sigma_m) else None,
                        "seen": w.seen,
                        "apertures": [{"kind": "opening", "from_m": round(a, 3), "to_m": round(b, 3)}
                                      for a, b in w.apertures]} for w in self.walls],
@@ -139,7 +150,8 @@ class Plan:
     def from_dict(cls, d: dict) -> "Plan":
         """Inverse of ``to_dict`` (poses in the order of the dict)."""
         walls = tuple(Wall(np.array(w["a"], float), np.array(w["b"], float),
-                           float(w["length_m"]), float(w.get("sigma_m", 0.0)),
+                           float(w["length_m"]),
+                           float("nan") if w.get("sigma_m") is None else float(w["sigma_m"]),
                            bool(w.get("seen", True)),
                            tuple((a["from_m"], a["to_m"]) for a in w.get("apertures", ())))
                       for w in d["walls"])
@@ -210,6 +222,13 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
     manhattan = wl.manhattan is not None and bool(np.all(snapped[used]))
     if sig_len is None:
         sig_len = _line_sigmas(out, lines, _offset_sigmas(ev, wl, params), params)
+    k, f = params.length_sigma_model
+    sig_len = np.where(out.seen[:len(V)], np.hypot(k * np.asarray(sig_len, float), f), np.nan)
+    if pose_sig is not None:
+        kx, fx, ky, fy = params.pose_sigma_model
+        fixed = pose_sig == 0.0                  # the frame's origin: exact by definition
+        pose_sig = np.where(fixed, 0.0, np.column_stack([
+            np.hypot(kx * pose_sig[:, :2], fx), np.hypot(ky * pose_sig[:, 2], math.radians(fy))]))
     fans = []
     for L, p in zip(layouts, poses):
         if L is not None and np.isfinite(p[0]):

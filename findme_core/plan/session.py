@@ -27,7 +27,7 @@ from findme_core.errors import FindmeError, GeometryError
 from findme_core.geometry import planar
 from findme_core.geometry.camera import Camera
 from findme_core.motion import features, lifting, methods as motion
-from findme_core.plan import find_spot, floorplan, fuse, spot
+from findme_core.plan import consistency, find_spot, floorplan, fuse, spot
 from findme_core.single import layout
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
@@ -48,6 +48,8 @@ class SessionParams:
     fuse: fuse.FuseParams = field(default_factory=fuse.FuseParams)
     plan: floorplan.PlanParams = field(default_factory=floorplan.PlanParams)
     features: features.FeatureParams = field(default_factory=features.FeatureParams)
+    consistency: consistency.ConsistencyParams = field(
+        default_factory=consistency.ConsistencyParams)
 
 
 @dataclass
@@ -280,7 +282,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
         (plan, placement, timing_ms).
 
     Raises:
-        GeometryError: no photo, or no placed photo saw any floor.
+        GeometryError: no photo, no placed photo saw any floor, or the plan contradicts its
+            photos (``consistency.check``: the reason says how).
     """
     if not photos:
         raise GeometryError("a plan needs at least one photo")
@@ -301,6 +304,9 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     result = floorplan.build(layouts, pl.poses, params.plan, notes, amb, spot=pl.spot,
                              links=links, matches=matches,
                              focal=np.array([p.camera.fx for p in photos]))
+    why = consistency.check(result, params.consistency)
+    if why:
+        raise GeometryError(why)
     t3 = clock()
     return result, pl, {"relate": 1e3 * (t1 - t0), "place": 1e3 * (t2 - t1),
                         "plan": 1e3 * (t3 - t2)}

@@ -277,7 +277,9 @@ def _fill(msg, plan, pl, timing, photos, order, status) -> None:
         gaps = sum(b - a for a, b in w.apertures)
         kind = (schemas.WALL_KIND_MISSING if not w.seen else schemas.WALL_KIND_OPENING
                 if gaps >= OPENING_SHARE * w.length_m else schemas.WALL_KIND_WALL)
-        pw = msg.walls.add(length_m=float(w.length_m), sigma_m=float(w.sigma_m), kind=kind)
+        # a wall nobody saw is inferred, not measured: no 1-sigma (0, unset; kind MISSING)
+        sigma = float(w.sigma_m) if np.isfinite(w.sigma_m) else 0.0
+        pw = msg.walls.add(length_m=float(w.length_m), sigma_m=sigma, kind=kind)
         pw.a.x_m, pw.a.z_m, pw.b.x_m, pw.b.z_m = map(float, (*w.a, *w.b))
         for a, b in w.apertures:
             pw.openings.add(from_m=float(a), to_m=float(min(b, w.length_m)))

@@ -1,0 +1,57 @@
+"""Whether a floor plan is one room its photos agree on, or a drawing that must not be shown.
+
+A plan is refused (``check`` gives the reason) when it contradicts its own photos:
+
+* a placed photo's camera lies outside the outline by more than ``outside_m``: the user
+  stood in the room, so an outline that leaves a camera outside was drawn from photos placed
+  wrongly, or from boundaries that were not the room's walls (two photos of a garage once
+  made a 0.8 m2 triangle beside the camera).
+
+Frames and units as ``floorplan``: the room frame's (x, z), metres. Pure numpy + OpenCV's
+point-in-polygon test.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ConsistencyParams:
+    """Attributes:
+        outside_m: a camera this far outside the outline refuses the plan (a person stands
+            at least a body's half-width from a wall; poses are known to ~0.1 m).
+    """
+
+    outside_m: float = 0.25
+
+
+def camera_depths(polygon: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(N,) signed distance of each pose's camera (x, z) inside the outline, metres (> 0
+    inside, < 0 outside; NaN for a photo not placed or without an outline)."""
+    P = np.asarray(polygon, np.float32).reshape(-1, 1, 2)
+    out = np.full(len(poses), np.nan)
+    if len(P) < 3:
+        return out
+    for i, p in enumerate(np.asarray(poses, float).reshape(-1, 3)):
+        if np.isfinite(p[0]):
+            out[i] = cv2.pointPolygonTest(P, (float(p[0]), float(p[1])), True)
+    return out
+
+
+def check(plan, params: ConsistencyParams = ConsistencyParams(), names=None) -> str | None:
+    """Why ``plan`` (a ``floorplan.Plan``) must not be shown, or None. ``names`` name the
+    photos in the reason (default: their numbers from 1)."""
+    d = camera_depths(plan.polygon, plan.poses)
+    bad = np.flatnonzero(d < -params.outside_m)
+    if len(bad):
+        i = int(bad[np.argmin(d[bad])])
+        who = names[i] if names is not None else f"photo {i + 1}"
+        return (f"the outline leaves {len(bad)} camera(s) outside the room ({who}'s by "
+                f"{-d[i]:.2f} m): the photos do not agree on one room (walls that are not the "
+                "room's, or photos placed wrongly); take photos that show the floor meeting "
+                "the walls")
+    return None
