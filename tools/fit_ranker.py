@@ -133,6 +133,11 @@ def main(argv=None):
     ap.add_argument("--show", action="store_true", help="print every view's held-out error")
     ap.add_argument("--free", metavar="NAME[,NAME...]",
                     help="fit only these weights (default: all but support), e.g. far")
+    ap.add_argument("--loro-out", metavar="FOLDS.json",
+                    help="write each leave-one-group-out fold's weights ({group: {name: w}}), "
+                         "each fitted from the search's own weights (ranking.SEARCH_WEIGHTS, "
+                         "not pulled towards the current in-sample fit) on the other groups: "
+                         "tools/loro_eval.py runs the pipeline on each group with its fold's")
     ap.add_argument("--grid", metavar="NAME=V1,V2,...",
                     help="instead of fitting, choose one weight from these values (e.g. "
                          "far=0,-4,-8,-12,-16,-24), each held-out fold choosing on its own")
@@ -176,6 +181,12 @@ def main(argv=None):
                 if group_of(v) == g:
                     held[v] = top1([data[v]], wg)[0]
         w_new = fitter([data[v] for v in vids], w, free)
+        if a.loro_out:
+            from findme_core.single.ranking import SEARCH_WEIGHTS
+            w0 = SEARCH_WEIGHTS.vector()
+            folds = {g: dict(zip(FEATURES, fitter([data[v] for v in vids if group_of(v) != g],
+                                                  w0, free).tolist())) for g in groups}
+            json.dump(folds, open(a.loro_out, "w"), indent=1)
         print("top-1 median pixel error per subset "
               "(current weights | held-out fit | in-sample fit | best candidate)")
         for s in SUBSETS:

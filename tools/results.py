@@ -23,6 +23,9 @@ import sys
 import tempfile
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import results_trust  # noqa: E402
+
 SINGLE = ["zind-level", "zind-tilted", "zind-pairs-tilted", "tum-cabinet", "zind-level-lowfloor",
           "zind-pairs-level"]
 PAIRS = ["zind-pairs-level", "zind-pairs-tilted", "tum-cabinet-pairs", "kitti06-pairs"]
@@ -187,6 +190,10 @@ def main(argv=None):
                         str(a.split), "--json", str(t / "locate.json")], check=True,
                        stdout=subprocess.DEVNULL)
         locate = json.loads((t / "locate.json").read_text())
+        trust_tools = results_trust.run(a.split, t)
+        loro = _score(a.split, scorer, trust_tools["loro"])
+        ours_preds = json.loads((t / "ours.json").read_text())
+        nograv_preds = json.loads((t / "nograv.json").read_text())
         ours = _score(a.split, scorer, t / "ours.json")
         nograv = _score(a.split, scorer, t / "nograv.json")
         auto_spots = _score(a.split, scorer, t / "auto.json")
@@ -261,6 +268,7 @@ def main(argv=None):
         "locate-in PLAN.json PHOTO...`: a user turning round at the new place). Localised: "
         "within 0.25 m and 5°.", "",
         *_locate_rows(locate), "",
+        *results_trust.section(a.split, ours, loro, ours_preds, nograv_preds, trust_tools),
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text("\n".join(lines) + "\n")

@@ -18,7 +18,7 @@ Units: metres, radians. Pure: images in, numbers out; no I/O. ``clock`` is injec
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -55,7 +55,7 @@ class SessionParams:
 @dataclass
 class Photo:
     """One photo's per-photo results: its layout (None without a usable hypothesis, with
-    the reason), scene and features."""
+    the reason), scene and features; whether its gravity came from its own lines."""
 
     camera: Camera
     height: float
@@ -63,6 +63,7 @@ class Photo:
     scene: Scene | None
     features: features.Features
     reason: str | None = None
+    gravity_from_image: bool = False
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
@@ -301,7 +302,11 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
             notes[i] = f"no layout: {p.reason}"
     amb = [float(pl.ambiguity[pl.block[i]] / pl.scores[pl.block[i]])
            if pl.scores[pl.block[i]] > 0 else float("nan") for i in range(len(photos))]
-    result = floorplan.build(layouts, pl.poses, params.plan, notes, amb, spot=pl.spot,
+    plan_params = params.plan
+    if any(p.gravity_from_image for p, pose in zip(photos, pl.poses) if np.isfinite(pose[0])):
+        pm, lm = plan_params.image_gravity_models
+        plan_params = replace(plan_params, pose_sigma_model=pm, length_sigma_model=lm)
+    result = floorplan.build(layouts, pl.poses, plan_params, notes, amb, spot=pl.spot,
                              links=links, matches=matches,
                              focal=np.array([p.camera.fx for p in photos]))
     why = consistency.check(result, params.consistency)

@@ -21,7 +21,7 @@ radians inside, degrees in parameters (``_deg``) and messages. Pure numpy; no I/
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -242,7 +242,8 @@ def analyse_plain(images, cameras, heights, estimates, params=None,
             why = e.reason
         if why is not None:
             photos.append(session.Photo(c, float(h), None, None, f,
-                                        f"gravity unknown: {why}"))
+                                        f"gravity unknown: {why}", gravity_from_image=True))
             continue
-        photos.append(session.analyse(im, c.with_gravity(sg.vectors[i]), h, params, f))
+        photo = session.analyse(im, c.with_gravity(sg.vectors[i]), h, params, f)
+        photos.append(replace(photo, gravity_from_image=True))
     return photos, sg

@@ -76,7 +76,8 @@ def test_exact_plan_from_noise_free_boundaries(room, spots):
     assert plan.area_m2 == pytest.approx(abs(polygon.area(poly)), rel=0.01)
     true_len = sorted(np.linalg.norm(np.roll(poly, -1, 0) - poly, axis=1))
     assert sorted(w.length_m for w in plan.walls) == pytest.approx(true_len, abs=0.03)
-    assert all(0 < w.sigma_m < 0.2 for w in plan.walls)
+    # the refinement's 1-sigma times the model error fitted on real rooms (x1.49)
+    assert all(0 < w.sigma_m < 0.3 for w in plan.walls)
 
 
 def test_manhattan_only_where_the_walls_say_so():
@@ -159,7 +160,9 @@ def test_refined_wall_lengths_within_their_sigma():
     rng = np.random.default_rng(3)
     noisy = [dataclasses.replace(L, range=L.range + rng.normal(0, 1, len(L.range)) * L.sigma)
              for L in lays]
-    plan = floorplan.build(noisy, truth, spot=lab, links=links)
+    # the refinement's own 1-sigma (no model error: the noise here is the stated one)
+    raw = floorplan.PlanParams(length_sigma_model=(1.0, 0.0))
+    plan = floorplan.build(noisy, truth, raw, spot=lab, links=links)
     true_len = np.linalg.norm(np.roll(poly, -1, 0) - poly, axis=1)
     for w in plan.walls:
         err = np.abs(true_len - w.length_m).min()

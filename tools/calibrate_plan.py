@@ -1,0 +1,119 @@
+"""Fit the floor plan's model-error terms so that its 1-sigma values mean what they say, and
+show how they hold on a room left out of the fit.
+
+    python tools/calibrate_plan.py ../shared/data/findme-eval [--gravity given|withheld]
+                                   [--json OUT.json]
+
+Plans every dev room (``zind-rooms``, spots from the ids, as ``findme eval``) with the raw
+sigmas (``PlanParams.pose_sigma_model`` = (1, 0, 1, 0), ``length_sigma_model`` = (1, 0): the
+joint refinement's covariance alone), matches every seen wall to the truth and every placed
+photo to its true pose, then fits each term as ``sigma = hypot(k * raw, floor)``
+(``sigma_coverage.fit_model``: the coverage within 1 and 3 sigma nearest a Gaussian's):
+
+* on all rooms: the values to put in ``PlanParams`` (findme_core/plan/floorplan.py:
+  ``pose_sigma_model`` and ``length_sigma_model`` from ``--gravity given``,
+  ``image_gravity_models`` from ``--gravity withheld``, where each photo's gravity comes
+  from its own lines, agreed spot by spot);
+* leaving each room out in turn: the coverage the left-out room gets from the values fitted
+  on the others (what a room never seen gets), next to the in-sample coverage.
+
+A plan the session refuses (``floorplan.check``) has no sigmas to fit. Reads the dataset's
+ground truth: a tool, not the product.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(__file__))
+import sigma_coverage as sc  # noqa: E402
+from findme.evaluate import GravityInput  # noqa: E402
+from findme.plan_cli import room_photos, room_spots  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
+from findme_core.plan import session  # noqa: E402
+
+RAW = dict(pose_sigma_model=(1.0, 0.0, 1.0, 0.0), length_sigma_model=(1.0, 0.0),
+           image_gravity_models=((1.0, 0.0, 1.0, 0.0), (1.0, 0.0)))
+
+
+def raw_plan(job) -> tuple[str, dict | None, str | None]:
+    """(room id, the plan's dict with raw sigmas, or None and why)."""
+    dataset, rid, given = job
+    import cv2
+    cv2.setNumThreads(1)
+    try:
+        views, photos = room_photos(os.path.join(dataset, "rooms"), os.path.join(dataset, "views"),
+                                    rid, GravityInput(given=given))
+        p = session.SessionParams()
+        p = replace(p, plan=replace(p.plan, **RAW))
+        plan, _, _ = session.plan(photos, room_spots(views, "ids"), p)
+        d = plan.to_dict(views)
+        d["poses"] = {k: v for k, v in d["poses"].items() if v is not None}
+        return rid, d, None
+    except FindmeError as e:
+        return rid, None, str(e)
+
+
+def items(dataset: str, plans: dict) -> dict:
+    """{quantity: [(room, |error|, raw sigma)]} of the plans' seen walls and poses."""
+    preds = {"rooms": {r: d for r, d in plans.items() if d}}
+    return {k: v for k, v in sc.collect(dataset, preds).items()
+            if k.startswith(("plan pose", "wall length (seen)"))}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("dataset")
+    ap.add_argument("--gravity", choices=("given", "withheld"), default="given")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--cache", metavar="PLANS.json",
+                    help="the raw plans: read from this file when it exists, else made and "
+                         "written to it (refit without planning again)")
+    a = ap.parse_args(argv)
+    idx = json.load(open(os.path.join(a.dataset, "index.json")))
+    rooms = idx["subsets"]["zind-rooms"]["rooms"]
+    if a.cache and os.path.exists(a.cache):
+        plans = json.load(open(a.cache))
+    else:
+        with ProcessPoolExecutor(a.jobs) as ex:
+            plans = {r: d for r, d, why in ex.map(raw_plan, [(a.dataset, r, a.gravity == "given")
+                                                                for r in rooms])
+                     if d is not None or print(f"  {r}: refused: {why}", file=sys.stderr)}
+        if a.cache:
+            json.dump(plans, open(a.cache, "w"))
+    out = {}
+    for k, its in sorted(items(a.dataset, plans).items()):
+        err = np.array([i[1] for i in its], float)
+        raw = np.array([i[2] for i in its], float)
+        model = sc.fit_model(err, raw)
+        z_loro, folds = sc.loro_model(its)
+        out[k] = {"n": len(its), "model": model, "raw": sc.coverage(err / raw),
+                  "in": sc.coverage(err / np.hypot(model[0] * raw, model[1])),
+                  "loro": sc.coverage(z_loro), "folds": folds}
+        unit = "deg" if "yaw" in k else "m"
+        if k == "plan pose x, z":   # fitted on sigma_xz (a radius): per axis floor / sqrt 2
+            unit += f" (per axis {model[1] / math.sqrt(2):.4f})"
+        print(f"{k:22s} n={len(its):3d}  k={model[0]:.2f} floor={model[1]:.4f} {unit}   raw "
+              + " / ".join(f"{c:.2f}" for c in out[k]["raw"]) + "   fitted in sample "
+              + " / ".join(f"{c:.2f}" for c in out[k]["in"]) + "   leave-one-room-out "
+              + " / ".join(f"{c:.2f}" for c in out[k]["loro"]))
+        for g, (kk, ff) in sorted(folds.items()):
+            print(f"    without {g}: k={kk:.2f} floor={ff:.4f}")
+    if a.json:
+        json.dump(out, open(a.json, "w"), indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
