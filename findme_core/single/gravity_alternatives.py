@@ -70,15 +70,16 @@ def tilt_offset(g: np.ndarray, other: np.ndarray) -> np.ndarray:
     return np.radians([p1 - p0, dr])
 
 
-def widen(g: np.ndarray, cov: np.ndarray, alternatives) -> np.ndarray:
+def widen(g: np.ndarray, cov: np.ndarray, alternatives, weight: float = 1.0) -> np.ndarray:
     """(2, 2) tilt covariance of the mixture of the estimate (``g``, ``cov``; weight 1)
-    and its ``alternatives`` ((gravity, score ratio), ...; weight = ratio), about ``g``:
+    and its ``alternatives`` ((gravity, score ratio), ...; weight = ``weight`` x ratio: how
+    often an alternative this strong is the right frame, fitted on data), about ``g``:
     cov + sum_k w_k d_k d_k^T with w normalised over all and d_k the alternative's tilt
     offset. Unchanged without alternatives."""
     cov = np.asarray(cov, float)
     if not alternatives:
         return cov
-    w = np.array([1.0] + [max(r, 0.0) for _, r in alternatives])
+    w = np.array([1.0] + [weight * max(r, 0.0) for _, r in alternatives])
     w = w / w.sum()
     out = cov.copy()
     for wk, (a, _) in zip(w[1:], alternatives):

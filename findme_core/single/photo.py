@@ -76,7 +76,7 @@ def hypothesize_estimated(image: np.ndarray, camera: Camera, est: GravityEstimat
                       for k in [*timing, *(k for k in again.timing_ms if k not in timing)]}
             hs = again
         else:   # not worth new hypotheses: keep them consistent (and what the floor told)
-            joint = with_alternatives(est, joint.alternatives)
+            joint = with_alternatives(est, joint.alternatives, params.alternative_weight)
     return replace(hs, timing_ms=timing), joint
 
 

@@ -73,6 +73,8 @@ class GravityParams:
     ambiguity_candidates: int = 6   # frames refined to look for alternatives (step 5; 0: none)
     ambiguity_ratio: float = 0.85   # an alternative scores at least this much of the best
     distinct_deg: float = 5.0       # ... and its gravity lies this far from the best's
+    alternative_weight: float = 0.25  # its weight in the mixture: this x its score ratio
+                                     # (tools/choose_ambiguity.py, leave one room out)
     iterations: int = 4
     min_line_sigma_deg: float = 0.5  # a unit-weight line's angle is known no better (dev:
                                      # residual scale p10 0.37, median 0.66 deg)
@@ -210,17 +212,18 @@ def _estimate(R, cov, masks, p: GravityParams, segments, evidence,
         return level_estimate(f"gravity from the image is too uncertain "
                               f"({math.degrees(est.sigma):.1f} deg): level assumed",
                               p.level_sigma_deg, segments)
-    return with_alternatives(est, alternatives)
+    return with_alternatives(est, alternatives, p.alternative_weight)
 
 
-def with_alternatives(est: GravityEstimate, alternatives) -> GravityEstimate:
+def with_alternatives(est: GravityEstimate, alternatives,
+                      weight: float = GravityParams.alternative_weight) -> GravityEstimate:
     """``est`` carrying ``alternatives`` (step 5), its covariance widened over them from its
     fit's, the reason said; ``est`` without alternatives when there are none."""
     base = est.fit_cov if est.fit_cov is not None else est.cov
     if not alternatives:
         return replace(est, cov=base, alternatives=(), fit_cov=None,
                        reason=None if est.alternatives else est.reason)
-    return replace(est, cov=alt.widen(est.vector, base, alternatives), fit_cov=base,
+    return replace(est, cov=alt.widen(est.vector, base, alternatives, weight), fit_cov=base,
                    alternatives=tuple(alternatives),
                    reason=alt.describe(est.vector, alternatives))
 
@@ -359,4 +362,4 @@ def _rescored(chosen: GravityEstimate, est: GravityEstimate, L2: LineSet, K: np.
     s, _ = score_frames(L2, K, np.array([chosen.vector, *others]), p.inlier_deg)
     kept = alt.distinct(chosen.vector, float(s[0]), zip(others, s[1:]), p.ambiguity_ratio,
                         p.distinct_deg)
-    return with_alternatives(chosen, kept)
+    return with_alternatives(chosen, kept, p.alternative_weight)

@@ -99,6 +99,13 @@ def test_partial_view_names_the_missing_walls():
     d = plan.to_dict()
     assert d["closed"] is False and d["missing_walls"] == plan.missing
     assert behind_z is None or behind_z < 0
+    # a wall nobody saw is inferred, not measured: no 1-sigma (it had +-0.01-0.09 m, tighter
+    # than the seen walls beside it), null in the JSON, and the round trip keeps that
+    for k in plan.missing:
+        assert math.isnan(plan.walls[k].sigma_m) and d["walls"][k]["sigma_m"] is None
+    assert all(math.isfinite(w.sigma_m) and w.sigma_m > 0 for w in plan.walls if w.seen)
+    back = floorplan.Plan.from_dict(d)
+    assert all(math.isnan(back.walls[k].sigma_m) for k in plan.missing)
 
 
 def test_to_dict_round_trip_and_relocalise():
