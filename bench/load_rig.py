@@ -468,7 +468,11 @@ def breakdown(start: dict, end: dict, photos: int) -> list[dict]:
                 "probes": d.get("image_probes", 0) / n,
                 "pb_ms": (d.get("pb_decode_us", 0) + d.get("pb_encode_us", 0)) / n / 1e3,
                 "handle_cpu_ms": d.get("handle_cpu_us", 0) / n / 1e3,
-                "other_cpu_ms": cpu_ms - d.get("handle_cpu_us", 0) / n / 1e3,
+                "tick_cpu_ms": d.get("tick_cpu_us", 0) / n / 1e3,
+                "other_cpu_ms": cpu_ms - (d.get("handle_cpu_us", 0) + d.get("tick_cpu_us", 0))
+                / n / 1e3,
+                "fetches": d.get("fetches", 0) / n, "fetch_ms": d.get("fetch_us", 0) / n / 1e3,
+                "busy_s": (d.get("handle_us", 0) + d.get("tick_us", 0)) / 1e6,
                 "wait_mean_ms": d.get("wait_us", 0) / waits / 1e3,
                 "wait_max_ms": b.get("wait_max_us", 0) / 1e3,
                 "handle_mean_ms": d.get("handle_us", 0) / handled / 1e3,
@@ -476,28 +480,30 @@ def breakdown(start: dict, end: dict, photos: int) -> list[dict]:
         rows.append(row)
     total = {"process": "ALL", "cpu_ms": sum(r["cpu_ms"] for r in rows),
              "rss0": sum(r["rss0"] for r in rows), "rss1": sum(r["rss1"] for r in rows)}
-    for k in ("decodes", "decode_ms", "kb_in", "kb_out", "handle_cpu_ms", "other_cpu_ms", "pb_ms"):
+    for k in ("decodes", "decode_ms", "kb_in", "kb_out", "handle_cpu_ms", "tick_cpu_ms",
+              "other_cpu_ms", "pb_ms"):
         total[k] = sum(r.get(k, 0.0) for r in rows)
     return rows + [total]
 
 
 def breakdown_table(rows: list[dict]) -> str:
-    head = ("| process | CPU ms/photo | handler CPU | other CPU | msgs in / out | kB in / out | "
-            "decodes (ms, Mpx) | probes | protobuf ms | queue wait mean / max ms | "
-            "handling ms/msg | RSS MB start -> end |")
-    lines = [head, "|" + "---|" * 12]
+    head = ("| process | CPU ms/photo | handler CPU | tick CPU | other CPU | msgs in / out | "
+            "kB in / out | decodes (ms, Mpx) | probes | protobuf ms | bus queries (wall ms) | "
+            "queue wait mean / max ms | handling ms/msg | worker busy s | RSS MB start -> end |")
+    lines = [head, "|" + "---|" * 15]
     f1 = (lambda r, k, fmt="{:.1f}": fmt.format(r[k]) if k in r else "-")
     for r in rows:
         lines.append(
             f"| {r['process']} | {r['cpu_ms']:.1f} | {f1(r, 'handle_cpu_ms')} | "
-            f"{f1(r, 'other_cpu_ms')} | "
+            f"{f1(r, 'tick_cpu_ms')} | {f1(r, 'other_cpu_ms')} | "
             + (f"{r['msgs_in']:.1f} / {r['msgs_out']:.1f} | {r['kb_in']:.0f} / {r['kb_out']:.0f} | "
                f"{r['decodes']:.2f} ({r['decode_ms']:.1f}, {r['decoded_mpx']:.2f}) | "
-               f"{r['probes']:.2f} | {r['pb_ms']:.2f} | "
+               f"{r['probes']:.2f} | {r['pb_ms']:.2f} | {r['fetches']:.2f} ({r['fetch_ms']:.0f}) | "
                f"{r['wait_mean_ms']:.0f} / {r['wait_max_ms']:.0f} | {r['handle_mean_ms']:.1f} | "
+               f"{r['busy_s']:.0f} | "
                if "msgs_in" in r else
                (f"- | {r['kb_in']:.0f} / {r['kb_out']:.0f} | {r['decodes']:.2f} ({r['decode_ms']:.1f}) "
-                f"| - | {r['pb_ms']:.2f} | - | - | " if r["process"] == "ALL" else
-                "- | - | - | - | - | - | - | "))
+                f"| - | {r['pb_ms']:.2f} | - | - | - | - | " if r["process"] == "ALL" else
+                "- | - | - | - | - | - | - | - | - | "))
             + f"{r['rss0']:.0f} -> {r['rss1']:.0f} |")
     return "\n".join(lines)

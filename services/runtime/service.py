@@ -227,11 +227,27 @@ class Service:
     def fetch(self, key: str, timeout: float = 2.0) -> bytes | None:
         """The latest payload of ``key``: this service's own output, or whoever holds it."""
         local = self._cache.get(key)
-        return local if local is not None else bus.fetch(self.session, key, timeout)
+        if local is not None:
+            return local
+        t0 = time.perf_counter()
+        try:
+            return bus.fetch(self.session, key, timeout)
+        finally:
+            self._fetched(t0)
 
     def fetch_all(self, key_expr: str, timeout: float = 5.0) -> list[tuple[str, bytes]]:
         """Every message the bus holds on ``key_expr`` (store and caches), each once."""
-        return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
+        t0 = time.perf_counter()
+        try:
+            return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
+        finally:
+            self._fetched(t0)
+
+    def _fetched(self, t0: float) -> None:
+        """Count a query of the bus and the time it took (status: ``fetches``, ``fetch_us``)."""
+        with self._cv:
+            self.inbox.count("fetches")
+            self.inbox.count("fetch_us", int(1e6 * (time.perf_counter() - t0)))
 
     def status(self):
         ib = self.inbox
@@ -268,11 +284,16 @@ class Service:
             done = True
 
     def _tick(self, now: float) -> None:
+        c0, t0 = time.thread_time(), time.perf_counter()
         try:
             for out in self.handler.tick(now):
                 self.publish(out)
         except Exception as exc:  # noqa: BLE001 - reported and logged, the service goes on
             self.report(f"{bus.SERVICES}/{self.ident}", exc)
+        finally:
+            with self._cv:
+                self.inbox.count("tick_us", int(1e6 * (time.perf_counter() - t0)))
+                self.inbox.count("tick_cpu_us", int(1e6 * (time.thread_time() - c0)))
 
     def _report_loop(self) -> None:
         while True:
