@@ -288,7 +288,7 @@ def main() -> None:
     gateway = sc.get("gateway", False)
     w, h = map(int, size.lower().split("x"))
     big = max(w, h) > 1024
-    pool = tum_walk((w, h), noise=2.0 if big else 0.0) if args.pool == "tum" else None
+    pool = tum_walk((w, h), quality=95, noise=4.0 if big else 0.0) if args.pool == "tum" else None
     if pool is None:
         args.pool = "rendered"
         pool = photos(24 if not big else 12, (w, h), noise=2.0 if big else 0.0)

@@ -59,14 +59,40 @@ class Photo:
     """A decoded photo.
 
     Attributes:
-        image: (H, W, 3) uint8 BGR, upright (EXIF orientation applied).
+        image: (h, w, 3) uint8 BGR, upright (EXIF orientation applied); decoded at a reduced
+            size when asked (``decode_photo(reduce_to=...)``): then ``scale`` < 1.
         format: "jpeg", "png", "webp", "heif", "avif", "bmp" or "tiff".
         exif: what the EXIF block says about the camera (``findme_io.exif.ExifInfo``).
+        scale: ``image``'s pixels per pixel of the photo (1, 1/2, 1/4 or 1/8): a pixel
+            (u, v) of the photo is (u', v') = ((u + 0.5) * scale - 0.5, (v + 0.5) * scale -
+            0.5) of ``image`` (JPEG DCT scaling averages each k x k block).
+        size: (W, H) of the photo, upright (``image``'s when ``scale`` is 1).
     """
 
     image: np.ndarray
     format: str
     exif: object = field(default=None)
+    scale: float = 1.0
+    size: tuple[int, int] | None = None
+
+    @property
+    def width(self) -> int:
+        return self.size[0] if self.size else self.image.shape[1]
+
+    @property
+    def height(self) -> int:
+        return self.size[1] if self.size else self.image.shape[0]
+
+
+def reduction(width: int, height: int, work_size: int) -> int:
+    """The JPEG DCT scaling factor k (1, 2, 4 or 8) to decode a ``width`` x ``height`` photo
+    at: the largest that keeps its long side at least ``work_size`` pixels (a 4032x3024
+    photo for a 640 px working size: 4, 1008x756; a 1600 px one: 2; 1280 px and less: 1,
+    so a photo at most twice the working size is decoded whole)."""
+    k = 1
+    while k < 8 and max(width, height) / (2 * k) >= work_size and min(width, height) / (2 * k) >= 16:
+        k *= 2
+    return k
 
 
 @functools.cache
@@ -117,8 +143,13 @@ def upright(image: np.ndarray, orientation: int) -> np.ndarray:
 
 
 def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
-                 max_pixels: int = MAX_PIXELS) -> Photo:
+                 max_pixels: int = MAX_PIXELS, reduce_to: int | None = None) -> Photo:
     """Decode encoded image bytes to an upright BGR ``Photo`` with its EXIF camera facts.
+
+    reduce_to: a JPEG is decoded at 1/k of its size (libjpeg's DCT scaling: much cheaper
+        than decoding it whole, and every byte of it is still read and checked), k from
+        ``reduction(W, H, reduce_to)``; ``Photo.scale`` says by how much. Other formats and
+        None: the whole photo.
 
     Raises:
         ImageError: empty, oversized, not an image, corrupt, truncated, too many pixels,
@@ -142,8 +173,16 @@ def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
             raise ImageError(f"{name}: {w}x{h} = {w * h / 1e6:.0f} MP is over the "
                              f"{max_pixels / 1e6:.0f} MP limit")
         info = read_exif(im, kind)
+        k = reduction(w, h, reduce_to) if reduce_to and kind == "jpeg" else 1
         try:
             im.seek(0)
+            if k > 1:
+                im.draft("RGB", (w // k, h // k))
+                if im.size != (-(-w // k), -(-h // k)):   # not drafted (e.g. several tiles)
+                    k = 1 if im.size == (w, h) else 0
+                if k == 0:
+                    raise ValueError(f"the decoder gave {im.size[0]}x{im.size[1]} for a "
+                                     f"{w}x{h} photo reduced")
             im.load()
             image = _to_bgr(im)
         except Exception as e:   # truncated or corrupt pixel data, whatever the decoder
@@ -151,12 +190,14 @@ def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
                              f"({_why(e)})") from None
         finally:
             im.close()
-    image = upright(image, info.orientation if info.orientation_applies else 1)
+    turn = info.orientation if info.orientation_applies else 1
+    image = upright(image, turn)
     _count(image_decodes=1, image_decode_us=1e6 * (time.perf_counter() - t0),
            image_decoded_kpx=image.shape[0] * image.shape[1] / 1e3)
-    if min(image.shape[:2]) < 16:
-        raise ImageError(f"{name}: {image.shape[1]}x{image.shape[0]} is too small to measure in")
-    return Photo(image, kind, info)
+    size = (h, w) if turn in (5, 6, 7, 8) else (w, h)
+    if min(size) < 16:
+        raise ImageError(f"{name}: {size[0]}x{size[1]} is too small to measure in")
+    return Photo(image, kind, info, 1.0 / k, size)
 
 
 def _why(e: Exception) -> str:
