@@ -129,6 +129,10 @@ def run(workers, phones, seconds, pool, fps=2.0, extra=(), odometry=1, mapper=Tr
                    "rss_mb": {k: (round(start["proc"][k][0]), round(end["proc"][k][0]))
                               for k in end["proc"] if k in start["proc"]},
                    "rss_mb_at_60s": sampler.at(60.0), "rss_mb_over_time": rss,
+                   "private_mb": {k: (round(start["proc"][k][2]), round(end["proc"][k][2]))
+                                  for k in end["proc"] if k in start["proc"]},
+                   "private_mb_at_60s": next((p for (t, _), p in zip(rss, sampler.private)
+                                              if t >= 60.0), sampler.private[-1]),
                    "status": end["status"], "pages": pages.counts if pages else None}
             ledger.close()
         finally:
@@ -230,11 +234,13 @@ def table(rows) -> str:
 
 
 def rss_table(r) -> str:
-    lines = ["| process | RSS MB start | at 60 s | end | end - at 60 s |", "|---|---|---|---|---|"]
-    at60 = r["rss_mb_at_60s"]
+    lines = ["| process | RSS MB start | at 60 s | end | end - at 60 s | private (anonymous) MB "
+             "start / at 60 s / end |", "|---|---|---|---|---|---|"]
+    at60, p60 = r["rss_mb_at_60s"], r.get("private_mb_at_60s", {})
     for k, (a, b) in sorted(r["rss_mb"].items()):
         m = at60.get(k, a)
-        lines.append(f"| {k} | {a} | {m} | {b} | {b - m:+d} |")
+        pa, pb = r.get("private_mb", {}).get(k, (0, 0))
+        lines.append(f"| {k} | {a} | {m} | {b} | {b - m:+d} | {pa} / {p60.get(k, pa)} / {pb} |")
     return "\n".join(lines)
 
 

@@ -92,13 +92,19 @@ def tum_walk(size: tuple[int, int] | None = None, quality: int = 92, noise: floa
 
 
 # ---------------------------------------------------------------------------------- processes
-def proc_stats(pid: int) -> tuple[float, float]:
-    """(RSS MB, CPU seconds: user + system) of a process."""
+def proc_stats(pid: int) -> tuple[float, float, float, float]:
+    """(RSS MB, CPU seconds: user + system, private (anonymous) MB, shared-memory MB) of a
+    process. Zenoh's shared-memory pools (16 MB a sending process) are mapped by every
+    process that receives from it: the same pages count in each one's RSS."""
+    mem = {}
     with open(f"/proc/{pid}/status") as f:
-        rss = next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024
+        for line in f:
+            if line.startswith(("VmRSS:", "RssAnon:", "RssShmem:")):
+                mem[line.split(":")[0]] = int(line.split()[1]) / 1024
     with open(f"/proc/{pid}/stat") as f:
         fields = f.read().rsplit(")", 1)[1].split()
-    return rss, (int(fields[11]) + int(fields[12])) / CLK_TCK
+    return (mem.get("VmRSS", 0.0), (int(fields[11]) + int(fields[12])) / CLK_TCK,
+            mem.get("RssAnon", 0.0), mem.get("RssShmem", 0.0))
 
 
 def _free_port() -> int:
@@ -203,6 +209,7 @@ class Sampler:
     def __init__(self, dep: Deployment, every: float = 10.0, say=None):
         self.dep, self.every, self.say = dep, every, say
         self.samples: list[tuple[float, dict]] = []
+        self.private: list[dict] = []
         self._stop = threading.Event()
         self.t0 = time.monotonic()
         self._take()
@@ -211,6 +218,7 @@ class Sampler:
 
     def _take(self):
         rss = {k: round(v[0]) for k, v in self.dep.stats().items()}
+        self.private.append({k: round(v[2]) for k, v in self.dep.stats().items()})
         self.samples.append((round(time.monotonic() - self.t0, 1), rss))
         if self.say:
             self.say(f"  {self.samples[-1][0]:6.0f} s  RSS MB {rss}")
@@ -451,12 +459,13 @@ def breakdown(start: dict, end: dict, photos: int) -> list[dict]:
     for tag in sorted(end["proc"]):
         if tag not in start["proc"]:
             continue
-        (rss0, cpu0), (rss1, cpu1) = start["proc"][tag], end["proc"][tag]
+        (rss0, cpu0, anon0, shm0), (rss1, cpu1, anon1, shm1) = start["proc"][tag], end["proc"][tag]
         a = start["status"].get(_instance_of(tag), {})
         b = end["status"].get(_instance_of(tag), {})
         d = {k: b.get(k, 0) - a.get(k, 0) for k in b}
         cpu_ms = 1e3 * (cpu1 - cpu0) / n
-        row = {"process": tag, "cpu_ms": cpu_ms, "rss0": rss0, "rss1": rss1}
+        row = {"process": tag, "cpu_ms": cpu_ms, "rss0": rss0, "rss1": rss1,
+               "anon1": anon1, "shm1": shm1}
         if b:
             waits, handled = max(d.get("waits", 0), 1), max(d.get("handled", 0), 1)
             row.update({
@@ -505,5 +514,6 @@ def breakdown_table(rows: list[dict]) -> str:
                (f"- | {r['kb_in']:.0f} / {r['kb_out']:.0f} | {r['decodes']:.2f} ({r['decode_ms']:.1f}) "
                 f"| - | {r['pb_ms']:.2f} | - | - | - | - | " if r["process"] == "ALL" else
                 "- | - | - | - | - | - | - | - | - | "))
-            + f"{r['rss0']:.0f} -> {r['rss1']:.0f} |")
+            + f"{r['rss0']:.0f} -> {r['rss1']:.0f}"
+            + (f" ({r['anon1']:.0f} + {r['shm1']:.0f}) |" if "anon1" in r else " |"))
     return "\n".join(lines)

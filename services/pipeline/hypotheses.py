@@ -27,6 +27,11 @@ class HypothesesHandler(Handler):
     cache_keys = ("findme/*/hypotheses/*",)
     shard = True
     threads = 2     # stateless: a small photo is not held up by a 12 MP one in progress
+    # served in its own process (``findme up``): the first stage yields the CPU to the
+    # stages after it, so that on a saturated machine the photos already in the pipeline
+    # are posed first and new ones wait (and are refused early, OVERLOADED, when they
+    # wait too long) instead of being half done and refused downstream
+    nice = 4
 
     def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
                  depth: int = 64):
