@@ -266,7 +266,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, nargs="+", default=[2],
                     help="hypotheses workers (default 2, as findme up)")
     ap.add_argument("--seconds", type=float)
-    ap.add_argument("--odometry", type=int, default=1, help="odometry instances (default 1)")
+    ap.add_argument("--odometry", type=int, default=2,
+                    help="odometry instances (default 2, as findme up)")
     ap.add_argument("--size", help="photo size WxH (default 640x480)")
     ap.add_argument("--pool", choices=("tum", "rendered"), default="tum",
                     help="the photos: the dev split's TUM cabinet walk (default; rendered "
