@@ -247,7 +247,16 @@ def rss_table(r) -> str:
 def report(r, bound=None) -> str:
     out = [table([r]), "", "Per process, per photo offered:", breakdown_table(r["breakdown"]),
            "", rss_table(r)]
+    all_cpu = next(b["cpu_ms"] for b in r["breakdown"] if b["process"] == "ALL")
+    cpu_s = all_cpu * r["offered"] / 1e3
+    out += ["", f"the deployment used {cpu_s:.0f} CPU s in {r['done_s']:.0f} s "
+                f"({cpu_s / max(r['done_s'], 1e-9):.2f} of {os.cpu_count()} cores: the rest went "
+                f"to other work on the machine); posed {r['delivered'] / max(cpu_s, 1e-9):.2f} "
+                "photos per CPU second"]
     if bound:
+        out[-1] += (f" (the bound: {1e3 / bound['ms_per_photo_mean']:.2f}, "
+                    f"{100 * r['delivered'] / max(cpu_s, 1e-9) * bound['ms_per_photo_mean'] / 1e3:.0f} %"
+                    " of it)")
         share = r["posed_per_s"] / bound["photos_per_s"]
         out += ["", f"compute bound (pipeline handlers in one process, same photos, same run): "
                     f"{bound['ms_per_photo_mean']:.1f} ms CPU per photo mean (median "
