@@ -225,7 +225,9 @@
     // photo is sent as it is (upright already, small enough)
     const bmp = await createImageBitmap(blob, {imageOrientation: 'from-image'});
     const scale = Math.min(1, MAX_UPLOAD_SIDE / Math.max(bmp.width, bmp.height));
-    if (!always && scale === 1) { bmp.close(); return null; }
+    const over = bmp.width * bmp.height > (state.limits.max_pixels || 50e6);
+    // over the server's pixel limit: sent as it is, and the server says so
+    if (over || (!always && scale === 1)) { bmp.close(); return null; }
     const c = document.createElement('canvas');
     c.width = Math.round(bmp.width * scale); c.height = Math.round(bmp.height * scale);
     const g = c.getContext('2d');
