@@ -151,8 +151,8 @@ def scaled_camera(camera: Camera, s: float, width: int, height: int) -> Camera:
 
 def frame_work_photo(frame, work_size: int = WORK_SIZE, estimate: bool = True) -> WorkPhoto:
     """A Frame's photo decoded once at the smallest JPEG reduction that keeps its long side
-    at least ``work_size`` (``imageio.reduction``: a 12 MP photo at a quarter, a photo of
-    at most twice the working size whole), with its camera scaled to match: the lens as
+    at least ``work_size`` (``imageio.reduction``: a 12 MP photo at a quarter, a photo
+    under twice the working size whole), with its camera scaled to match: the lens as
     ``frame_camera`` reads it for the photo's own size, gravity the frame's (refined by
     the image), else estimated from the image (``estimate``), else level."""
     photo = decode_photo(frame.image.data, f"frame {frame.index}", reduce_to=work_size)

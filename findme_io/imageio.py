@@ -87,8 +87,9 @@ class Photo:
 def reduction(width: int, height: int, work_size: int) -> int:
     """The JPEG DCT scaling factor k (1, 2, 4 or 8) to decode a ``width`` x ``height`` photo
     at: the largest that keeps its long side at least ``work_size`` pixels (a 4032x3024
-    photo for a 640 px working size: 4, 1008x756; a 1600 px one: 2; 1280 px and less: 1,
-    so a photo at most twice the working size is decoded whole)."""
+    photo for a 640 px working size: 4, 1008x756; a 1600 or 1280 px one: 2; under 1280 px:
+    1, so a photo under twice the working size is decoded whole) and its short side at
+    least 16 pixels."""
     k = 1
     while k < 8 and max(width, height) / (2 * k) >= work_size and min(width, height) / (2 * k) >= 16:
         k *= 2
