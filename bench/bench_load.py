@@ -190,7 +190,7 @@ def fairness(pool, repeats: int = 3) -> dict:
 def big_jpeg(target_mb: float = 12.0) -> bytes:
     """A 4000x3000 photo of about ``target_mb`` MB (a render, upscaled, with sensor noise)."""
     import cv2
-    from findme_core.synth import Pose, Room, render
+    from findme_core.synth.render import Pose, Room, render
     v = render(Room.rectangle(5.0, 6.0, floor_style="wood"), Pose(0.0, -1.5, 1.45, yaw_deg=5,
                                                                   pitch_deg=25), 640, 480, seed=3)
     img = cv2.resize(v.image, (4000, 3000), interpolation=cv2.INTER_CUBIC).astype(np.int16)
