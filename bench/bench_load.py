@@ -1,27 +1,50 @@
-"""Load on the bus: N phones x 2 fps into a router and the services, each its own process.
+"""Load on the bus: N phones into the deployment ``findme up`` starts, each service its own
+process, with where every process's CPU, bytes, decodes, queue time and memory go.
 
-    python bench/bench_load.py [--phones 1 5 20 40] [--workers 1 2] [--seconds 30]
-                               [--json OUT.json]
+The issue-25 scenarios, one command each (the machine's other load shows in the CPU per
+photo only through contention; say when a run was contended):
+
+    python bench/bench_load.py --scenario steady    # 20 phones x 1 fps, 600 s, 640x480
+    python bench/bench_load.py --scenario peak      # 20 phones x 2 fps, 60 s: vs the compute bound
+    python bench/bench_load.py --scenario gateway   # 5 pages x 0.5 fps, 4032x3024 JPEGs, 60 s
+    (``--seconds S`` shortens any of them; ``--json OUT.json`` keeps everything)
+
+The matrix of earlier stops, and its variants:
+
+    python bench/bench_load.py [--phones 1 5 20] [--fps 2] [--workers 2] [--odometry 1]
+                               [--size 640x480] [--mapper on|off|both] [--seconds 30]
     python bench/bench_load.py --soak 600 --phones 5 --workers 2     # memory over 10 minutes
-    python bench/bench_load.py --phones 5 20 --workers 1 --mapper both  # the mapper's cost
+    python bench/bench_load.py --fairness      # a small photo right after four 12 MB ones
 
-Deployment (loopback): ``findme router``, ``findme serve`` store, hypotheses (1 or 2
-workers), selection --auto, measurement, odometry, recorder. Each phone is a session; it
-sends a small rendered photo (``--size``, default 160x120, a slow walk through one room so
-successive photos overlap) every 0.5 s as a plain BLOCK put of a ``findme.v1.Frame`` from
-a client session, as a phone app of someone else's making would.
+Deployment (loopback, ``load_rig.Deployment``): ``findme router``, ``findme serve`` store,
+hypotheses (``--workers``, default 2), selection --auto, measurement, odometry
+(``--odometry``, default 1), mapper (``--mapper off`` leaves it out), recorder; with
+``--scenario gateway`` the gateway instead of selection (``findme up --gateway``). Each
+phone is a session; it sends a photo of a walk (``--pool``: the dev split's TUM RGB-D cabinet
+frames in order and back, 640x480, the dataset's camera and gravity, as a hand-held phone
+takes them; ``rendered``: a slow walk through a rendered room with a wood floor, whose
+texture makes every stage several times dearer; ``--size``, default 640x480: larger photos
+are upscaled, with sensor noise) every 1/fps s as a plain BLOCK
+put of a ``findme.v1.Frame`` from a client session, as a phone app of someone else's making
+would (the gateway scenario: as our page does, over its WebSocket).
 
-Per run: offered frames; delivered (a pose came); failed (a Motion came with its error:
-odometry answered, no pose); errors by code (frames with no pose but an Error naming their
-frame, hypotheses or selection); unaccounted = offered - the above (goal 0); duplicate
-poses; latency photo -> pose (send to arrival, p50/p99); RSS and CPU of each process at
-start and end. A run ends when every frame is accounted for, or 30 s after the last photo
-if some never are. The baseline is 1 phone, same run. ``--soak`` runs one deployment for
-that many seconds (phones start a new session every ``--session-s``; services forget a
-session idle for 60 s and the store holds small results for 120 s, so that the plateau
-shows within minutes) and samples RSS. ``--mapper on`` adds the mapper service (floor
-plans; ``both``: each run without, then with it): plans received per session and what the
-last one covered (photos placed / photos the mapper may take, ``max_photos`` 32).
+Per run: offered frames; hypotheses delivered; delivered (a pose came); failed (a Motion
+came with its error: odometry answered, no pose); errors by code and by the service that
+sent them (frames with no pose but an Error naming their frame, hypotheses or selection);
+unaccounted = offered - the above (goal 0); duplicate poses; latency photo -> hypotheses
+and photo -> pose (send to arrival, p50 / p99); then the breakdown per process and per
+photo offered (``load_rig.breakdown``): CPU (utime + stime from /proc), the part the
+worker threads spent handling and the rest (Zenoh's threads, the callbacks), messages and
+bytes in and out, image decodes (ms, megapixels) and header probes, protobuf decode and
+encode, queue wait (mean, max) and handling time per message, RSS at start and end (and
+every ``--sample`` s). A run ends when every frame is accounted for, or 30 s after the last
+photo if some never are.
+
+The compute bound (``--scenario peak``, or ``--bound``): the same photos through the
+pipeline's handlers in this process, one after another, as ``bench_pipeline.py`` drives
+them (hypotheses, selection, measurement, odometry, encode, recording: thread CPU per
+photo); photos/s the machine's cores could pose = cores x 1000 / mean ms. Measured before
+the deployment starts, in the same run.
 """
 
 from __future__ import annotations
@@ -29,262 +52,89 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import threading
 import time
+from pathlib import Path
 
-import cv2
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import schemas  # noqa: E402
 from findme_core.synth.render import Pose, Room, render  # noqa: E402
+from bench.load_rig import (UP_SERVICES, Deployment, Ledger, Sampler, breakdown,  # noqa: E402
+                            breakdown_table, drive, drive_pages, photos, tum_walk)
 from findme_io.convert import make_frame  # noqa: E402
 from services.runtime import bus  # noqa: E402
 
-SERVICES = ("store", "selection", "measurement", "recorder")
-CLK_TCK = os.sysconf("SC_CLK_TCK")
+SCENARIOS = {
+    # name: phones, fps, seconds, size, gateway, session_s, goals
+    "steady": dict(phones=20, fps=1.0, seconds=600.0, size="640x480", gateway=False,
+                   session_s=120.0, goal=">= 99 % posed, p99 photo -> pose <= 1 s, "
+                   "0 unaccounted, RSS flat after the first minute"),
+    "peak": dict(phones=20, fps=2.0, seconds=60.0, size="640x480", gateway=False,
+                 session_s=None, goal="0 unaccounted, posed/s >= 80 % of the compute bound"),
+    "gateway": dict(phones=5, fps=0.5, seconds=60.0, size="4032x3024", gateway=True,
+                    session_s=None, goal="all posed, p99 photo -> pose <= 2 s"),
+}
 
 
-def photos(k: int, size: tuple[int, int]):
-    """Photos walking forward then back over k/2 places, never the same place twice in a
-    row (each photo overlaps the next; identical photos have no motion): (jpeg, camera, h)."""
-    room = Room.rectangle(5.0, 6.0, floor_style="wood")
-    half = k // 2
-    out = []
-    for i in list(range(half)) + list(range(half - 2, 0, -1)):
-        v = render(room, Pose(-0.3 + 0.04 * i, -1.8 + 0.08 * i, 1.4, yaw_deg=10 - 2 * i,
-                              pitch_deg=27), size[0], size[1], hfov_deg=70, seed=5)
-        out.append((cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes(),
-                    v.camera, v.camera_height))
-    return out
+def compute_bound(pool, repeat: int = 2) -> dict:
+    """CPU ms per photo of the pool as one session through the pipeline's handlers
+    (``bench_pipeline.run_session``), the cheapest of ``repeat`` runs; photos/s on this
+    machine's cores."""
+    from bench.bench_pipeline import run_session
+    runs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(repeat):
+            per, poses = run_session(f"bound{r}", pool, Path(tmp))
+            runs.append([sum(p.values()) for p in per])
+    ms = min(runs, key=sum)
+    cores = os.cpu_count() or 1
+    return {"ms_per_photo_mean": float(np.mean(ms)), "ms_per_photo_median": float(np.median(ms)),
+            "ms_per_photo_p90": float(np.percentile(ms, 90)), "cores": cores,
+            "photos_per_s": cores * 1e3 / float(np.mean(ms))}
 
 
-def proc_stats(pid: int) -> tuple[float, float]:
-    """(RSS MB, CPU seconds) of a process."""
-    with open(f"/proc/{pid}/status") as f:
-        rss = next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return rss, (int(fields[11]) + int(fields[12])) / CLK_TCK
-
-
-class Deployment:
-    """Router + services as processes; a client session for the phones and the results."""
-
-    def __init__(self, workers: int, out_dir: str, extra=(), odometry: int = 1,
-                 services=SERVICES):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            self.ep = f"tcp/127.0.0.1:{s.getsockname()[1]}"
-        self.procs: dict[str, subprocess.Popen] = {}
-        self.logs = tempfile.mkdtemp(prefix="bench-load-logs-")
-        self._spawn("router", "router", "--listen", self.ep)
-        self._wait_log("router", "listening on")
-        self.client = bus.open_session(bus.BusConfig(mode="client", connect=(self.ep,)))
-        names = ([("hypotheses", f"h{i}") for i in range(workers)] +
-                 [("odometry", f"o{i}") for i in range(odometry) if workers] +
-                 [(n, n) for n in services])
-        for name, inst in names:
-            args = ["serve", name, "--connect", self.ep, "--instance", inst, *extra]
-            args += {"selection": ["--auto"], "recorder": ["--out", out_dir]}.get(name, [])
-            self._spawn(inst, *args)
-        self._wait_alive(names)
-
-    def _spawn(self, tag, *args):
-        log = open(os.path.join(self.logs, f"{tag}.log"), "w")  # noqa: SIM115 - closed at exit
-        self.procs[tag] = subprocess.Popen([sys.executable, "-m", "findme.cli", *args],
-                                           stdout=subprocess.DEVNULL, stderr=log)
-
-    def _wait_log(self, tag, text, timeout=60):
-        path, t0 = os.path.join(self.logs, f"{tag}.log"), time.monotonic()
-        pace = threading.Event()
-        while text not in open(path).read():
-            if time.monotonic() - t0 > timeout or self.procs[tag].poll() is not None:
-                raise RuntimeError(f"{tag} did not log {text!r}: {open(path).read()[-2000:]}")
-            pace.wait(0.05)
-
-    def _wait_alive(self, names, timeout=120):
-        import zenoh
-        want = {f"{bus.SERVICES}/{n}/{i}" for n, i in names}
-        seen, cv = set(), threading.Condition()
-
-        def cb(s):
-            with cv:
-                if s.kind == zenoh.SampleKind.PUT:
-                    seen.add(str(s.key_expr))
-                cv.notify_all()
-        sub = self.client.liveliness().declare_subscriber(f"{bus.SERVICES}/**", cb, history=True)
-        with cv:
-            ok = cv.wait_for(lambda: want <= seen, timeout)
-        sub.undeclare()
-        if not ok:
-            raise RuntimeError(f"services not up: {sorted(want - seen)}")
-
-    def stats(self) -> dict:
-        return {tag: proc_stats(p.pid) for tag, p in self.procs.items() if p.poll() is None}
-
-    def statuses(self) -> dict:
-        out = {}
-        for _, payload in bus.get_all(self.client, f"{bus.SERVICES}/*/*/status", 10):
-            st = schemas.decode(schemas.ServiceStatus, payload)
-            out[st.instance] = {"in": st.frames_in, "out": st.results_out, "errors": st.errors,
-                                "dropped": st.dropped, **dict(st.counters)}
-        return out
-
-    def close(self):
-        self.client.close()
-        for p in self.procs.values():
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-        for p in self.procs.values():
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-        closed = "Closing transport" in open(os.path.join(self.logs, "router.log")).read()
-        return {"router_closed_a_transport": closed}
-
-
-class Ledger:
-    """What happened to every frame sent: pose, failed motion, errors; latencies."""
-
-    def __init__(self, client):
-        self.cv = threading.Condition()
-        self.sent: dict[tuple[str, int], float] = {}
-        self.pose: dict[tuple[str, int], float] = {}
-        self.failed: set[tuple[str, int]] = set()
-        self.errors: dict[tuple[str, int], int] = {}
-        self.dup_poses = 0
-        self.plans: dict[str, list[int]] = {}   # session -> [plans, photos placed in the last]
-        self.subs = [client.declare_subscriber("findme/*/pose/*", self._pose),
-                     client.declare_subscriber("findme/*/plan", self._plan),
-                     client.declare_subscriber("findme/*/motion/*/*", self._motion),
-                     client.declare_subscriber("findme/*/error", self._error)]
-
-    def _pose(self, sample):
-        t = time.perf_counter()
-        k = bus.parse_key(str(sample.key_expr))
-        with self.cv:
-            ident = (k.session, k.index())
-            if ident in self.pose:
-                self.dup_poses += 1
-            self.pose.setdefault(ident, t)
-            self.cv.notify_all()
-
-    def _plan(self, sample):
-        p = schemas.decode(schemas.Plan, sample.payload.to_bytes())
-        placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in p.poses)
-        with self.cv:
-            n = self.plans.setdefault(p.session, [0, 0])
-            n[0] += 1
-            n[1] = max(n[1], placed)
-
-    def _motion(self, sample):
-        m = schemas.decode(schemas.Motion, sample.payload.to_bytes())
-        if m.error:
-            with self.cv:
-                self.failed.add((m.session, m.index_b))
-                self.cv.notify_all()
-
-    def _error(self, sample):
-        e = schemas.decode(schemas.Error, sample.payload.to_bytes())
-        try:
-            k = bus.parse_key(e.key)
-            ident = (k.session, k.index())
-        except Exception:  # noqa: BLE001 - an error about no photo (a query): not a frame's
-            return
-        with self.cv:
-            self.errors.setdefault(ident, e.code)
-            self.cv.notify_all()
-
-    def accounted(self) -> int:
-        return sum(1 for f in self.sent if f in self.pose or f in self.failed or f in self.errors)
-
-    def wait(self, timeout: float) -> None:
-        """Until every frame sent is accounted for, or ``timeout`` s without progress."""
-        with self.cv:
-            last = -1
-            while self.accounted() < len(self.sent):
-                n = self.accounted()
-                if n == last:
-                    return
-                last = n
-                self.cv.wait_for(lambda: self.accounted() > n, timeout)
-
-    def summary(self) -> dict:
-        with self.cv:
-            sent = dict(self.sent)
-            lat = [1e3 * (self.pose[f] - t) for f, t in sent.items() if f in self.pose]
-            failed = [f for f in sent if f not in self.pose and f in self.failed]
-            errs: dict[str, int] = {}
-            for f in sent:
-                if f not in self.pose and f not in self.failed and f in self.errors:
-                    name = schemas.ErrorCode.Name(self.errors[f]).removeprefix("ERROR_CODE_")
-                    errs[name] = errs.get(name, 0) + 1
-            done = len(lat) + len(failed) + sum(errs.values())
-            plans = {"sessions": len(self.plans),
-                     "plans": sum(v[0] for v in self.plans.values()),
-                     "placed_in_last_median": float(np.median([v[1] for v in
-                                                              self.plans.values()]))
-                     if self.plans else None}
-            return {"offered": len(sent), "delivered": len(lat), "failed": len(failed),
-                    "mapper": plans,
-                    "errors": errs, "unaccounted": len(sent) - done, "dup_poses": self.dup_poses,
-                    "p50_ms": float(np.percentile(lat, 50)) if lat else None,
-                    "p99_ms": float(np.percentile(lat, 99)) if lat else None}
-
-    def close(self):
-        for s in self.subs:
-            s.undeclare()
-
-
-def drive(client, ledger, pool, phones: int, seconds: float, session_s: float | None = None,
-          tag: str = "p", on_tick=None):
-    """Each phone sends a frame every 0.5 s (phases spread over the period) for ``seconds``;
-    with ``session_s`` a phone starts a new session that often."""
-    period, t0 = 0.5, time.perf_counter()
-    n_per = int(seconds / period)
-    pace = threading.Event()
-    for step in range(n_per):
-        for p in range(phones):
-            due = t0 + step * period + p * period / phones
-            delay = due - time.perf_counter()
-            if delay > 0:
-                pace.wait(delay)
-            epoch = int(step * period // session_s) if session_s else 0
-            session = f"{tag}{p:02d}e{epoch}"
-            n = step - (int(epoch * session_s / period) if session_s else 0)
-            jpeg, cam, h = pool[(n + p) % len(pool)]
-            f = make_frame(session, n, jpeg, intrinsics=(cam.fx, cam.fy, cam.cx, cam.cy,
-                                                         cam.width, cam.height),
-                           gravity=cam.gravity, camera_height_m=h)
-            with ledger.cv:
-                ledger.sent[(session, n)] = time.perf_counter()
-            bus.put(client, bus.key(session, "frame", n), schemas.encode(f))
-        if on_tick:
-            on_tick(time.perf_counter() - t0)
-
-
-def run(workers, phones, seconds, pool, extra=(), odometry=1, mapper=False):
+def run(workers, phones, seconds, pool, fps=2.0, extra=(), odometry=1, mapper=True,
+        gateway=False, session_s=None, sample_s=10.0, say=print, tag=None):
+    services = UP_SERVICES if mapper else tuple(s for s in UP_SERVICES if s != "mapper")
     with tempfile.TemporaryDirectory(prefix="bench-load-rec-") as out:
-        dep = Deployment(workers, out, extra, odometry,
-                         SERVICES + ("mapper",) if mapper else SERVICES)
+        dep = Deployment(workers, out, extra, odometry, services, gateway=gateway)
         try:
-            start = dep.stats()
             ledger = Ledger(dep.client)
-            drive(dep.client, ledger, pool, phones, seconds, tag=f"w{workers}n{phones}-")
+            start = dep.snapshot()
+            sampler = Sampler(dep, sample_s, say)
+            t0 = time.perf_counter()
+            pages = None
+            if gateway:
+                pages = drive_pages(dep.http, ledger, pool, phones, seconds, fps)
+                pages.wait_sent()
+            else:
+                drive(dep.client, ledger, pool, phones, seconds, fps, session_s,
+                      tag or f"w{workers}n{phones}-")
+            sent_s = time.perf_counter() - t0
             ledger.wait(30)
-            end = dep.stats()
-            res = {"workers": workers, "odometry": odometry, "phones": phones,
-                   "with_mapper": mapper, **ledger.summary(),
-                   "rss_mb": {k: (round(start[k][0]), round(end[k][0])) for k in end},
-                   "cpu_s": {k: round(end[k][1] - start[k][1], 1) for k in end},
-                   "status": dep.statuses()}
+            done_s = time.perf_counter() - t0
+            end = dep.snapshot()
+            rss = sampler.stop()
+            if pages:
+                pages.close()
+            summ = ledger.summary()
+            res = {"workers": workers, "odometry": odometry, "phones": phones, "fps": fps,
+                   "seconds": seconds, "with_mapper": mapper, "gateway": gateway, **summ,
+                   "sent_s": round(sent_s, 1), "done_s": round(done_s, 1),
+                   "posed_per_s": summ["delivered"] / max(done_s, 1e-9),
+                   "breakdown": breakdown(start, end, summ["offered"]),
+                   "rss_mb": {k: (round(start["proc"][k][0]), round(end["proc"][k][0]))
+                              for k in end["proc"] if k in start["proc"]},
+                   "rss_mb_at_60s": sampler.at(60.0), "rss_mb_over_time": rss,
+                   "private_mb": {k: (round(start["proc"][k][2]), round(end["proc"][k][2]))
+                                  for k in end["proc"] if k in start["proc"]},
+                   "private_mb_at_60s": next((p for (t, _), p in zip(rss, sampler.private)
+                                              if t >= 60.0), sampler.private[-1]),
+                   "status": end["status"], "pages": pages.counts if pages else None}
             ledger.close()
         finally:
             res_close = dep.close()
@@ -293,51 +143,13 @@ def run(workers, phones, seconds, pool, extra=(), odometry=1, mapper=False):
     return res
 
 
-def soak(workers, phones, seconds, pool, session_s, every=30.0, odometry=1):
-    samples = []
-    with tempfile.TemporaryDirectory(prefix="bench-soak-rec-") as out:
-        dep = Deployment(workers, out, ("--idle", "60", "--latch", "120"), odometry)
-        try:
-            ledger = Ledger(dep.client)
-            samples.append((0.0, {k: round(v[0]) for k, v in dep.stats().items()}))
-            nxt = [every]
-
-            def tick(t):
-                if t >= nxt[0]:
-                    samples.append((round(t), {k: round(v[0]) for k, v in dep.stats().items()}))
-                    print(f"  {t:5.0f} s  RSS MB {samples[-1][1]}", flush=True)
-                    nxt[0] += every
-            drive(dep.client, ledger, pool, phones, seconds, session_s, "soak", tick)
-            ledger.wait(30)
-            samples.append((round(seconds) + 1, {k: round(v[0]) for k, v in dep.stats().items()}))
-            res = {"workers": workers, "phones": phones, "seconds": seconds,
-                   **ledger.summary(), "rss_mb_over_time": samples, "status": dep.statuses()}
-            ledger.close()
-        finally:
-            res.update(dep.close())
-    return res
-
-
-def big_jpeg(target_mb: float = 12.0) -> bytes:
-    """A 4000x3000 photo of about ``target_mb`` MB (a render, upscaled, with sensor noise)."""
-    v = render(Room.rectangle(5.0, 6.0, floor_style="wood"), Pose(0.0, -1.5, 1.45, yaw_deg=5,
-                                                                  pitch_deg=25), 640, 480, seed=3)
-    img = cv2.resize(v.image, (4000, 3000), interpolation=cv2.INTER_CUBIC).astype(np.int16)
-    noisy = np.clip(img + np.random.default_rng(0).integers(-40, 40, img.shape), 0, 255)
-    for q in (100, 99, 98, 97, 96, 95, 90, 85):
-        data = cv2.imencode(".jpg", noisy.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, q])[1].tobytes()
-        if len(data) <= target_mb * 1.05e6:
-            return data
-    return data
-
-
 def fairness(pool, repeats: int = 3) -> dict:
     """Phone B's one small photo alone, then right after phone A's four ~12 MB photos:
     B's latency photo -> hypotheses and photo -> pose (1 hypotheses worker)."""
     big = big_jpeg()
     out = {"big_mb": round(len(big) / 1e6, 1), "alone": [], "after_big": []}
     with tempfile.TemporaryDirectory(prefix="bench-fair-rec-") as rec:
-        dep = Deployment(1, rec)
+        dep = Deployment(1, rec, services=("store", "selection", "measurement", "recorder"))
         got, cv = {}, threading.Condition()
 
         def cb(sample):
@@ -376,66 +188,165 @@ def fairness(pool, repeats: int = 3) -> dict:
     return out
 
 
+def big_jpeg(target_mb: float = 12.0) -> bytes:
+    """A 4000x3000 photo of about ``target_mb`` MB (a render, upscaled, with sensor noise)."""
+    import cv2
+    from findme_core.synth.render import Pose, Room, render
+    v = render(Room.rectangle(5.0, 6.0, floor_style="wood"), Pose(0.0, -1.5, 1.45, yaw_deg=5,
+                                                                  pitch_deg=25), 640, 480, seed=3)
+    img = cv2.resize(v.image, (4000, 3000), interpolation=cv2.INTER_CUBIC).astype(np.int16)
+    noisy = np.clip(img + np.random.default_rng(0).integers(-40, 40, img.shape), 0, 255)
+    for q in (100, 99, 98, 97, 96, 95, 90, 85):
+        data = cv2.imencode(".jpg", noisy.astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, q])[1].tobytes()
+        if len(data) <= target_mb * 1.05e6:
+            return data
+    return data
+
+
+def soak(workers, phones, seconds, pool, session_s, every=30.0, odometry=1, fps=2.0,
+         mapper=False):
+    r = run(workers, phones, seconds, pool, fps, ("--idle", "60", "--latch", "120"), odometry,
+            mapper, session_s=session_s, sample_s=every, tag="soak")
+    return r
+
+
 def table(rows) -> str:
-    lines = ["| hyp. workers | odometry | mapper | phones | offered | delivered | failed | "
-             "errors | unaccounted | dup | p50 / p99 ms | plans (placed in the last) | "
-             "RSS MB start -> end |", "|" + "---|" * 13]
+    lines = ["| hyp. workers / odometry | mapper | phones x fps | offered | hypotheses | posed | "
+             "failed | errors (by service) | unaccounted | dup | photo -> hypotheses p50 / p99 ms | "
+             "photo -> pose p50 / p99 / max ms | posed/s | plans (placed in the last) |",
+             "|" + "---|" * 14]
     for r in rows:
         errs = ", ".join(f"{k} {v}" for k, v in sorted(r["errors"].items())) or "0"
-        rss = ", ".join(f"{k} {a}->{b}" for k, (a, b) in sorted(r["rss_mb"].items()))
-        lat = f"{r['p50_ms']:.0f} / {r['p99_ms']:.0f}" if r["p50_ms"] is not None else "-"
+        by = ", ".join(f"{k} {v}" for k, v in sorted(r.get("error_services", {}).items()))
+        lat = (f"{r['p50_ms']:.0f} / {r['p99_ms']:.0f} / {r['max_ms']:.0f}"
+               if r["p50_ms"] is not None else "-")
+        hl = (f"{r['hyp_p50_ms']:.0f} / {r['hyp_p99_ms']:.0f}"
+              if r.get("hyp_p50_ms") is not None else "-")
         mp = r.get("mapper") or {}
         plans = (f"{mp['plans']} ({mp['placed_in_last_median']:.0f})" if mp.get("plans")
                  else "-")
-        lines.append(f"| {r['workers']} | {r['odometry']} | {'yes' if r.get('with_mapper') else 'no'} | "
-                     f"{r['phones']} | {r['offered']} | {r['delivered']} | "
-                     f"{r['failed']} | {errs} | {r['unaccounted']} | {r['dup_poses']} | {lat} | "
-                     f"{plans} | {rss} |")
+        lines.append(f"| {r['workers']} / {r['odometry']} | "
+                     f"{'yes' if r.get('with_mapper') else 'no'} | {r['phones']} x {r['fps']:g}"
+                     f"{' (gateway)' if r.get('gateway') else ''} | {r['offered']} | "
+                     f"{r['hypotheses']} | {r['delivered']} | {r['failed']} | {errs}"
+                     f"{f' ({by})' if by else ''} | {r['unaccounted']} | {r['dup_poses']} | "
+                     f"{hl} | {lat} | {r['posed_per_s']:.1f} | {plans} |")
     return "\n".join(lines)
+
+
+def rss_table(r) -> str:
+    lines = ["| process | RSS MB start | at 60 s | end | end - at 60 s | private (anonymous) MB "
+             "start / at 60 s / end |", "|---|---|---|---|---|---|"]
+    at60, p60 = r["rss_mb_at_60s"], r.get("private_mb_at_60s", {})
+    for k, (a, b) in sorted(r["rss_mb"].items()):
+        m = at60.get(k, a)
+        pa, pb = r.get("private_mb", {}).get(k, (0, 0))
+        lines.append(f"| {k} | {a} | {m} | {b} | {b - m:+d} | {pa} / {p60.get(k, pa)} / {pb} |")
+    return "\n".join(lines)
+
+
+def report(r, bound=None) -> str:
+    out = [table([r]), "", "Per process, per photo offered:", breakdown_table(r["breakdown"]),
+           "", rss_table(r)]
+    all_cpu = next(b["cpu_ms"] for b in r["breakdown"] if b["process"] == "ALL")
+    cpu_s = all_cpu * r["offered"] / 1e3
+    out += ["", f"the deployment used {cpu_s:.0f} CPU s in {r['done_s']:.0f} s "
+                f"({cpu_s / max(r['done_s'], 1e-9):.2f} of {os.cpu_count()} cores: the rest went "
+                f"to other work on the machine); posed {r['delivered'] / max(cpu_s, 1e-9):.2f} "
+                "photos per CPU second"]
+    if bound:
+        out[-1] += (f" (the bound: {1e3 / bound['ms_per_photo_mean']:.2f}, "
+                    f"{100 * r['delivered'] / max(cpu_s, 1e-9) * bound['ms_per_photo_mean'] / 1e3:.0f} %"
+                    " of it)")
+        share = r["posed_per_s"] / bound["photos_per_s"]
+        out += ["", f"compute bound (pipeline handlers in one process, same photos, same run): "
+                    f"{bound['ms_per_photo_mean']:.1f} ms CPU per photo mean (median "
+                    f"{bound['ms_per_photo_median']:.1f}, p90 {bound['ms_per_photo_p90']:.1f}) "
+                    f"-> {bound['photos_per_s']:.1f} photos/s on {bound['cores']} cores; "
+                    f"posed {r['posed_per_s']:.1f}/s = {100 * share:.0f} % of it"]
+    return "\n".join(out)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--phones", type=int, nargs="+", default=[1, 5, 20, 40])
-    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--seconds", type=float, default=30.0)
-    ap.add_argument("--odometry", type=int, default=1, help="odometry instances (default 1)")
-    ap.add_argument("--size", default="160x120", help="photo size WxH (default 160x120)")
+    ap.add_argument("--scenario", choices=sorted(SCENARIOS),
+                    help="one of the issue-25 scenarios (the options below override it)")
+    ap.add_argument("--phones", type=int, nargs="+")
+    ap.add_argument("--fps", type=float, help="photos per second per phone (default 2)")
+    ap.add_argument("--workers", type=int, nargs="+", default=[2],
+                    help="hypotheses workers (default 2, as findme up)")
+    ap.add_argument("--seconds", type=float)
+    ap.add_argument("--odometry", type=int, default=2,
+                    help="odometry instances (default 2, as findme up)")
+    ap.add_argument("--size", help="photo size WxH (default 640x480)")
+    ap.add_argument("--pool", choices=("tum", "rendered"), default="tum",
+                    help="the photos: the dev split's TUM cabinet walk (default; rendered "
+                         "without the data) or a rendered walk through a room with a wood floor")
     ap.add_argument("--soak", type=float, metavar="S", help="one long run of S seconds")
-    ap.add_argument("--session-s", type=float, default=60.0,
-                    help="soak: a phone starts a new session this often (default 60 s)")
+    ap.add_argument("--session-s", type=float,
+                    help="a phone starts a new session this often (default: one session)")
     ap.add_argument("--fairness", action="store_true",
                     help="one small photo alone vs right after another phone's four 12 MB ones")
-    ap.add_argument("--mapper", choices=("off", "on", "both"), default="off",
-                    help="add the mapper service (both: each run without, then with it)")
+    ap.add_argument("--mapper", choices=("off", "on", "both"), default="on",
+                    help="the mapper service (default on, as findme up; both: each run "
+                         "without, then with it)")
+    ap.add_argument("--bound", action="store_true",
+                    help="also measure the compute bound (default with --scenario peak)")
+    ap.add_argument("--sample", type=float, default=10.0, metavar="S",
+                    help="RSS of every process every S seconds (default 10)")
     ap.add_argument("--json", metavar="OUT")
     args = ap.parse_args()
-    w, h = map(int, args.size.lower().split("x"))
-    pool = photos(24, (w, h))
-    print(f"{len(pool)} photos {w}x{h}, {np.mean([len(p[0]) for p in pool]) / 1e3:.1f} kB each; "
-          f"{os.cpu_count()} cores", flush=True)
+    sc = SCENARIOS.get(args.scenario or "", {})
+    phones = args.phones or ([sc["phones"]] if sc else [1, 5, 20])
+    fps = args.fps or sc.get("fps", 2.0)
+    seconds = args.seconds or sc.get("seconds", 30.0)
+    size = args.size or sc.get("size", "640x480")
+    session_s = args.session_s or sc.get("session_s")
+    gateway = sc.get("gateway", False)
+    w, h = map(int, size.lower().split("x"))
+    big = max(w, h) > 1024
+    pool = tum_walk((w, h), quality=95, noise=4.0 if big else 0.0) if args.pool == "tum" else None
+    if pool is None:
+        args.pool = "rendered"
+        pool = photos(24 if not big else 12, (w, h), noise=2.0 if big else 0.0)
+    print(f"{len(pool)} photos ({args.pool}) {w}x{h}, {np.mean([len(p[0]) for p in pool]) / 1e3:.1f} kB each; "
+          f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f} before", flush=True)
+    if sc:
+        print(f"scenario {args.scenario}: {phones[0]} phones x {fps:g} fps for {seconds:g} s"
+              f"{' through the gateway' if gateway else ''}; goal: {sc['goal']}", flush=True)
+    out: dict = {"scenario": args.scenario, "size": size, "load_before": os.getloadavg()}
+    bound = None
+    if args.bound or args.scenario == "peak":
+        bound = out["bound"] = compute_bound(pool)
+        print(f"compute bound: {bound['ms_per_photo_mean']:.1f} ms CPU per photo (mean) -> "
+              f"{bound['photos_per_s']:.1f} photos/s", flush=True)
     if args.fairness:
-        out = {"fairness": fairness(pool)}
-        print(json.dumps(out, indent=1))
+        out["fairness"] = fairness(pool)
+        print(json.dumps(out["fairness"], indent=1))
     elif args.soak:
-        res = soak(args.workers[0], args.phones[0], args.soak, pool, args.session_s,
-                   odometry=args.odometry)
-        out = {"soak": res}
-        print(json.dumps({k: v for k, v in res.items() if k != "status"}, indent=1))
+        res = soak(args.workers[0], phones[0], args.soak, pool, args.session_s or 60.0,
+                   odometry=args.odometry, fps=fps, mapper=args.mapper == "on")
+        out["soak"] = res
+        print(report(res))
     else:
         rows = []
         for workers in args.workers:
-            for phones in args.phones:
+            for n in phones:
                 for mapper in {"off": [False], "on": [True], "both": [False, True]}[args.mapper]:
-                    r = run(workers, phones, args.seconds, pool, odometry=args.odometry,
-                            mapper=mapper)
+                    r = run(workers, n, seconds, pool, fps, odometry=args.odometry,
+                            mapper=mapper, gateway=gateway, session_s=session_s,
+                            sample_s=args.sample)
                     rows.append(r)
-                    print(table([r]).splitlines()[-1], flush=True)
-        out = {"runs": rows}
-        print(table(rows))
+                    print(report(r, bound), flush=True)
+        out["runs"] = rows
+        if len(rows) > 1:
+            print(table(rows))
+    out["load_after"] = os.getloadavg()
+    print(f"load average {out['load_before'][0]:.1f} before, {out['load_after'][0]:.1f} after "
+          "(> 2: other work shared the cores)")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump(out, f, indent=1)
+            json.dump(out, f, indent=1, default=str)
 
 
 if __name__ == "__main__":

@@ -1,11 +1,12 @@
 """``findme up``: one machine, many processes: a router and one process per service.
 
-    findme up [--listen tcp/127.0.0.1:7447] [--hypotheses 2] [--out recordings]
+    findme up [--listen tcp/127.0.0.1:7447] [--hypotheses 2] [--odometry 2] [--out recordings]
               [--gateway [--http HOST:PORT] [--https | --tls-cert CERT --tls-key KEY]] [--quiet]
 
 Starts, as child processes of this one: ``router``; ``store`` (the last minute of messages,
 for a service that restarts); ``hypotheses`` x N (they share the
-frames); ``selection --auto``; ``measurement``; ``odometry``; ``mapper`` (the room's floor
+frames); ``selection --auto``; ``measurement``; ``odometry`` x M (they share the sessions:
+a session's photos stay on one); ``mapper`` (the room's floor
 plan as photos come; it plans once per drained queue, so it keeps up); ``recorder`` (sessions to
 ``--out``); and with ``--gateway`` the phone page's gateway (which then selects for its
 pages and for nobody else, so no ``selection`` service is started: ``findme send`` selects
@@ -40,6 +41,9 @@ def register(sub) -> None:
                         "(default tcp/127.0.0.1:7447: this machine only)")
     p.add_argument("--hypotheses", type=int, default=2, metavar="N",
                    help="hypotheses processes sharing the frames (default 2)")
+    p.add_argument("--odometry", type=int, default=2, metavar="M",
+                   help="odometry processes sharing the sessions (default 2: a process "
+                        "poses its photos on one core)")
     p.add_argument("--out", default="recordings", metavar="DIR",
                    help="where the recorder writes <session>.mcap (default recordings/)")
     p.add_argument("--gateway", action="store_true",
@@ -66,6 +70,9 @@ def processes(args) -> list[tuple[str, list[str]]]:
     """(name, findme arguments) of every process ``findme up`` starts, router first."""
     if args.hypotheses < 1:
         raise InputError(f"--hypotheses must be at least 1, got {args.hypotheses}")
+    n_odo = getattr(args, "odometry", 1)
+    if n_odo < 1:
+        raise InputError(f"--odometry must be at least 1, got {n_odo}")
     ep = args.listen
     quiet = ["--quiet"] if args.quiet else []
     procs = [("router", ["router", "--listen", ep, *quiet]),
@@ -74,9 +81,11 @@ def processes(args) -> list[tuple[str, list[str]]]:
                                   *quiet]) for i in range(1, args.hypotheses + 1)]
     if not args.gateway:
         procs.append(("selection", ["serve", "selection", "--auto", "--connect", ep, *quiet]))
-    procs += [(name, ["serve", name, "--connect", ep, *quiet])
-              for name in ("measurement", "odometry", "mapper")
-              if not (name == "mapper" and getattr(args, "no_mapper", False))]
+    procs.append(("measurement", ["serve", "measurement", "--connect", ep, *quiet]))
+    procs += [(f"odometry{i}", ["serve", "odometry", "--connect", ep, "--instance", f"o{i}",
+                                *quiet]) for i in range(1, n_odo + 1)]
+    if not getattr(args, "no_mapper", False):
+        procs.append(("mapper", ["serve", "mapper", "--connect", ep, *quiet]))
     procs.append(("recorder", ["serve", "recorder", "--connect", ep, "--out", args.out, *quiet]))
     if args.gateway:
         from .app_cli import https_files

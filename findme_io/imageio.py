@@ -21,6 +21,8 @@ from __future__ import annotations
 import functools
 import io
 import os
+import threading
+import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -35,20 +37,63 @@ from .image_format import (_PIL_FORMATS, MAX_BYTES, MAX_JPEG_SCANS, MAX_PIXELS, 
 
 _declared_size = declared_size   # its old name (services/web/page_input imports it)
 
+_STATS_LOCK = threading.Lock()
+_STATS = {"image_decodes": 0, "image_decode_us": 0, "image_decoded_kpx": 0, "image_probes": 0}
+
+
+def decode_stats() -> dict[str, int]:
+    """This process's decoding so far (a service's status shows them): photos decoded,
+    microseconds of wall time spent decoding, thousands of pixels decoded, header probes."""
+    with _STATS_LOCK:
+        return dict(_STATS)
+
+
+def _count(**add) -> None:
+    with _STATS_LOCK:
+        for k, v in add.items():
+            _STATS[k] += int(v)
+
 
 @dataclass(frozen=True)
 class Photo:
     """A decoded photo.
 
     Attributes:
-        image: (H, W, 3) uint8 BGR, upright (EXIF orientation applied).
+        image: (h, w, 3) uint8 BGR, upright (EXIF orientation applied); decoded at a reduced
+            size when asked (``decode_photo(reduce_to=...)``): then ``scale`` < 1.
         format: "jpeg", "png", "webp", "heif", "avif", "bmp" or "tiff".
         exif: what the EXIF block says about the camera (``findme_io.exif.ExifInfo``).
+        scale: ``image``'s pixels per pixel of the photo (1, 1/2, 1/4 or 1/8): a pixel
+            (u, v) of the photo is (u', v') = ((u + 0.5) * scale - 0.5, (v + 0.5) * scale -
+            0.5) of ``image`` (JPEG DCT scaling averages each k x k block).
+        size: (W, H) of the photo, upright (``image``'s when ``scale`` is 1).
     """
 
     image: np.ndarray
     format: str
     exif: object = field(default=None)
+    scale: float = 1.0
+    size: tuple[int, int] | None = None
+
+    @property
+    def width(self) -> int:
+        return self.size[0] if self.size else self.image.shape[1]
+
+    @property
+    def height(self) -> int:
+        return self.size[1] if self.size else self.image.shape[0]
+
+
+def reduction(width: int, height: int, work_size: int) -> int:
+    """The JPEG DCT scaling factor k (1, 2, 4 or 8) to decode a ``width`` x ``height`` photo
+    at: the largest that keeps its long side at least ``work_size`` pixels (a 4032x3024
+    photo for a 640 px working size: 4, 1008x756; a 1600 or 1280 px one: 2; under 1280 px:
+    1, so a photo under twice the working size is decoded whole) and its short side at
+    least 16 pixels."""
+    k = 1
+    while k < 8 and max(width, height) / (2 * k) >= work_size and min(width, height) / (2 * k) >= 16:
+        k *= 2
+    return k
 
 
 @functools.cache
@@ -99,14 +144,20 @@ def upright(image: np.ndarray, orientation: int) -> np.ndarray:
 
 
 def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
-                 max_pixels: int = MAX_PIXELS) -> Photo:
+                 max_pixels: int = MAX_PIXELS, reduce_to: int | None = None) -> Photo:
     """Decode encoded image bytes to an upright BGR ``Photo`` with its EXIF camera facts.
+
+    reduce_to: a JPEG is decoded at 1/k of its size (libjpeg's DCT scaling: much cheaper
+        than decoding it whole, and every byte of it is still read and checked), k from
+        ``reduction(W, H, reduce_to)``; ``Photo.scale`` says by how much. Other formats and
+        None: the whole photo.
 
     Raises:
         ImageError: empty, oversized, not an image, corrupt, truncated, too many pixels,
             too small, or a structure that would make decoding unbounded.
     """
     from .exif import read_exif
+    t0 = time.perf_counter()
     kind = check_encoded(data, name, max_bytes, max_pixels)
     Image = _pillow()
     with warnings.catch_warnings():
@@ -123,8 +174,16 @@ def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
             raise ImageError(f"{name}: {w}x{h} = {w * h / 1e6:.0f} MP is over the "
                              f"{max_pixels / 1e6:.0f} MP limit")
         info = read_exif(im, kind)
+        k = reduction(w, h, reduce_to) if reduce_to and kind == "jpeg" else 1
         try:
             im.seek(0)
+            if k > 1:
+                im.draft("RGB", (w // k, h // k))
+                if im.size != (-(-w // k), -(-h // k)):   # not drafted (e.g. several tiles)
+                    k = 1 if im.size == (w, h) else 0
+                if k == 0:
+                    raise ValueError(f"the decoder gave {im.size[0]}x{im.size[1]} for a "
+                                     f"{w}x{h} photo reduced")
             im.load()
             image = _to_bgr(im)
         except Exception as e:   # truncated or corrupt pixel data, whatever the decoder
@@ -132,10 +191,14 @@ def decode_photo(data: bytes, name: str = "image", max_bytes: int = MAX_BYTES,
                              f"({_why(e)})") from None
         finally:
             im.close()
-    image = upright(image, info.orientation if info.orientation_applies else 1)
-    if min(image.shape[:2]) < 16:
-        raise ImageError(f"{name}: {image.shape[1]}x{image.shape[0]} is too small to measure in")
-    return Photo(image, kind, info)
+    turn = info.orientation if info.orientation_applies else 1
+    image = upright(image, turn)
+    _count(image_decodes=1, image_decode_us=1e6 * (time.perf_counter() - t0),
+           image_decoded_kpx=image.shape[0] * image.shape[1] / 1e3)
+    size = (h, w) if turn in (5, 6, 7, 8) else (w, h)
+    if min(size) < 16:
+        raise ImageError(f"{name}: {size[0]}x{size[1]} is too small to measure in")
+    return Photo(image, kind, info, 1.0 / k, size)
 
 
 def _why(e: Exception) -> str:
@@ -226,6 +289,7 @@ def probe(data: bytes, name: str = "image"):
     (upright), from the header and the EXIF block without decoding the pixels when the
     header can be read (else by decoding, which raises ImageError for bad data)."""
     from .exif import ExifInfo, read_exif
+    _count(image_probes=1)
     kind = sniff(data)
     if kind is not None:
         Image = _pillow()

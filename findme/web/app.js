@@ -216,13 +216,34 @@
     } catch (e) { /* a broken EXIF block: what was read so far */ }
     return out;
   }
-  async function reencode(blob) {  // upright JPEG through a canvas (EXIF rotation, HEIC, ...)
+  // the long side of the photo sent (the paper's own argument: bandwidth): a 12 MP photo is
+  // sent at 1600x1200 (~0.4 MB instead of ~4 MB); the server works at 640 px anyway
+  const MAX_UPLOAD_SIDE = 1600;
+  async function reencode(blob, always) {
+    // upright JPEG through a canvas (EXIF rotation, HEIC, ...), at most MAX_UPLOAD_SIDE on
+    // its long side: {blob, scale} (scale = sent pixels per photo pixel), or null when the
+    // photo is sent as it is (upright already, small enough)
     const bmp = await createImageBitmap(blob, {imageOrientation: 'from-image'});
+    const scale = Math.min(1, MAX_UPLOAD_SIDE / Math.max(bmp.width, bmp.height));
+    const over = bmp.width * bmp.height > (state.limits.max_pixels || 50e6);
+    // over the server's pixel limit: sent as it is, and the server says so
+    if (over || (!always && scale === 1)) { bmp.close(); return null; }
     const c = document.createElement('canvas');
-    c.width = bmp.width; c.height = bmp.height;
-    c.getContext('2d').drawImage(bmp, 0, 0);
-    const out = await new Promise((res) => c.toBlob(res, 'image/jpeg', 0.95));
-    return out;
+    c.width = Math.round(bmp.width * scale); c.height = Math.round(bmp.height * scale);
+    const g = c.getContext('2d');
+    g.imageSmoothingQuality = 'high';
+    g.drawImage(bmp, 0, 0, c.width, c.height);
+    const sent = c.width / bmp.width;   // exactly, after rounding to whole pixels
+    bmp.close();
+    const out = await new Promise((res) => c.toBlob(res, 'image/jpeg', 0.92));
+    return out && {blob: out, scale: sent};
+  }
+  function scaledLens(lens, s, dims) {  // intrinsics typed for the photo -> the photo sent
+    if (lens.kind !== 'intrinsics' || s === 1) return lens;   // the others do not change
+    const k = {...lens, fx: lens.fx * s, fy: lens.fy * s,
+               cx: (lens.cx + 0.5) * s - 0.5, cy: (lens.cy + 0.5) * s - 0.5};   // pixel centres
+    if (dims) { k.width = dims.w; k.height = dims.h; }
+    return k;
   }
   function imageSize(url) {
     return new Promise((resolve, reject) => {
@@ -295,15 +316,17 @@
       let bytes = new Uint8Array(await file.arrayBuffer());
       const fmt = sniff(bytes);
       const exif = fmt === 'jpeg' ? exifFacts(bytes) : {orientation: 1, focal35: null};
-      let reencoded = false;
-      if (!fmt || (fmt === 'jpeg' && exif.orientation > 1)) {
-        // the browser can show it upright (EXIF rotation) or decode it (HEIC on Safari): send
-        // the pixels as shown; if it cannot decode it either, the server says what is wrong
-        try {
-          const up = await reencode(file);
-          if (up) { blob = up; bytes = new Uint8Array(await up.arrayBuffer()); reencoded = true; }
-        } catch (e) { /* not decodable here: the server judges */ }
-      }
+      let reencoded = false, scale = 1;
+      // the browser can show it upright (EXIF rotation) or decode it (HEIC on Safari): send
+      // the pixels as shown, at most MAX_UPLOAD_SIDE px long; if it cannot decode it
+      // either, the server says what is wrong
+      try {
+        const up = await reencode(file, !fmt || (fmt === 'jpeg' && exif.orientation > 1));
+        if (up) {
+          blob = up.blob; bytes = new Uint8Array(await up.blob.arrayBuffer());
+          reencoded = true; scale = up.scale;
+        }
+      } catch (e) { /* not decodable here: the server judges */ }
       const url = URL.createObjectURL(blob);
       const dims = await imageSize(url).catch(() => null);
       const typed = gravityFromForm();
@@ -311,7 +334,12 @@
       const filled = state.sensors.filled &&
         ['gx', 'gy', 'gz'].every((id, i) => $(id).value === state.sensors.filled[i]);
       const fromSensors = Boolean(sensorGravity || (typed && filled));
-      header = {type: 'frame', id, lens: lensFromForm(dims, reencoded ? exif.focal35 : null), gravity,
+      // the EXIF focal length (35 mm equivalent: the same for any size) goes with a
+      // re-encoded photo (EXIF gone); typed intrinsics are scaled to the pixels sent
+      header = {type: 'frame', id, gravity, scale,
+                lens: scaledLens(lensFromForm(dims && {w: Math.round(dims.w / scale),
+                                                      h: Math.round(dims.h / scale)},
+                                              reencoded ? exif.focal35 : null), scale, dims),
                 // a hand-held reading is good to a degree or two: the server weighs it so
                 // against the photo's own lines (gravity_fusion)
                 gravity_sigma_deg: gravity && fromSensors ? SENSOR_GRAVITY_SIGMA_DEG : undefined,

@@ -261,12 +261,14 @@ def distinct(matches: Matches, radius_px: float) -> tuple[np.ndarray, np.ndarray
     n = len(matches)
     if n == 0:
         return np.zeros(0, int), np.zeros(0, int)
-    def dist(u):   # (n, n) pixel distances (the norm over the pair axis, written out)
-        dx, dy = u[:, None, 0] - u[None, :, 0], u[:, None, 1] - u[None, :, 1]
-        return np.sqrt(dx * dx + dy * dy)
-    d = dist(matches.ua) + dist(matches.ub)
+    if n <= 256:   # small: the whole (n, n) matrix is cheaper than the grid
+        def dist(u):   # (n, n) pixel distances (the norm over the pair axis, written out)
+            dx, dy = u[:, None, 0] - u[None, :, 0], u[:, None, 1] - u[None, :, 1]
+            return np.sqrt(dx * dx + dy * dy)
+        ii, jj = np.nonzero(dist(matches.ua) + dist(matches.ub) < 2.0 * radius_px)
+    else:          # O(n) candidates instead of n^2 (a textured pair has 1,000-3,000 matches)
+        ii, jj = _copies(matches.ua, matches.ub, 2.0 * radius_px)
     # each match's copies (itself included) as lists: the greedy pass is then plain Python
-    ii, jj = np.nonzero(d < 2.0 * radius_px)
     near = np.split(jj, np.searchsorted(ii, np.arange(1, n))) if n > 1 else [jj]
     rep = [-1] * n
     for i in np.argsort(matches.ratio, kind="stable").tolist():
@@ -277,3 +279,41 @@ def distinct(matches: Matches, radius_px: float) -> tuple[np.ndarray, np.ndarray
     rep = np.array(rep)
     keep = np.unique(rep)
     return keep, np.searchsorted(keep, rep)
+
+
+def _copies(ua: np.ndarray, ub: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) of every ordered pair of matches (i == j included) with |ua_i - ua_j| +
+    |ub_i - ub_j| < ``limit``, sorted by i then j: what ``np.nonzero`` of the (n, n)
+    distance matrix gives, without building it. Candidates are the pairs whose A pixels
+    lie in the same or neighbouring cells of a grid of ``limit`` px (each term is below the
+    sum); each candidate's sum is computed as the matrix would (same operations, same
+    order: bit-identical)."""
+    n = len(ua)
+    cell = np.floor(ua / limit).astype(np.int64)            # (n, 2)
+    order = np.lexsort((cell[:, 1], cell[:, 0]))
+    cx, cy = cell[order, 0], cell[order, 1]
+    keys = cx * (1 << 32) + cy
+    ii, jj = [], []
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            want = (cx + dx) * (1 << 32) + (cy + dy)        # each match's neighbour cell
+            lo = np.searchsorted(keys, want, "left")
+            hi = np.searchsorted(keys, want, "right")
+            cnt = hi - lo
+            if not cnt.any():
+                continue
+            src = np.repeat(order, cnt)                     # i (original index)
+            start = np.repeat(lo - np.cumsum(cnt) + cnt, cnt)
+            dst = order[np.arange(cnt.sum()) + start]       # j in that cell
+            ii.append(src)
+            jj.append(dst)
+    i = np.concatenate(ii)
+    j = np.concatenate(jj)
+
+    def dist(u):   # the pixel distance of each pair (the norm written out, as before)
+        dx, dy = u[i, 0] - u[j, 0], u[i, 1] - u[j, 1]
+        return np.sqrt(dx * dx + dy * dy)
+    keep = dist(ua) + dist(ub) < limit
+    i, j = i[keep], j[keep]
+    o = np.lexsort((j, i))
+    return i[o], j[o]

@@ -45,11 +45,20 @@ def hypothesize(image: np.ndarray, camera: Camera, method: str = "findme", max_n
         hs = counters.apply(hs, cam, camera_height, max_n)   # at the working size
     else:
         hs = paper.generate(small, cam, max_n, clock=clock)
+    return to_photo(hs, s, W, H)
+
+
+def to_photo(hs: hypotheses.HypothesisSet, s: float, width: int,
+             height: int) -> hypotheses.HypothesisSet:
+    """Hypotheses found in an image ``s`` times the size of a ``width`` x ``height`` photo,
+    in the photo's pixels (pixel-centre convention: u = (u_s + 0.5) / s - 0.5); each
+    polyline still runs from u = 0 to u = width - 1. ``hs.lines`` stay in the image's
+    pixels. ``s`` 1: ``hs`` itself."""
     if s == 1.0:
         return hs
     hyps = []
     for h in hs.hypotheses:
         poly = (h.polyline + 0.5) / s - 0.5
-        poly[0, 0], poly[-1, 0] = 0.0, W - 1.0
+        poly[0, 0], poly[-1, 0] = 0.0, width - 1.0
         hyps.append(replace(h, polyline=poly))
-    return replace(hs, width=W, height=H, hypotheses=hyps)
+    return replace(hs, width=width, height=height, hypotheses=hyps)

@@ -15,9 +15,10 @@ import time
 
 import schemas
 from ..runtime import authority, bus
+from findme_core.single.methods import to_photo
 from findme_core.motion.pair import photo_lines, segment_lines
 from findme_io.camera_source import hypothesize_photo
-from findme_io.convert import frame_photo_camera, hypothesis_set_msg
+from findme_io.convert import frame_work_photo, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output
 
 
@@ -26,6 +27,11 @@ class HypothesesHandler(Handler):
     cache_keys = ("findme/*/hypotheses/*",)
     shard = True
     threads = 2     # stateless: a small photo is not held up by a 12 MP one in progress
+    # served in its own process (``findme up``): the first stage yields the CPU to the
+    # stages after it, so that on a saturated machine the photos already in the pipeline
+    # are posed first and new ones wait (and are refused early, OVERLOADED, when they
+    # wait too long) instead of being half done and refused downstream
+    nice = 4
 
     def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
                  depth: int = 64):
@@ -39,7 +45,10 @@ class HypothesesHandler(Handler):
         authority.check(key, frame)   # the key, not the payload, names session and n
         k = bus.parse_key(key)
         n = k.index()
-        image, cam, prov = frame_photo_camera(frame)   # gravity estimated when not given
+        # decoded once, at the working size (a 12 MP JPEG at a quarter: DCT scaling), the
+        # camera scaled to match; gravity estimated when not given
+        wp = frame_work_photo(frame)
+        image, cam, prov = wp.image, wp.camera, wp.provenance
         t1 = time.perf_counter()
         est = prov.estimate   # gravity from (or refined by) the image: its whole-frame lines
         # a frame's camera height (> 0, checked with the frame) makes the counters' height
@@ -53,6 +62,10 @@ class HypothesesHandler(Handler):
         # they took only those below the horizon) the gravity estimate's whole detection
         lines = (photo_lines(hs, image) if est is None else
                  segment_lines(est.segments, image) if est.segments is not None else None)
+        if wp.scale != 1.0:   # the answer is in the photo's pixels, whatever size it was read at
+            hs = to_photo(hs, wp.scale, wp.full.width, wp.full.height)
+            cam = wp.to_photo(cam)
+            lines = None if lines is None else wp.points_to_photo(lines)
         msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov, lines)
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)

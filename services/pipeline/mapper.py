@@ -36,7 +36,7 @@ yet gets a Plan with the reason. Camera height: the selection's, else the frame'
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -47,7 +47,8 @@ from findme_core.plan import fuse, pose as plan_pose, session as plan_session
 from findme_core.single import layout
 from findme_core.single.scene import Scene
 from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
-from findme_io.imageio import decode_image
+from findme_core.single.segments import WORK_SIZE
+from findme_io.imageio import decode_photo
 
 from ..runtime import bus
 from ..runtime.handler import Handler, Input, Output
@@ -159,10 +160,12 @@ class MapperHandler(Handler):
     def _frame(self, ph: _Photo, f) -> None:
         if ph.camera is not None:
             return
-        try:
-            image = decode_image(f.image.data, f"frame {f.index}")
-            ph.camera = frame_camera(f, image.shape[1], image.shape[0])
-            ph.features = features.detect(image, self.params.features)
+        try:   # decoded once at the working size (a 12 MP JPEG at a quarter); the
+            # keypoints in the photo's pixels, where its camera and hypotheses are
+            photo = decode_photo(f.image.data, f"frame {f.index}", reduce_to=WORK_SIZE)
+            ph.camera = frame_camera(f, photo.width, photo.height)
+            ph.features = _in_photo(features.detect(photo.image, self.params.features),
+                                    photo.scale, photo.width, photo.height)
         except FindmeError as e:
             ph.bad = f"its photo cannot be used: {str(e).splitlines()[0][:200]}"
             ph.camera = None
@@ -310,3 +313,12 @@ def _fill(msg, plan, pl, timing, photos, order, status) -> None:
 def make_mapper(args) -> MapperHandler:
     """``findme serve mapper``: the defaults (32 photos per plan, a plan per new photo)."""
     return MapperHandler()
+
+
+def _in_photo(f: features.Features, s: float, width: int, height: int) -> features.Features:
+    """Keypoints found in the photo decoded ``s`` times its size, in the photo's pixels
+    (pixel-centre convention) and with its size; ``s`` 1: as they are."""
+    if s == 1.0:
+        return f
+    return replace(f, pixels=(f.pixels + 0.5) / s - 0.5, sizes=f.sizes / s, width=width,
+                   height=height)

@@ -8,7 +8,8 @@ else h = 1 (results up to scale, ``metric`` false).
 
 State is bounded and expires: per session at most ``max_photos`` photos (least recently
 used out), a session idle for ``idle_s`` is evicted; anything evicted is rebuilt from the
-bus (selection, hypotheses and frame from the store or the caches) when asked again.
+bus (selection, hypotheses and frame from the store or the caches) when asked again. A
+photo's HypothesisSet is held only until its scene is built.
 """
 
 from __future__ import annotations
@@ -156,6 +157,9 @@ class MeasurementHandler(Handler):
                       height_sigma=sigma if metric else 0.0, gravity_cov=prov.gravity_cov,
                       boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
         st.put(st.scenes, n, (scene, sel.rank, metric))
+        st.hsets.pop(n, None)   # the scene is what queries need; another selection of this
+        # photo fetches its hypotheses again (the store keeps small results 15 min): a
+        # session's memory is then ~1 kB a photo, not its HypothesisSet's 3-10 kB
         self.built += 1
         msg = schemas.Scene(session=session, index=n, rank=sel.rank,
                             camera=camera_msg(cam, prov),

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -33,9 +34,10 @@ import schemas
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
+from findme_core.single.segments import WORK_SIZE
 from findme_io.convert import (frame_camera, msg_camera, msg_hypotheses, msg_lines,
-                               set_motion_estimate)
-from findme_io.imageio import decode_image
+                               scaled_camera, set_motion_estimate)
+from findme_io.imageio import decode_photo
 
 from ..runtime import bus
 from ..runtime.handler import Handler, Input, Output
@@ -273,23 +275,27 @@ class OdometryHandler(Handler):
         if p.selection is None:
             p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
         if p.prepared is None or p.prepared[0] != p.selection.rank:
-            image, cam, hyps, rank, h = self._inputs(session, st, n)
+            image, cam, hyps, rank, h, lines = self._inputs(session, st, n)
             # the hypotheses' own lines when sent (else detected again)
-            p.prepared = (rank, prepare(image, cam, h, hyps, rank, msg_lines(p.hset)))
+            p.prepared = (rank, prepare(image, cam, h, hyps, rank, lines))
         return p.prepared[1]
 
     def _inputs(self, session, st, n):
-        """(image, camera, hypotheses, selected rank, camera height) of photo n."""
+        """(image, camera, hypotheses, selected rank, camera height, lines or None) of photo
+        n, at the working size: a large photo is decoded once at a JPEG reduction
+        (``imageio.reduction``; a 12 MP photo at a quarter) and its camera, hypotheses and
+        lines are scaled to match (pixel centres kept); the motion is in metres either way."""
         f = self._frame(session, st, n)
         p = st.photos[n]
         if p.hset is None:
             p.hset = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
         if p.selection is None:
             p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
-        image = decode_image(f.image.data, f"frame {n}")
+        photo = decode_photo(f.image.data, f"frame {n}", reduce_to=WORK_SIZE)
+        image, s = photo.image, photo.scale
         hset = p.hset   # the camera the hypotheses were built with (estimated gravity)
         cam = (msg_camera(hset.camera) if hset.HasField("camera")
-               else frame_camera(f, image.shape[1], image.shape[0]))
+               else frame_camera(f, photo.width, photo.height))
         sel = p.selection
         h = (sel.camera_height_m if sel.HasField("camera_height_m") else
              f.camera_height_m if f.HasField("camera_height_m") else 1.0)
@@ -297,7 +303,14 @@ class OdometryHandler(Handler):
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
-        return image, cam, hyps, sel.rank, h
+        lines = msg_lines(p.hset)
+        if s != 1.0:
+            cam = scaled_camera(cam, s, image.shape[1], image.shape[0])
+            hyps = [replace(hy, polyline=_pinned((np.asarray(hy.polyline, float) + 0.5) * s - 0.5,
+                                                 image.shape[1]))
+                    for hy in hyps]
+            lines = None if lines is None else (lines + 0.5) * s - 0.5
+        return image, cam, hyps, sel.rank, h, lines
 
     def _pose_msg(self, session, st, n):
         p = st.poses[n]
@@ -321,3 +334,9 @@ class OdometryHandler(Handler):
     def counters(self):
         return {"sessions": len(self.sessions), "motions": self.motions, "gaps": self.gaps,
                 "evicted": self.sessions.evicted}
+
+
+def _pinned(poly: np.ndarray, width: int) -> np.ndarray:
+    """A scaled polyline still running from u = 0 to u = width - 1 (``methods.to_photo``)."""
+    poly[0, 0], poly[-1, 0] = 0.0, width - 1.0
+    return poly

@@ -60,6 +60,22 @@ class Inbox:
         with self.cv:
             self.count(what, n)
 
+    def waited(self, seconds: float) -> None:
+        """A message waited ``seconds`` in the queue before a worker took it (status:
+        ``wait_us`` in all, ``wait_max_us``, ``waits``)."""
+        us = int(1e6 * max(0.0, seconds))
+        with self.cv:
+            self.count("waits")
+            self.count("wait_us", us)
+            self.more["wait_max_us"] = max(self.more.get("wait_max_us", 0), us)
+
+    def spent(self, wall_s: float, cpu_s: float) -> None:
+        """A message was handled in ``wall_s`` s, ``cpu_s`` of them this thread's CPU
+        (status: ``handle_us``, ``handle_cpu_us``)."""
+        with self.cv:
+            self.count("handle_us", int(1e6 * wall_s))
+            self.count("handle_cpu_us", int(1e6 * cpu_s))
+
     def offer(self, i: int, key: str, payload: bytes, recovered: bool = False) -> bool:
         """Queue input ``i`` on ``key``, or answer it at once; returns whether it was queued."""
         inp = self.handler.inputs[i]
@@ -67,6 +83,7 @@ class Inbox:
         digest = (len(payload), zlib.crc32(payload))
         with self.cv:
             self.frames_in += 1
+            self.count("in_bytes", len(payload))
             seen = self.seen.get(session)
             had = seen.get(key)
             if had is not None and (had[0] == digest or (inp.once and had[1])):

@@ -32,6 +32,7 @@ import zenoh
 
 import schemas
 from findme_core.errors import FindmeError, SchemaError
+from findme_io.imageio import decode_stats
 
 from . import authority, bus, recovery
 from .cache import CacheServer, OutputCache
@@ -180,6 +181,7 @@ class Service:
     def _inline(self, key: str, payload: bytes) -> None:
         with self._cv:
             self.inbox.frames_in += 1
+            self.inbox.count("in_bytes", len(payload))
         try:
             self.handler.on_message(key, payload)
         except Exception as exc:  # noqa: BLE001 - logged with the traceback; the callback goes on
@@ -225,11 +227,27 @@ class Service:
     def fetch(self, key: str, timeout: float = 2.0) -> bytes | None:
         """The latest payload of ``key``: this service's own output, or whoever holds it."""
         local = self._cache.get(key)
-        return local if local is not None else bus.fetch(self.session, key, timeout)
+        if local is not None:
+            return local
+        t0 = time.perf_counter()
+        try:
+            return bus.fetch(self.session, key, timeout)
+        finally:
+            self._fetched(t0)
 
     def fetch_all(self, key_expr: str, timeout: float = 5.0) -> list[tuple[str, bytes]]:
         """Every message the bus holds on ``key_expr`` (store and caches), each once."""
-        return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
+        t0 = time.perf_counter()
+        try:
+            return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
+        finally:
+            self._fetched(t0)
+
+    def _fetched(self, t0: float) -> None:
+        """Count a query of the bus and the time it took (status: ``fetches``, ``fetch_us``)."""
+        with self._cv:
+            self.inbox.count("fetches")
+            self.inbox.count("fetch_us", int(1e6 * (time.perf_counter() - t0)))
 
     def status(self):
         ib = self.inbox
@@ -240,6 +258,7 @@ class Service:
         if self._peers is not None:
             more["peers"] = len(self._peers.instances() | {self.instance})
         more.update({k: int(v) for k, v in self.handler.counters().items()})
+        more.update(decode_stats())
         return schemas.ServiceStatus(
             service=self.handler.name, instance=self.instance, started_ns=self.started_ns,
             time_ns=time.time_ns(), frames_in=totals[0], results_out=totals[1], errors=totals[2],
@@ -261,15 +280,20 @@ class Service:
             elif kind == "tick":
                 self._tick(item)
             else:
-                self.process(item.input, item.key, item.payload)
+                self.process(item.input, item.key, item.payload, item.t)
             done = True
 
     def _tick(self, now: float) -> None:
+        c0, t0 = time.thread_time(), time.perf_counter()
         try:
             for out in self.handler.tick(now):
                 self.publish(out)
         except Exception as exc:  # noqa: BLE001 - reported and logged, the service goes on
             self.report(f"{bus.SERVICES}/{self.ident}", exc)
+        finally:
+            with self._cv:
+                self.inbox.count("tick_us", int(1e6 * (time.perf_counter() - t0)))
+                self.inbox.count("tick_cpu_us", int(1e6 * (time.thread_time() - c0)))
 
     def _report_loop(self) -> None:
         while True:
@@ -287,11 +311,16 @@ class Service:
         return recovery.Sweeper(self).sweep(grace_s, since_ns)
 
     # ------------------------------------------------------------------ handling (worker)
-    def process(self, i: int, key: str, payload: bytes) -> None:
-        """Decode, handle and publish one input (runs on the worker thread)."""
+    def process(self, i: int, key: str, payload: bytes, queued: float | None = None) -> None:
+        """Decode, handle and publish one input (runs on the worker thread); ``queued``:
+        when it was queued (monotonic s), for the queue-wait counters."""
         inp = self.handler.inputs[i]
+        c0, t0 = time.thread_time(), time.perf_counter()
+        if queued is not None:
+            self.inbox.waited(time.monotonic() - queued)
         try:
             msg = payload if inp.type is None else schemas.decode(inp.type, payload)
+            self.inbox.bump("pb_decode_us", int(1e6 * (time.perf_counter() - t0)))
             authority.check(key, msg)
             if self.handler.shard and not self._owns(key, msg):
                 self.inbox.bump("handed_over")   # the instances changed since it came:
@@ -307,6 +336,8 @@ class Service:
                      ", ".join(o.key for o in outputs) or "nothing", 1e3 * (time.perf_counter() - t0))
         except Exception as exc:  # noqa: BLE001 - reported on the bus and logged, not swallowed
             self.report(key, exc)
+        finally:
+            self.inbox.spent(time.perf_counter() - t0, time.thread_time() - c0)
 
     def _answer(self, q: Input, query: zenoh.Query) -> None:
         key = str(query.key_expr)
@@ -328,7 +359,11 @@ class Service:
 
     def publish(self, out: Output) -> None:
         """Cache (first: whoever reacts to the put may fetch it back at once), then put."""
+        t0 = time.perf_counter()
         payload = schemas.encode(out.msg)
+        with self._cv:
+            self.inbox.count("pb_encode_us", int(1e6 * (time.perf_counter() - t0)))
+            self.inbox.count("out_bytes", len(payload))
         if len(payload) > self.max_message_bytes:
             bus.put(self.session, out.key, payload, self.max_message_bytes)  # raises
         if out.cache:

@@ -40,7 +40,7 @@ import struct
 import time
 
 import schemas
-from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, encode_jpeg
+from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, decode_photo, encode_jpeg
 from findme_core.errors import CameraError, FindmeError, ImageError, InputError
 
 from findme_io.convert import frame_camera, image_format, make_frame
@@ -58,6 +58,9 @@ MAX_JSON_DEPTH = 8
 MAX_NUMBER_CHARS = 40
 #: 35 mm film diagonal (mm): a "35 mm-equivalent focal length" is relative to it.
 FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)
+#: An uploaded JPEG is checked by decoding it at the reduction that keeps this long side
+#: (``imageio.reduction``: at most an eighth): every byte is read, a fraction decoded.
+CHECK_SIZE = 16
 CODE = schemas.ErrorCode
 
 
@@ -191,13 +194,18 @@ def checked_image(image: bytes, max_pixels: int = MAX_PIXELS) -> tuple[bytes, in
     if w * h > max_pixels:
         raise _bad(f"photo is {w}x{h} = {w * h / 1e6:.0f} MP, over the {max_pixels / 1e6:.0f} MP "
                    "limit", CODE.ERROR_CODE_TOO_LARGE)
-    try:
-        img = decode_image(image, "photo", max_bytes=len(image) + 1, max_pixels=max_pixels)
+    rotated = _exif_rotated(image)
+    try:   # checked whole at an eighth of its size (DCT scaling: every byte still read)
+        # unless it must be re-encoded upright
+        photo = decode_photo(image, "photo", max_bytes=len(image) + 1, max_pixels=max_pixels,
+                             reduce_to=None if rotated else CHECK_SIZE)
     except ImageError as e:
         code = CODE.ERROR_CODE_TOO_LARGE if "limit" in str(e) else CODE.ERROR_CODE_BAD_IMAGE
         raise _bad(str(e), code) from None
-    H, W = img.shape[:2]
-    if _exif_rotated(image) or (w and h and (w, h) != (W, H)):
+    W, H = photo.width, photo.height
+    if rotated or (w and h and (w, h) != (W, H)):
+        img = photo.image if photo.scale == 1.0 else decode_image(
+            image, "photo", max_bytes=len(image) + 1, max_pixels=max_pixels)
         return encode_jpeg(img, 95), W, H, True
     return image, W, H, False
 

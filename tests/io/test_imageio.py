@@ -197,3 +197,39 @@ def test_findme_run_takes_a_heic_photo(tmp_path):
                        capture_output=True, text=True, timeout=180, cwd=tmp_path)
     assert p.returncode == 0, p.stderr
     assert "hypotheses" in p.stdout and "room.heic" in p.stdout
+
+
+def test_a_large_jpeg_is_decoded_at_a_dct_reduction_with_its_scale():
+    """``reduce_to``: the largest reduction keeping the long side >= it (2560 px for 640:
+    a quarter); the pixels are the photo's, averaged (pixel centres: u' = (u + 0.5) s - 0.5);
+    photos under twice the size, PNG, and no ``reduce_to`` are decoded whole."""
+    from findme_io.imageio import reduction
+    assert [reduction(w, h, 640) for w, h in ((4032, 3024), (2560, 1920), (1600, 1200),
+                                               (1280, 960), (1226, 370), (640, 480))] == \
+        [4, 4, 2, 2, 1, 1]
+    assert reduction(4000, 24, 640) == 1            # the short side stays >= 16 px
+    rng = np.random.default_rng(0)
+    small = (rng.random((60, 80, 3)) * 255).astype(np.uint8)
+    big = np.kron(small, np.ones((32, 32, 1), np.uint8))          # 2560x1920, 32 px blocks
+    buf = io.BytesIO()
+    Image.fromarray(big).save(buf, "JPEG", quality=95)
+    whole = decode_photo(buf.getvalue())
+    reduced = decode_photo(buf.getvalue(), reduce_to=640)
+    assert (whole.scale, whole.size, whole.image.shape) == (1.0, (2560, 1920), (1920, 2560, 3))
+    assert (reduced.scale, reduced.size, reduced.image.shape) == (0.25, (2560, 1920), (480, 640, 3))
+    # each 8 px block of the reduced image is the mean of the photo's 8x8 (here: uniform)
+    expect = np.kron(small, np.ones((8, 8, 1), np.uint8))[:, :, ::-1].astype(int)
+    assert np.median(np.abs(reduced.image.astype(int) - expect)) <= 2
+    png = io.BytesIO()
+    Image.fromarray(big).save(png, "PNG")
+    assert decode_photo(png.getvalue(), reduce_to=640).scale == 1.0
+
+
+def test_a_reduced_decode_keeps_the_exif_orientation_and_the_upright_size():
+    img = Image.fromarray(np.zeros((1920, 2560, 3), np.uint8))
+    exif = Image.Exif()
+    exif[0x0112] = 6                                  # stored 2560x1920, shown 1920x2560
+    buf = io.BytesIO()
+    img.save(buf, "JPEG", exif=exif.tobytes())
+    p = decode_photo(buf.getvalue(), reduce_to=640)
+    assert p.size == (1920, 2560) and p.image.shape == (640, 480, 3) and p.scale == 0.25

@@ -13,6 +13,7 @@ import pytest
 import zenoh
 
 from findme.cli import build_parser
+from findme_core.errors import InputError
 from services.runtime.bus import BusConfig, open_session
 from tests.cli.conftest import run_findme
 from tests.services.conftest import (assert_example_motion, spawn_findme, start_tls_router,
@@ -32,8 +33,9 @@ def test_procfile_is_what_findme_up_runs():
             for name, argv in processes(parser.parse_args(["up"]))]
     assert lines == want
     names = {ln.split(":")[0] for ln in lines}
-    assert {"router", "selection", "measurement", "odometry", "mapper", "recorder"} <= names
+    assert {"router", "selection", "measurement", "mapper", "recorder"} <= names
     assert sum(n.startswith("hypotheses") for n in names) == 2
+    assert {n for n in names if n.startswith("odometry")} == {"odometry1", "odometry2"}
     for ln in lines:
         argv = shlex.split(ln.split(":", 1)[1])
         assert parser.parse_args(argv[1:]).command in ("router", "serve")
@@ -205,4 +207,13 @@ def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
 def test_up_without_the_mapper():
     from findme.up_cli import processes
     names = [n for n, _ in processes(build_parser().parse_args(["up", "--no-mapper"]))]
-    assert "mapper" not in names and {"odometry", "measurement", "recorder"} <= set(names)
+    assert "mapper" not in names and {"odometry1", "measurement", "recorder"} <= set(names)
+
+
+def test_up_starts_the_odometry_instances_asked_for():
+    from findme.up_cli import processes
+    procs = processes(build_parser().parse_args(["up", "--odometry", "3"]))
+    odo = [argv for n, argv in procs if n.startswith("odometry")]
+    assert [a[a.index("--instance") + 1] for a in odo] == ["o1", "o2", "o3"]
+    with pytest.raises(InputError, match="--odometry must be at least 1, got 0"):
+        processes(build_parser().parse_args(["up", "--odometry", "0"]))

@@ -48,6 +48,34 @@ def test_hypotheses_handler_matches_the_core(pipeline):
         assert np.array_equal(poly, c.polyline) and np.array_equal(kinds, c.kinds)
 
 
+def test_hypotheses_of_a_large_photo_come_in_its_own_pixels(pipeline):
+    """A 2560x1920 photo (the level view, 4x) is decoded at a quarter (a JPEG reduction:
+    640x480, as it would be resized) with its camera scaled; the answer is in the photo's
+    pixels: its size and camera, polylines from u = 0 to 2559 about 4x the 640x480
+    photo's (their pixel centres: u = (u' + 0.5) * 4 - 0.5), lines too."""
+    import cv2
+    from findme_io.convert import make_frame, msg_lines
+    view, frame, small, _ = pipeline
+    c = view.camera.scaled(4.0)
+    image = cv2.resize(decode_image(frame.image.data), (2560, 1920), interpolation=cv2.INTER_CUBIC)
+    big = make_frame("t1", 1, cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes(),
+                     intrinsics=(c.fx, c.fy, c.cx, c.cy, c.width, c.height), gravity=c.gravity,
+                     camera_height_m=view.camera_height)
+    (out,) = HypothesesHandler().on_message("findme/t1/frame/1", big)
+    hset = out.msg
+    assert (hset.width, hset.height) == (2560, 1920)
+    k = hset.camera.intrinsics
+    assert (k.fx, k.fy, k.cx, k.cy, k.width, k.height) == pytest.approx(
+        (c.fx, c.fy, c.cx, c.cy, 2560, 1920))
+    top, ref = (schemas.msg_to_polyline(h.hypotheses[0].polyline)[0] for h in (hset, small))
+    assert top[0, 0] == 0.0 and top[-1, 0] == 2559.0
+    rows = np.interp(np.linspace(100, 2400, 24), top[:, 0], top[:, 1])
+    want = (np.interp((np.linspace(100, 2400, 24) + 0.5) / 4 - 0.5, ref[:, 0], ref[:, 1]) + 0.5) * 4 - 0.5
+    assert np.median(np.abs(rows - want)) < 8.0          # 2 px of the 640x480 photo
+    lines = msg_lines(hset)
+    assert lines[:, [0, 2]].max() > 640 and lines[:, [1, 3]].max() <= 1919.5
+
+
 def test_hypotheses_handler_sends_the_photos_lines_once(pipeline, tilted_view):
     """The set carries the whole photo's lines (in the photo's pixels, as ``pair.photo_of``
     hands them to the motion: the CLI and odometry orient the room with the same lines), so

@@ -294,3 +294,24 @@ def test_on_the_bus_a_queued_burst_gets_one_plan(room, mapped, zsession):
     assert plan.up_to_index == 11 and plan.photos == 12
     np.testing.assert_allclose(_vertices(plan), _vertices(plans[-1]), atol=1e-9)
     svc.stop()
+
+
+def test_a_session_of_large_photos_is_planned_from_their_reduced_decode():
+    """1280x960 photos (the same room and spots): each decoded once at half (a JPEG
+    reduction), its ORB features back in the photo's pixels, where its camera and boundary
+    are: the plan is the room as from 640x480 photos."""
+    big = rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
+                           yaws=range(0, 360, 60), size=(1280, 960))
+    m = MapperHandler()
+    plans = [out.msg for key, msg in big.messages() for out in m.on_message(key, msg)]
+    plan = plans[-1]
+    assert (plan.photos, plan.closed) == (12, True)
+    assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
+    V, T = _vertices(plan), big.polygon
+    d = np.linalg.norm(V[:, None] - T[None], axis=2)
+    assert d.min(0).max() < 0.05 and d.min(1).max() < 0.05, (V.round(3), T.round(3))
+    got = np.array([(q.x_m, q.z_m, q.yaw_rad) for q in plan.poses])
+    assert np.abs(got[:, :2] - big.poses[:, :2]).max() < 0.02
+    assert np.abs(fuse.wrap(got[:, 2] - big.poses[:, 2])).max() < math.radians(0.5)
+    photo = next(iter(m.sessions.values())).photos[0]
+    assert photo.features.width == 1280 and photo.features.pixels[:, 0].max() > 700

@@ -58,6 +58,28 @@ def test_motion_and_trajectory_match_the_truth(photos):
     assert p2.sigma_x_m > out["findme/od/pose/1"].sigma_x_m > 0   # uncertainty grows
 
 
+def test_large_photos_move_as_their_reduced_decode_does(photos):
+    """The same walk in 1280x960 photos: odometry decodes each at half (a JPEG reduction)
+    and scales the hypotheses' camera, boundary and lines to it; the motion (metres) is
+    the truth's as with 640x480 photos."""
+    poses, _ = photos
+    room = Room.rectangle(5.0, 6.0, floor_style="wood")
+    msgs = []
+    for n, p in enumerate(poses):
+        f = frame_of(render(room, p, 1280, 960, hfov_deg=70, seed=5), "od", n)
+        (h,) = HypothesesHandler().on_message(f"findme/od/frame/{n}", f)
+        assert (h.msg.width, h.msg.height) == (1280, 960)
+        msgs.append((f, h.msg, schemas.Selection(session="od", index=n, rank=1,
+                                                 by=schemas.SELECTED_BY_AUTO)))
+    out = feed(OdometryHandler(), msgs, [0, 1, 2])
+    for a, b in ((0, 1), (1, 2)):
+        m = out[f"findme/od/motion/{a}/{b}"]
+        x, z, yaw = planar_motion(poses[a], poses[b])
+        assert not m.error and m.inliers > 20
+        assert math.hypot(m.x_m - x, m.z_m - z) < 0.05
+        assert abs(math.degrees(m.yaw_rad) - yaw) < 1.0
+
+
 def test_selections_out_of_order_wait_for_their_predecessor(photos):
     _, msgs = photos
     h = OdometryHandler()

@@ -39,7 +39,7 @@ def _wait(proc, text, timeout=90):
 def test_up_serves_send_and_stops_on_sigterm(tmp_path):
     ep, up = _up(tmp_path)
     try:
-        _wait(up, "| ready: 8 services")
+        _wait(up, "| ready: 9 services")
         p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
         assert p.returncode == 0, p.stderr
         assert_example_motion(p.stdout)
@@ -52,7 +52,7 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
     log = "".join(up.lines)
     assert code == 0, log[-3000:]
     for name in ("router", "store", "hypotheses1", "hypotheses2", "selection", "measurement",
-                 "odometry", "mapper", "recorder"):
+                 "odometry1", "odometry2", "mapper", "recorder"):
         assert f"{name} stopped (rc=0)" in log, name
     assert (tmp_path / "rec" / "up-1.mcap").stat().st_size > 0
 
@@ -60,9 +60,9 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
 def test_up_stops_all_when_one_dies_and_quiet_logs_no_message_lines(tmp_path):
     ep, up = _up(tmp_path, "--quiet", "--hypotheses", "1")
     try:
-        _wait(up, "ready: 7 services")
+        _wait(up, "ready: 8 services")
         pid = next(int(x.split("pid=")[1].rstrip(")\n")) for x in up.lines
-                   if "odometry started (pid=" in x)
+                   if "odometry1 started (pid=" in x)
         os.kill(pid, signal.SIGKILL)
         code = up.wait(60)
         up.drain.join(10)

@@ -274,6 +274,37 @@ def _png_header_only(w, h) -> bytes:
             + chunk(b"IDAT", raw) + chunk(b"IEND", b""))
 
 
+def test_a_large_photo_is_sent_at_1600_px_with_its_intrinsics_scaled(browser, app, tmp_path):
+    """A 1920x1440 photo with intrinsics typed for it goes out at 1600x1200 (the page's
+    MAX_UPLOAD_SIDE), the intrinsics scaled with it (pixel centres kept), and is measured."""
+    import cv2
+    big = tmp_path / "big.jpg"
+    cv2.imwrite(str(big), cv2.resize(cv2.imread(ROOM_A), (1920, 1440),
+                                     interpolation=cv2.INTER_CUBIC), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    k = SIDE_A["intrinsics"]
+    typed = {"fx": 3 * k["fx"], "fy": 3 * k["fy"], "cx": (k["cx"] + 0.5) * 3 - 0.5,
+             "cy": (k["cy"] + 0.5) * 3 - 0.5}
+    context = browser.new_context(**PHONE)
+    page = context.new_page()
+    page.js_errors = []
+    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    received = []
+    page.on("websocket", lambda ws: ws.on("framereceived", lambda d: received.append(d)))
+    page.goto(app.url)
+    page.wait_for_selector('#status[data-state="connected"]')
+    type_camera(page, {**SIDE_A, "intrinsics": typed})
+    upload(page, str(big), 0)
+    ack = next(m for m in (json.loads(r) for r in received if isinstance(r, str))
+               if m.get("type") == "frame")
+    s = 1600 / 1920
+    assert (ack["width"], ack["height"]) == (1600, 1200)
+    assert ack["bytes"] < big.stat().st_size
+    assert ack["fx"] == pytest.approx(typed["fx"] * s) and ack["fy"] == pytest.approx(typed["fy"] * s)
+    assert ack["cx"] == pytest.approx((typed["cx"] + 0.5) * s - 0.5)
+    assert ack["cy"] == pytest.approx((typed["cy"] + 0.5) * s - 0.5)
+    close(page)
+
+
 def test_bad_input_gets_a_message_and_others_are_served(browser, app, shots, tmp_path):
     not_image = tmp_path / "notes.jpg"
     not_image.write_text("this is not a photo\n" * 100)

@@ -10,6 +10,7 @@ from findme_core.errors import InputError
 from findme_core.motion import features
 from findme_core.motion.features import FeatureParams, detect, match
 from findme_core.motion.lifting import Lifted, lift
+from findme_core.motion.features import FeatureParams, Lifted, detect, lift, match
 from findme_core.single.scene import Scene
 from findme_core.synth.render import Box, Pose, Room, render
 
@@ -141,3 +142,34 @@ def test_matches_subset(views):
     s = m.subset(np.arange(3))
     assert len(s) == 3 and (s.n_a, s.n_b) == (m.n_a, m.n_b) and np.all(s.ua == m.ua[:3])
     assert features.DETECTORS == ("orb", "sift")
+
+
+@pytest.mark.parametrize("n", [257, 600, 2000])
+def test_distinct_of_many_matches_is_the_full_matrix_answer(n):
+    """Above 256 matches the near-duplicate pairs come from a grid of the A pixels; the
+    kept matches and every match's representative are those the (n, n) distance matrix
+    gives (the same sums, the same greedy pass), with copies (one corner at several ORB
+    levels), ties of the ratio, pixels on the grid lines and negative coordinates."""
+    rng = np.random.default_rng(n)
+    ua = rng.uniform(-5, 640, (n, 2))
+    ua[: n // 3] = ua[n // 3: 2 * (n // 3)] + rng.normal(0, 1.5, (n // 3, 2))
+    ua[::7] = np.round(ua[::7] / 6.0) * 6.0                       # on the 6 px grid's lines
+    ub = ua + rng.normal(0, 2, (n, 2)) + [30, 5]
+    m = features.Matches(ua, ub, np.arange(n), np.arange(n), rng.uniform(0, 1, n).round(1), n, n)
+
+    def matrix(u):
+        dx, dy = u[:, None, 0] - u[None, :, 0], u[:, None, 1] - u[None, :, 1]
+        return np.sqrt(dx * dx + dy * dy)
+    ii, jj = np.nonzero(matrix(ua) + matrix(ub) < 6.0)
+    near = [jj[ii == i] for i in range(n)]
+    rep = [-1] * n
+    for i in np.argsort(m.ratio, kind="stable"):
+        if rep[i] < 0:
+            for j in near[i]:
+                if rep[j] < 0:
+                    rep[j] = i
+    keep = np.unique(rep)
+    got_keep, got_rep = features.distinct(m, 3.0)
+    assert len(keep) < n                                            # copies were merged
+    assert np.array_equal(got_keep, keep)
+    assert np.array_equal(got_rep, np.searchsorted(keep, rep))
