@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from . import fuse
+from . import fuse, ties
 from .errors import GeometryError
 from .planar import wrap
 
@@ -84,6 +84,6 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
                 for i in np.flatnonzero(block == b):
                     Q[i] = (rb[0][0, 0], rb[0][0, 1], wrap(rb[0][0, 2] + rel[i]))
         out[c] = Q[n:]
-    o = np.argsort(-total, kind="stable")
+    o = ties.order(total)   # candidates that score alike (a symmetric room): in their order
     return out[o], total[o]
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import ties
 from .errors import MotionError
 from .motion_model import MotionInputs, MotionParams, PlanarMotion, motion_result, no_common_view
 from .planar import _kabsch_pairs, _rot2, kabsch_2d
@@ -41,7 +42,7 @@ def lifted_estimate(P: MotionInputs, params: MotionParams, rng) -> PlanarMotion:
     sig = np.maximum(np.hypot(P.la.sigma[idx], P.lb.sigma[idx]), 0.05)
     res = lambda yaw, t: np.linalg.norm(A - _rot2(yaw, B) - t, axis=-1) / sig  # noqa: E731
     yaw, t = _kabsch_pairs(A, B, samples(rng, len(idx), 2, params.max_iters))
-    i = int(np.argmax(msac(res(yaw[:, None], t[:, None]), 3.0)))
+    i = ties.argmax(msac(res(yaw[:, None], t[:, None]), 3.0))
     best = (float(yaw[i]), t[i])
     for _ in range(4):
         ok = res(*best) < 3.0

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import register
+from . import register, ties
 from .motion_features import _consensus
 from .motion_model import MotionInputs, MotionParams
 from .planar import (_dot, _epipolar_terms, _norm, _rotate, _spread, epipolar_residuals,
@@ -181,7 +181,7 @@ class Fit:
         for i, la in enumerate(self.la):
             for j, lb in enumerate(self.lb):
                 s = register.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
-                better = s > best
+                better = ties.beats(s, best)   # a tie keeps the pair met first
                 best = np.where(better, s, best)
                 which[better] = (i, j)
         return best, which

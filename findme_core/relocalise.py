@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from . import register
+from . import register, ties
 from .errors import GeometryError
 from .floorplan import Plan
 from .layout import Layout, merged
@@ -62,7 +62,7 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
     pn = L.normals                                    # toward the photo's camera
     pd = np.einsum("ij,ij->i", pn, L.walls[:, 0])
     plen = np.linalg.norm(L.walls[:, 1] - L.walls[:, 0], axis=1)
-    order = np.argsort(-plen)[:max_walls]
+    order = ties.order(plen)[:max_walls]   # walls of one length: in index order
     cands = []
     for i in order:
         for k in np.flatnonzero(seen):
@@ -91,7 +91,9 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
         raise GeometryError("no pose that matches the photo's walls puts it inside the room")
     pts = L.points[(L.kind == SegKind.WALL) & np.isfinite(L.range)]
     scored = [_score(p, pts, a, b, seen, poly, gate_m) for p in c]
-    o = np.argsort([-s[0] for s in scored])
+    # best first; poses that score alike (a symmetric room turned half round) in the order
+    # of their candidates, so that every machine names the same one first
+    o = ties.order(np.array([s[0] for s in scored]))
     out = []
     for k in o:
         x, z, yaw = c[k]

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import ties
 from .camera import Camera
 from .corners import CornerParams, corner_verticals
 from .lines import merge_collinear, snap_to_edges
@@ -210,7 +211,7 @@ def _frame(L: LineSet, K: np.ndarray, p: GravityParams, pitch_range, roll_range)
     if len(done) == 1:
         return done[0]
     s, _ = score_frames(L, K, np.array([d[0][:, 1] for d in done]), p.inlier_deg)
-    return done[int(np.argmax(s))]
+    return done[ties.argmax(s, rtol=ties.RTOL32)]   # float32 scores
 
 
 def estimate_gravity(image: np.ndarray, camera: Camera,
