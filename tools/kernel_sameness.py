@@ -6,6 +6,7 @@ prediction files compared beyond the tolerances of ``findme regress``.
     python tools/kernel_sameness.py --sample 40           # ~40 views, ~20 pairs, no room
     python tools/kernel_sameness.py --env OPENBLAS_CORETYPE=SkylakeX \\
         --env "NPY_DISABLE_CPU_FEATURES=AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL X86_V4"
+    python tools/kernel_sameness.py --sample 60 --gravity refine   # gravity as the services
     python tools/kernel_sameness.py --compare A.json B.json   # two prediction files
 
 Each ``--env`` is one run (``NAME=VALUE``, several joined by ``;``); the first run is the
@@ -257,11 +258,12 @@ def _env(text: str) -> dict:
     return out
 
 
-def run_eval(dataset: Path, out: Path, env_text: str, jobs: int) -> float:
-    """``findme eval`` in a subprocess under ``env_text``; its CPU seconds."""
+def run_eval(dataset: Path, out: Path, env_text: str, jobs: int, extra=()) -> float:
+    """``findme eval`` (with ``extra`` arguments) in a subprocess under ``env_text``; its CPU
+    seconds."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), **_env(env_text)}
     cmd = [sys.executable, "-m", "findme.cli", "eval", str(dataset), "--out", str(out),
-           "--jobs", str(jobs)]
+           "--jobs", str(jobs), *extra]
     t0 = os.times()
     r = subprocess.run(cmd, env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                        text=True)
@@ -282,6 +284,10 @@ def main(argv=None) -> int:
                     help="rooms planned (default: all; 0 with --sample)")
     ap.add_argument("--env", action="append", default=None, metavar="NAME=VALUE[;...]")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--gravity", choices=("given", "refine", "none"), default="given",
+                    help="the views' gravity as given (default), refined by the photo's lines "
+                         "as the services refine a phone's (--gravity-refine), or withheld: "
+                         "estimated from the photo (--no-gravity)")
     ap.add_argument("--px", type=float, default=1.0, help="polyline tolerance (1 px)")
     ap.add_argument("--keep", type=Path, help="keep the prediction files here")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("A.json", "B.json"))
@@ -308,7 +314,8 @@ def main(argv=None) -> int:
         for i, e in enumerate(envs):
             f = outdir / f"run{i}.json"
             t = time.monotonic()
-            cpu = run_eval(dataset, f, e, a.jobs)
+            cpu = run_eval(dataset, f, e, a.jobs, {"given": (), "refine": ("--gravity-refine",),
+                                                    "none": ("--no-gravity",)}[a.gravity])
             print(f"  run {i} ({e}): {time.monotonic() - t:.0f} s wall, {cpu:.0f} s CPU",
                   file=sys.stderr)
             files.append(f)
