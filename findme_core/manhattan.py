@@ -177,7 +177,8 @@ def score_frames(L: LineSet, K: np.ndarray, G: np.ndarray,
 def _rows_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(N, M) ``a @ b.T`` of 3-vectors a (N, 3), b (M, 3), summed in a fixed order (no BLAS),
     in their dtype."""
-    return a[:, None, 0] * b[None, :, 0] + a[:, None, 1] * b[None, :, 1] + a[:, None, 2] * b[None, :, 2]
+    return (a[:, None, 0] * b[None, :, 0] + a[:, None, 1] * b[None, :, 1]
+            + a[:, None, 2] * b[None, :, 2])
 
 
 #: Two grid gravities exactly the separation apart count as one peak (their cosine equals

@@ -20,8 +20,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import hashlib
-import json
-import math
 import os
 import pickle
 import subprocess
