@@ -29,7 +29,7 @@ from pathlib import Path
 
 from findme_core.errors import InputError
 
-from services.runtime.registry import _extra_services, add_service_args, make_handler, wait_for_signal
+from services.registry import _extra_services, add_service_args, make_handler, wait_for_signal
 from services.runtime.service import Group
 
 from . import deploy

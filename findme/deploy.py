@@ -28,7 +28,7 @@ import schemas
 from findme_core.errors import BusError, InputError
 from services.runtime import bus
 from services.pipeline.capture import CaptureHandler, Lens, publish_frames, sources
-from services.runtime.registry import (add_service_args, make_handler, service_names,
+from services.registry import (add_service_args, make_handler, service_names,
                                       service_options, wait_for_signal)
 from services.runtime.service import Group, Service
 

@@ -38,18 +38,18 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from findme_core.camera import Camera
+from findme_core.geometry.camera import Camera
 from findme_core.errors import FindmeError, InputError
-from findme_core.manhattan import gravity_of, pitch_roll_deg
-from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
-from findme_core.methods import METHODS
-from findme_core.motion import METHODS as MOTION_METHODS
-from findme_core.scene import Scene, boundary_sigma_px
+from findme_core.geometry.manhattan import gravity_of, pitch_roll_deg
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
+from findme_core.single.methods import METHODS
+from findme_core.motion.methods import METHODS as MOTION_METHODS
+from findme_core.single.scene import Scene, boundary_sigma_px
 from .options import gravity_sigma
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.imageio import read_image
-from findme_core.pair import motion_photos, photo_of
+from findme_core.motion.pair import motion_photos, photo_of
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 #: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``

@@ -45,8 +45,8 @@ def render_photos(out: Path) -> dict[str, tuple[list[str], list[str]]]:
     {kind: (files, flags)}; the example pair is ``findme send``'s default (no files)."""
     import cv2
 
-    from findme_core.room import Box, Pose, Room
-    from findme_core.synth import render
+    from findme_core.synth.room import Box, Pose, Room
+    from findme_core.synth.render import render
     out.mkdir(parents=True, exist_ok=True)
 
     def shoot(name, room, poses, hfov=70.0):

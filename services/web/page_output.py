@@ -18,7 +18,7 @@ Pure: no bus, no server; the message is only read.
 from __future__ import annotations
 
 import schemas
-from findme_core import layout
+from findme_core.single import layout
 from findme_core.errors import FindmeError
 from findme_io.convert import msg_camera
 
@@ -43,7 +43,7 @@ def _pose(p) -> dict:
 
 def _walls(scene) -> list:
     """The walls of a Scene's boundary on the floor, [[x0, z0], [x1, z1]] metres in the
-    photo's level frame (``findme_core.layout``), for the page's floor map; [] when the
+    photo's level frame (``findme_core.single.layout``), for the page's floor map; [] when the
     boundary gives none."""
     try:
         poly, kinds = schemas.msg_to_polyline(scene.polyline)
