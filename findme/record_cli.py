@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import argparse
 import math
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from services.runtime import bus
 from services.recording.mcap_reader import Recorded, read_recording
 from services.recording.mcap_recover import recover
 
-from .regress import TOLERANCES, regress
+from .regress import COMPARES, TOLERANCES, regress
 from .replay import rename_session, replay
 
 
@@ -72,7 +73,8 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_replay)
 
     g = sub.add_parser("regress", help="re-run a recording through the current services and "
-                                       "compare every result (exit 1 on a difference)")
+                                       "compare every result (exit 1 on a difference)",
+                       description=COMPARES, formatter_class=argparse.RawDescriptionHelpFormatter)
     g.add_argument("recording", metavar="SESSION.mcap")
     g.add_argument("--method", help="hypotheses method (default: the recording's)")
     g.add_argument("--max", type=int, default=10, help="hypotheses per photo (default 10)")

@@ -1,6 +1,6 @@
 """``findme regress``: a recording's inputs run again through the current services, every
 result compared with the recorded one (``regress`` -> ``Regression``), field by field
-(``diff_messages``).
+(``diff_messages``). ``COMPARES`` says what is compared, for ``--help`` and the README.
 
 Tolerances (``TOLERANCES``, printed with every failure): pixels and polyline vertices
 ``TOL_PX`` (px, Euclidean, bus pixel convention); fields ending ``_m`` and 3D points
@@ -8,6 +8,19 @@ Tolerances (``TOLERANCES``, printed with every failure): pixels and polyline ver
 reported in degrees); score and support ``TOL_SCORE``; other floats ``TOL_FLOAT`` relative;
 integers, enums and text exact. Clocks and who answered (``IGNORED``) are not compared.
 Errors compare as a multiset of (key, code, message). The recording is only read.
+
+What is a property of timing, not of the answer, is not a failure:
+
+* hypotheses whose scores lie within ``TOL_SCORE`` of each other are a tie, and their ranks
+  may trade places: they are matched as a set (``match_hypotheses``) and the swap is named in
+  a note. A recorded selection of a swapped hypothesis is replayed as the same hypothesis
+  at its current rank, and the ranks the results name (scene, measurement, a motion's
+  layouts) are compared through that map;
+* latest-state messages (``bus.LATEST_STATE_KINDS``: trajectory, plan), republished as a
+  session grows, compare by their last message, however often they were published;
+* errors that say how busy the machine was (``TIMING_ERRORS``: OVERLOADED) are left out (a
+  recording whose services dropped a photo under load lacks that photo's results, which the
+  replay gives: those still differ, as a session that lost a photo is another session).
 """
 
 from __future__ import annotations
@@ -38,6 +51,27 @@ TOLERANCES = (f"polyline vertices and pixels within {TOL_PX:g} px; 3D points and
               f"(_m) within {TOL_M * 1e3:g} mm; angles (_rad) within 0.01 deg; score and "
               f"support within {TOL_SCORE:g}; other numbers within {TOL_FLOAT:g} relative; "
               "integers, enums and text exact; times not compared")
+#: Error codes that say how busy the machine was, not what the answer is.
+TIMING_ERRORS = ("ERROR_CODE_OVERLOADED",)
+#: What ``findme regress`` compares (its ``--help`` and the README say this).
+COMPARES = f"""\
+Every result the recording holds (hypotheses, scenes, measurements, motions, poses,
+trajectory, plan, errors) is compared with the current services' answer to the same
+frames and selections, field by field:
+  polyline vertices and pixels   within {TOL_PX:g} px (Euclidean)
+  3D points, lengths (_m)        within {TOL_M * 1e3:g} mm
+  angles (_rad)                  within {math.degrees(TOL_RAD):g} deg
+  hypothesis score and support   within {TOL_SCORE:g}
+  other numbers                  within {TOL_FLOAT:g} relative
+  integers, enums, text          exactly
+  clocks, timings, instance ids  not compared
+Not failures, because they are timing, not the answer (each is named in a note):
+  hypotheses whose scores tie (within {TOL_SCORE:g}) trading ranks: matched as a set;
+    a recorded selection of one is replayed as the same hypothesis at its new rank
+  latest-state messages ({", ".join(bus.LATEST_STATE_KINDS)}): the last one of each is
+    compared, however often it was published
+  {", ".join(c.replace("ERROR_CODE_", "") for c in TIMING_ERRORS)} errors (how busy a service was)
+Errors compare as a multiset of (key, code, message). Exit status 1 on any difference."""
 
 
 def _f(x: float) -> str:
@@ -122,6 +156,91 @@ def diff_messages(a, b, path: str = "") -> list[str]:
     return out
 
 
+def _without(msg, *names):
+    c = type(msg)()
+    c.CopyFrom(msg)
+    for n in names:
+        c.ClearField(n)
+    return c
+
+
+@dataclass
+class HypothesisMatch:
+    """Recorded and current hypotheses of one photo matched as a set within score ties.
+
+    Attributes:
+        ranks: recorded rank -> current rank (1-based) of every matched hypothesis.
+        swaps: notes naming the ranks that traded places.
+        diffs: the differences that are real (as ``diff_messages`` words them).
+    """
+
+    ranks: dict[int, int]
+    swaps: list[str]
+    diffs: list[str]
+
+
+def match_hypotheses(rec, now) -> HypothesisMatch:
+    """Compare two ``HypothesisSet`` messages, letting hypotheses whose scores tie (consecutive
+    ranks within ``TOL_SCORE``, recorded or now) trade places: within such a group each
+    recorded hypothesis is matched to an equal current one (within the tolerances, its rank
+    aside), its own rank first. What stays unmatched is compared rank by rank."""
+    diffs = diff_messages(_without(rec, "hypotheses"), _without(now, "hypotheses"))
+    ha, hb = list(rec.hypotheses), list(now.hypotheses)
+    n = min(len(ha), len(hb))
+    if len(ha) != len(hb):
+        diffs.append(f"hypotheses: {len(ha)} recorded, {len(hb)} now")
+    same = lambda i, j: not diff_messages(_without(ha[i], "rank"), _without(hb[j], "rank"))  # noqa: E731
+    tied = [abs(ha[i].score - ha[i + 1].score) <= TOL_SCORE
+            or abs(hb[i].score - hb[i + 1].score) <= TOL_SCORE for i in range(n - 1)]
+    ranks, swaps, start = {}, [], 0
+    for end in range(1, n + 1):
+        if end < n and tied[end - 1]:
+            continue
+        group, match = range(start, end), {}
+        for i in group:                       # its own rank first
+            if same(i, i):
+                match[i] = i
+        for i in group:
+            if i not in match:
+                j = next((j for j in group if j not in match.values() and same(i, j)), None)
+                if j is not None:
+                    match[i] = j
+        for i in group:
+            if i in match:
+                ranks[i + 1] = match[i] + 1
+        # the unmatched ones, compared in rank order with the current ones left over
+        left = [j for j in group if j not in match.values()]
+        for i, j in zip([i for i in group if i not in match], left):
+            diffs.extend(diff_messages(_without(ha[i], "rank"), _without(hb[j], "rank"),
+                                       f"hypotheses[{i}]" + (f" (now [{j}])" if j != i else "")))
+        moved = [i for i in match if match[i] != i]
+        if moved:
+            swaps.append(
+                "ranks " + ", ".join(str(i + 1) for i in group) + " tie (scores "
+                + ", ".join(f"{ha[i].score:.6g}" for i in group) + f", within {TOL_SCORE:g}) "
+                "and traded places: " + ", ".join(f"rank {i + 1} recorded is rank "
+                                                  f"{match[i] + 1} now" for i in moved))
+        start = end
+    for i in range(n, len(ha)):
+        ranks.pop(i + 1, None)
+    return HypothesisMatch(ranks, swaps, diffs)
+
+
+def _ranks_now(msg, maps: dict[int, dict[int, int]]):
+    """A copy of a recorded message with the hypothesis ranks it names (scene, measurement,
+    a motion's layouts) translated to the current ranks of the same hypotheses."""
+    name = msg.DESCRIPTOR.full_name
+    if name in ("findme.v1.Scene", "findme.v1.MeasureReply") and msg.index in maps:
+        msg = _without(msg)
+        msg.rank = maps[msg.index].get(msg.rank, msg.rank)
+    elif name == "findme.v1.Motion" and msg.HasField("layout") and (
+            msg.index_a in maps or msg.index_b in maps):
+        msg = _without(msg)
+        msg.layout.rank_a = maps.get(msg.index_a, {}).get(msg.layout.rank_a, msg.layout.rank_a)
+        msg.layout.rank_b = maps.get(msg.index_b, {}).get(msg.layout.rank_b, msg.layout.rank_b)
+    return msg
+
+
 @dataclass
 class Regression:
     """The outcome of ``regress``: what was compared and every difference found."""
@@ -186,6 +305,7 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
     group = Group(session)
     watch = Watch(session, session_id)
     measured_now: list[tuple[str, bytes | None, str]] = []
+    rank_maps: dict[int, dict[int, int]] = {}   # photo -> recorded rank -> current rank
     try:
         for h in handlers:
             group.add(h)
@@ -197,7 +317,8 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
             elif k.kind == "selection":
                 need = bus.key(session_id, "hypotheses", *k.parts)
                 wait_result(group, watch, lambda c, need=need: c[need] > 0, timeout)
-                source.put(r.key, r.payload)
+                source.put(r.key, _same_choice(r.payload, expected.get(need), watch, need,
+                                               rank_maps, out.notes))
             elif k.kind == "measured":
                 need = bus.key(session_id, "scene", *k.parts)
                 wait_result(group, watch, lambda c, need=need: c[need] > 0, timeout)
@@ -219,12 +340,39 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
     for k, payload in watch.got:
         if bus.parse_key(k).kind not in INPUT_KINDS + ("measured",):
             got[k].append(payload)
+    compare_results(expected, got, out, rank_maps)
+    recorded_measures = [r for r in recs if bus.parse_key(r.key).kind == "measured"]
+    for i, (r, (key, payload, err)) in enumerate(zip(recorded_measures, measured_now)):
+        short = f"{_short(key, session_id)} (measurement {i + 1})"
+        out.compared += 1
+        if payload is None:
+            out.differences[short] = [f"no answer now: {err}"]
+            continue
+        diffs = _compare_payloads(r.payload, payload, rank_maps)
+        if diffs:
+            out.differences[short] = diffs
+    return out
+
+
+def compare_results(expected: dict, got: dict, out: Regression,
+                    rank_maps: dict | None = None) -> None:
+    """Compare recorded and current results, {key: [payload, ...]} each, of ``out.session``
+    (see the module docstring), adding to ``out``'s differences and notes; ``rank_maps``
+    (photo -> recorded rank -> current rank) is used and completed."""
+    session_id = out.session
+    rank_maps = {} if rank_maps is None else rank_maps
     for key in sorted(set(expected) | set(got)):
         short = _short(key, session_id)
         rec_list, now_list = expected.get(key, []), got.get(key, [])
+        kind = bus.parse_key(key).kind
         out.compared += 1
-        if bus.parse_key(key).kind == "error":   # a multiset of errors
-            a, b = Counter(map(_error_sig, rec_list)), Counter(map(_error_sig, now_list))
+        if kind == "error":   # a multiset of errors, those of timing left out
+            sigs = [list(map(_error_sig, x)) for x in (rec_list, now_list)]
+            timing = [sum(e[1] in TIMING_ERRORS for e in x) for x in sigs]
+            if any(timing):
+                out.notes.append(f"{short}: not compared, timing: {timing[0]} recorded and "
+                                 f"{timing[1]} current {'/'.join(TIMING_ERRORS)}")
+            a, b = (Counter(e for e in x if e[1] not in TIMING_ERRORS) for x in sigs)
             diffs = [f"recorded, not now: {e[0]}: {e[1]}: {e[2]}" for e in (a - b).elements()]
             diffs += [f"now, not recorded: {e[0]}: {e[1]}: {e[2]}" for e in (b - a).elements()]
             if diffs:
@@ -238,26 +386,67 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
             continue
         diffs = []
         # latest state (bus.LATEST_STATE_KINDS): how often it is republished is timing
-        if len(rec_list) != len(now_list) and bus.parse_key(key).kind not in bus.LATEST_STATE_KINDS:
+        if len(rec_list) != len(now_list) and kind not in bus.LATEST_STATE_KINDS:
             diffs.append(f"published {len(rec_list)} time(s) when recorded, {len(now_list)} now "
                          "(comparing the last)")
-        diffs += _compare_payloads(rec_list[-1], now_list[-1])
+        if kind == "hypotheses":
+            m = _match_payloads(rec_list[-1], now_list[-1])
+            if isinstance(m, list):
+                diffs += m
+            else:
+                diffs += m.diffs
+                out.notes += [f"{short}: {w}" for w in m.swaps]
+                rank_maps.setdefault(_photo(key), m.ranks)
+        else:
+            diffs += _compare_payloads(rec_list[-1], now_list[-1], rank_maps)
         if diffs:
             out.differences[short] = diffs
-    recorded_measures = [r for r in recs if bus.parse_key(r.key).kind == "measured"]
-    for i, (r, (key, payload, err)) in enumerate(zip(recorded_measures, measured_now)):
-        short = f"{_short(key, session_id)} (measurement {i + 1})"
-        out.compared += 1
-        if payload is None:
-            out.differences[short] = [f"no answer now: {err}"]
-            continue
-        diffs = _compare_payloads(r.payload, payload)
-        if diffs:
-            out.differences[short] = diffs
-    return out
 
 
-def _compare_payloads(recorded: bytes, now: bytes) -> list[str]:
+def _photo(key: str) -> int:
+    """The photo a per-photo key names (``.../hypotheses/<n>``)."""
+    return int(bus.parse_key(key).parts[-1])
+
+
+def _match_payloads(recorded: bytes, now: bytes):
+    """``match_hypotheses`` of two payloads, or the list of differences when one does not
+    decode as a hypothesis set."""
+    try:
+        a = schemas.decode(schemas.HypothesisSet, recorded, check=False)
+        b = schemas.decode(schemas.HypothesisSet, now, check=False)
+    except Exception:  # noqa: BLE001 - not a hypothesis set: compared as any payload
+        return _compare_payloads(recorded, now)
+    return match_hypotheses(a, b)
+
+
+def _same_choice(payload: bytes, recorded_sets, watch: Watch, key: str,
+                 rank_maps: dict, notes: list[str]) -> bytes:
+    """A recorded selection, to replay: the same hypothesis the user chose, at its current
+    rank when it traded places with a tied one (``match_hypotheses``); ``rank_maps`` learns
+    the photo's map."""
+    with watch.cv:
+        now = [p for k, p in watch.got if k == key]
+    if not recorded_sets or not now:
+        return payload
+    m = _match_payloads(recorded_sets[-1], now[-1])
+    if isinstance(m, list):
+        return payload
+    n = _photo(key)
+    rank_maps[n] = m.ranks
+    try:
+        sel = schemas.decode(schemas.Selection, payload, check=False)
+    except Exception:  # noqa: BLE001 - replayed as recorded; its error will show
+        return payload
+    rank = m.ranks.get(sel.rank, sel.rank)
+    if rank == sel.rank:
+        return payload
+    notes.append(f"selection/{n}: rank {sel.rank} recorded is replayed as rank {rank}, the "
+                 "same hypothesis (a score tie traded their places)")
+    sel.rank = rank
+    return sel.SerializeToString(deterministic=True)
+
+
+def _compare_payloads(recorded: bytes, now: bytes, rank_maps=None) -> list[str]:
     try:
         a = schemas.decode_any(recorded, check=False)
     except Exception as e:  # noqa: BLE001
@@ -268,7 +457,7 @@ def _compare_payloads(recorded: bytes, now: bytes) -> list[str]:
         return [f"the current payload does not decode ({e})"]
     if type(a) is not type(b):
         return [f"a {a.DESCRIPTOR.full_name} recorded, a {b.DESCRIPTOR.full_name} now"]
-    return diff_messages(a, b)
+    return diff_messages(_ranks_now(a, rank_maps) if rank_maps else a, b)
 
 
 def wait_result(group, watch: Watch, pred, timeout: float, step: float = 0.05) -> bool:

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from findme_core.geometry import ties
+
 
 @dataclass
 class LineSet:
@@ -145,11 +147,13 @@ def score_frames(L: LineSet, K: np.ndarray, G: np.ndarray,
     M = len(G)
     mid, normal = L.mid.astype(np.float32), L.normal.astype(np.float32)
     reach = (1.25 * L.half + 10.0).astype(np.float32)
-    rv = _sq_residuals(mid, normal, reach, G @ K.T)             # (N, M) vertical, squared
+    # the products without BLAS (``ties``): the same bits under every kernel, so the bins,
+    # the peaks and the best frame are the same on every machine
+    rv = _sq_residuals(mid, normal, reach, ties.matmul(G, K.T))  # (N, M) vertical, squared
     x, z = level_axes(G)
     n32 = L.n.astype(np.float32)
-    hx = n32 @ np.cross(G, x).T.astype(np.float32)              # (n x g) . x
-    hz = n32 @ np.cross(G, z).T.astype(np.float32)              # (n x g) . z
+    hx = _rows_dot(n32, np.cross(G, x).astype(np.float32))      # (n x g) . x
+    hz = _rows_dot(n32, np.cross(G, z).astype(np.float32))      # (n x g) . z
     nb = max(4, int(round(90.0 / tau_deg)))
     az = np.arctan2(hx, hz)
     b = (np.mod(az, np.float32(np.pi / 2)) * np.float32(nb / (np.pi / 2))).astype(np.int64) % nb
@@ -163,10 +167,23 @@ def score_frames(L: LineSet, K: np.ndarray, G: np.ndarray,
     a = (np.argmax(sm, axis=1) + 0.5) * (np.pi / 2) / nb
     h1 = np.sin(a)[:, None] * x + np.cos(a)[:, None] * z
     r2 = np.minimum(rv, L.horizontal_mask(np.minimum(
-        _sq_residuals(mid, normal, reach, h1 @ K.T),
-        _sq_residuals(mid, normal, reach, np.cross(h1, G) @ K.T))))
-    score = L.w @ np.clip(1.0 - r2 * np.float32(1.0 / (tau * tau)), 0.0, None)
+        _sq_residuals(mid, normal, reach, ties.matmul(h1, K.T)),
+        _sq_residuals(mid, normal, reach, ties.matmul(np.cross(h1, G), K.T)))))
+    score = ties.dot(L.w[:, None], np.clip(1.0 - r2 * np.float32(1.0 / (tau * tau)), 0.0, None),
+                     axis=0)
     return score, a
+
+
+def _rows_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, M) ``a @ b.T`` of 3-vectors a (N, 3), b (M, 3), summed in a fixed order (no BLAS),
+    in their dtype."""
+    return (a[:, None, 0] * b[None, :, 0] + a[:, None, 1] * b[None, :, 1]
+            + a[:, None, 2] * b[None, :, 2])
+
+
+#: Two grid gravities exactly the separation apart count as one peak (their cosine equals
+#: the separation's within this).
+_SEP_MARGIN = 1e-9
 
 
 def frame_of(g: np.ndarray, az: float) -> np.ndarray:
@@ -187,11 +204,14 @@ def search(L: LineSet, K: np.ndarray, pitch_deg: tuple, roll_deg: tuple, coarse_
     G = tilt_grid(pitch_deg, roll_deg, coarse_deg)
     s, _ = score_frames(L.subset(slice(0, coarse_lines)), K, G, coarse_deg)
     tops: list[np.ndarray] = []
-    cos_sep = math.cos(math.radians(coarse_deg))
-    for i in np.argsort(-s):
+    # grid neighbours along pitch lie exactly coarse_deg apart: the same peak, decided with a
+    # margin rather than by the last bit of their dot product; scores alike (float32) in
+    # grid order
+    cos_sep = math.cos(math.radians(coarse_deg)) - _SEP_MARGIN
+    for i in ties.order(s, rtol=ties.RTOL32):
         if s[i] <= 0 or len(tops) == peaks:
             break
-        if all(G[i] @ q < cos_sep for q in tops):
+        if all(float(np.sum(G[i] * q)) < cos_sep for q in tops):
             tops.append(G[i])
     if not tops:
         return []
@@ -200,11 +220,11 @@ def search(L: LineSet, K: np.ndarray, pitch_deg: tuple, roll_deg: tuple, coarse_
                                   fine_deg) for q in tops])
     fs, fa = score_frames(Lf, K, F, inlier_deg)
     out: list[np.ndarray] = []
-    order = np.argsort(-fs)
+    order = ties.order(fs, rtol=ties.RTOL32)
     for i in order:
         if len(out) == best or fs[i] <= 0 or (out and fs[i] < ratio * fs[order[0]]):
             break
-        if all(F[i] @ R[:, 1] < cos_sep for R in out):
+        if all(float(np.sum(F[i] * R[:, 1])) < cos_sep for R in out):
             out.append(frame_of(F[i], float(fa[i])))
     return out
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 
 
@@ -63,7 +64,7 @@ def orientation(segments, camera: Camera, min_vertical_deg: float = 10.0,
     grid = np.radians(np.arange(0.0, 90.0, resolution_deg))
     k = 1.0 / (4.0 * np.radians(spread_deg)) ** 2
     score = np.exp((np.cos(4.0 * (grid[:, None] - ang[None])) - 1.0) * k) @ w
-    best = grid[int(np.argmax(score))]
+    best = grid[ties.argmax(score)]
     near = np.abs(np.angle(np.exp(4j * (ang - best)))) < 4 * np.radians(2.0)
     # sub-bin angle: circular mean of the nearby votes
     best = float(np.angle(np.sum(w[near] * np.exp(4j * ang[near]))) / 4.0) % (np.pi / 2)

@@ -11,13 +11,14 @@ from dataclasses import replace
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.motion.model import PlanarMotion
 
 
 def distinct_top(cy, ct, total, k: int) -> np.ndarray:
     """Indices of the k best-scoring candidates (yaw (C,), t (C, 3), score (C,)) that are
     not copies of a better one (the same yaw and t: a scale found twice)."""
-    order = np.argsort(-total, kind="stable")
+    order = ties.order(total)
     _, first = np.unique(np.column_stack([cy, ct])[order], axis=0, return_index=True)
     return order[np.sort(first)[:k]]
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from findme_core.errors import MotionError
+from findme_core.geometry import ties
 from findme_core.geometry.planar import _kabsch_pairs, _rot2, kabsch_2d
 from findme_core.geometry.robust import msac, samples
 from findme_core.motion.model import (MotionInputs, MotionParams, PlanarMotion, motion_result,
@@ -42,7 +43,7 @@ def lifted_estimate(P: MotionInputs, params: MotionParams, rng) -> PlanarMotion:
     sig = np.maximum(np.hypot(P.la.sigma[idx], P.lb.sigma[idx]), 0.05)
     res = lambda yaw, t: np.linalg.norm(A - _rot2(yaw, B) - t, axis=-1) / sig  # noqa: E731
     yaw, t = _kabsch_pairs(A, B, samples(rng, len(idx), 2, params.max_iters))
-    i = int(np.argmax(msac(res(yaw[:, None], t[:, None]), 3.0)))
+    i = ties.argmax(msac(res(yaw[:, None], t[:, None]), 3.0))
     best = (float(yaw[i]), t[i])
     for _ in range(4):
         ok = res(*best) < 3.0

@@ -17,9 +17,9 @@ from dataclasses import replace
 import numpy as np
 
 from findme_core.errors import MotionError
+from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y
-from findme_core.motion import (one_sided, photometric,
-                                register)
+from findme_core.motion import one_sided, photometric, register
 from findme_core.motion.alternatives import distinct_top, spread_over
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
@@ -96,7 +96,7 @@ class Registration:
         T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
         T = np.vstack([T, -T])
         score, inl = known_yaw_score(a, Rb, m, T, self.pix, p.thr_px, ab, far)
-        keep, order = [], np.argsort(-score)
+        keep, order = [], ties.order(score)   # directions that score alike: seed order
         floor = max(2.0, 0.3 * score[order[0]])
         for i in order:
             if score[i] < floor or len(keep) == 3:
@@ -139,7 +139,7 @@ class Registration:
         per_yaw = [self._directions(y) if self.feats else none for y in yaws]
         # lift the inliers of the free RANSAC and of the best direction at any yaw first
         first = np.zeros(self.n, bool) if free is None else free[2].copy()
-        best = max(per_yaw, key=lambda d: d[2][0] if len(d[2]) else -1.0)
+        best = per_yaw[ties.argmax([d[2][0] if len(d[2]) else -1.0 for d in per_yaw])]
         if len(best[2]):
             first |= best[1][0]
         self.P = self._lift(first)
@@ -217,7 +217,9 @@ class Registration:
         total[top_k] += self._photometric(cy[top_k], ct[top_k])[0]
         self.trace = (yaws, cy, ct, total)   # what was weighed (``tools/motion_pairs.py``)
         results, top = [], float(total.max())
-        for i in np.argsort(-total):
+        # best first; motions that score alike (a symmetric room: the same walls turned
+        # half round) in the candidates' order, the same on every machine
+        for i in ties.order(total):
             if len(results) == self.p.refine_top or (
                     results and total[i] < self.p.alternative_ratio * top):
                 break
@@ -227,7 +229,7 @@ class Registration:
             s, w = self.fit.score(q[0], q[1:4])
             ph, corr, n = self._photometric(q[:1], q[None, 1:4])
             results.append((q, cov, float(s[0] + ph[0]), w[0], (float(corr[0]), int(n[0]))))
-        results.sort(key=lambda r: -r[2])
+        results = [results[i] for i in ties.order(np.array([r[2] for r in results]))]
         out = []
         for r in results:
             o = self._result(*r)

@@ -29,6 +29,7 @@ from typing import Callable
 import numpy as np
 
 from findme_core.errors import MotionError
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.planar import (_epipolar_terms, _kabsch_pairs, _rot2, _rotate, _spread,
                                          bearings, epipolar_residuals, rot_y, solve_gravity_3pt,
@@ -115,7 +116,7 @@ def _model_error(m: PlanarMotion, params: MotionParams, depth_rel: float = 0.0) 
 def _lift_order(a, ratio, first, k: int) -> np.ndarray:
     """At most k match indices to lift: of the ``first`` ones, half the steepest below the
     horizon (likely floor, nearest first), then the most distinctive; then the others."""
-    steep = [i for i in np.argsort(-a[:, 1]) if first[i] and a[i, 1] > 0][:k // 2]
+    steep = [i for i in ties.order(a[:, 1]) if first[i] and a[i, 1] > 0][:k // 2]
     taken = set(steep)
     rest = [i for i in np.lexsort((ratio, ~first)) if i not in taken]
     return np.array((steep + rest)[:k], int)
@@ -152,15 +153,15 @@ def _epipolar_ransac(a, b, planar: bool, pix: float, params: MotionParams, rng):
         t = np.vstack([t, np.tile([1.0, 0.0, 0.0], (len(j0), 1))])
         # cheirality only removes inliers: the residuals' score bounds the full one, so only
         # the best 8 candidates of the batch get the depths
-        top = np.argsort(-msac(np.abs(epipolar_residuals(yaw, t, a, b)) / pix, thr))[:8]
+        top = ties.order(msac(np.abs(epipolar_residuals(yaw, t, a, b)) / pix, thr))[:8]
         yaw, t = yaw[top], t[top]
         r, front, back, far = _epipolar_terms(a, b, yaw, t, pix)
         flip = (back & (r < thr)).sum(1) > (front & (r < thr)).sum(1)
         t[flip] = -t[flip]
         inl = (r < thr) & (far | np.where(flip[:, None], back, front))
         score = msac(np.where(inl, r, thr), thr)
-        i = int(np.argmax(score))
-        if score[i] > best_score:
+        i = ties.argmax(score)
+        if ties.beats(score[i], best_score):   # a tie keeps the model found first
             best, best_score = (float(yaw[i]), t[i], inl[i]), score[i]
             w = max(inl[i].sum(), k) / n
             need = min(params.max_iters,
@@ -214,7 +215,7 @@ def _consensus(s, sg) -> float | None:
     if len(s) == 0:
         return None
     score = np.maximum(0.0, 1.0 - ((s[None, :] - s[:, None]) / (2.5 * sg[None, :])) ** 2).sum(1)
-    ok = np.abs(s - s[np.argmax(score)]) < 2.5 * sg
+    ok = np.abs(s - s[ties.argmax(score)]) < 2.5 * sg
     return float(np.sum(s[ok] / sg[ok] ** 2) / np.sum(1.0 / sg[ok] ** 2))
 
 
@@ -266,9 +267,9 @@ def _kabsch_candidate(P: MotionInputs, use, params: MotionParams, rng):
     yaw, t2 = _kabsch_pairs(A, B, samples(rng, len(both), 2, params.max_iters))
     sig = np.maximum(np.hypot(P.la.sigma[both], P.lb.sigma[both]), 0.02)
     d = np.linalg.norm(A - _rot2(yaw[:, None], B) - t2[:, None], axis=-1) / sig
-    top = np.argsort(-msac(d, 3.0))[:32]
+    top = ties.order(msac(d, 3.0))[:32]
     t = np.column_stack([t2[top, 0], np.full(len(top), P.dy), t2[top, 1]])
-    i = int(np.argmax(_score(P, yaw[top], t, use, params.thr_px)[0]))
+    i = ties.argmax(_score(P, yaw[top], t, use, params.thr_px)[0])
     return float(yaw[top][i]), t[i]
 
 
@@ -285,7 +286,8 @@ def _findme(P: MotionInputs, yaw, t, e_in, params: MotionParams, rng) -> PlanarM
         if not cands:
             continue
         scores = _score(P, [c[0] for c in cands], [c[1] for c in cands], use, params.thr_px)[0]
-        p = np.array([cands[int(np.argmax(scores))][0], *cands[int(np.argmax(scores))][1]])
+        best = cands[ties.argmax(scores)]   # a tie: the scaled epipolar motion
+        p = np.array([best[0], *best[1]])
         for _ in range(2):
             _, e2, ta, tb = (m[0] for m in _score(P, p[0], p[1:], use, params.thr_px))
             if e2.sum() < params.min_inliers or not (ta.any() or tb.any()):

@@ -168,7 +168,9 @@ def _spread(kps, width: int, height: int, n: int, grid) -> list:
     rank[order] = np.arange(len(kps)) - first[cell[order]]
     keep = rank < n // (gx * gy)
     rest = np.flatnonzero(~keep)
-    rest = rest[np.argsort(-resp[rest])][:max(0, n - int(keep.sum()))]
+    # strongest first, equal responses in index order (an unstable sort orders ties by the
+    # CPU's sort kernel: AVX-512 and AVX2 machines kept different keypoints)
+    rest = rest[np.argsort(-resp[rest], kind="stable")][:max(0, n - int(keep.sum()))]
     keep[rest] = True
     return [kps[i] for i in np.flatnonzero(keep)]
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.geometry.planar import (_dot, _epipolar_terms, _norm, _rotate, _spread,
                                          epipolar_residuals, known_yaw_terms, transfer_residuals)
 from findme_core.geometry.robust import levenberg_marquardt, msac
@@ -181,7 +182,7 @@ class Fit:
         for i, la in enumerate(self.la):
             for j, lb in enumerate(self.lb):
                 s = register.scores(la, lb, yaw, t2, self.rp) - self.p.rank_penalty * (i + j)
-                better = s > best
+                better = ties.beats(s, best)   # a tie keeps the pair met first
                 best = np.where(better, s, best)
                 which[better] = (i, j)
         return best, which

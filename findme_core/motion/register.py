@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.single.layout import Layout
 from findme_core.single.search import SegKind
 
@@ -168,7 +169,7 @@ def _lines(L: Layout):
 
 def _longest(n, c, length, k: int):
     """The k longest walls' (normals, offsets): candidate generation stays bounded."""
-    o = np.argsort(-length, kind="stable")[:k]
+    o = ties.order(length)[:k]   # walls of one length (a symmetric room): in index order
     return n[o], c[o]
 
 
@@ -181,7 +182,7 @@ def wall_yaws(la: Layout, lb: Layout, p: RegisterParams = RegisterParams()) -> n
     na, nb, sa, sb = na[ka], nb[kb], sa[ka], sb[kb]
     az_a, az_b = np.arctan2(na[:, 0], na[:, 1]), np.arctan2(nb[:, 0], nb[:, 1])
     yaw = np.angle(np.exp(1j * (az_a[:, None] - az_b[None]))).ravel()
-    return yaw[np.argsort(-np.outer(sa, sb).ravel(), kind="stable")]
+    return yaw[ties.order(np.outer(sa, sb).ravel())]   # equal products: in index order
 
 
 def translations(la: Layout, lb: Layout, yaw: float, directions=None,
@@ -232,7 +233,9 @@ def _associate(dst: Layout, src: Layout, yaw: float, t, into_a: bool, gate: floa
     u = np.clip(np.einsum("skj,kj->sk", q[:, None] - w0[None], d)
                 / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0.0, 1.0)
     dist = np.linalg.norm(q[:, None] - (w0[None] + u[..., None] * d[None]), axis=2)
-    return k[a], np.argmin(dist, axis=1), q, np.hypot(dst.sigma[j[0][a]], src.sigma[k[a]])
+    # a sample nearest a corner is as near to both walls: the first wall, on every machine
+    return (k[a], ties.argmin(dist, axis=1), q,
+            np.hypot(dst.sigma[j[0][a]], src.sigma[k[a]]))
 
 
 def residual_terms(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = RegisterParams()):

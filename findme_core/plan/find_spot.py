@@ -21,6 +21,7 @@ from dataclasses import replace
 import numpy as np
 
 from findme_core.errors import GeometryError
+from findme_core.geometry import ties
 from findme_core.geometry.planar import wrap
 from findme_core.plan import fuse
 
@@ -84,6 +85,6 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
                 for i in np.flatnonzero(block == b):
                     Q[i] = (rb[0][0, 0], rb[0][0, 1], wrap(rb[0][0, 2] + rel[i]))
         out[c] = Q[n:]
-    o = np.argsort(-total, kind="stable")
+    o = ties.order(total)   # candidates that score alike (a symmetric room): in their order
     return out[o], total[o]
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from findme_core.errors import GeometryError
+from findme_core.geometry import ties
 from findme_core.geometry.planar import wrap
 from findme_core.motion import register
 from findme_core.plan import evidence
@@ -215,8 +216,9 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
                 other = float(sc[1]) if len(sc) > 1 else float("nan")
                 nxt.append((total + float(sc[k]), q, sp2,
                             {**info, b: (float(sc[k]), other if k == 0 else float(sc[0]), None)}))
-        nxt.sort(key=lambda st: -st[0])
-        beam = nxt[: params.beam]
+        # best first; states that score alike (a symmetric room) keep the order they were
+        # made in, so the beam keeps the same ones on every machine
+        beam = [nxt[i] for i in ties.order(np.array([st[0] for st in nxt]))[: params.beam]]
     _, poses, _, info = beam[0]
     scores, amb, reasons = [0.0] * nb, [float("nan")] * nb, [None] * nb
     for b, (sc, am, why) in info.items():
@@ -248,11 +250,11 @@ def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions,
     if not len(cands):
         return "no wall of its photos matches a wall of the placed photos"
     sc = evidence.layout_score(layouts, poses, rel, placed, mine, cands, params)
-    top = np.argsort(-sc)[: params.feature_top]
+    top = ties.order(sc)[: params.feature_top]   # ties (a symmetric room): candidate order
     cands, sc = cands[top], sc[top] + evidence.feature_score(matches or {}, poses, rel,
                                                               members, cands[top], params)
     sc = sc + evidence.motion_score(motions, poses, rel, members, cands, params)
-    o = np.argsort(-sc)
+    o = ties.order(sc)
     if sc[o[0]] < params.min_score:
         return (f"its walls agree with the placed photos' walls too little (score "
                 f"{sc[o[0]]:.1f} < {params.min_score})")

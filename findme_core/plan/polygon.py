@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from findme_core.errors import GeometryError
+from findme_core.geometry import ties
 from findme_core.plan import wall_kinds, walls
 from findme_core.single.search import SegKind
 
@@ -240,7 +241,7 @@ def _simplify(o: Outline, params: PolygonParams) -> Outline:
         V = len(verts)
         lens = np.linalg.norm(np.roll(verts, -1, axis=0) - verts, axis=1)
         jog = None
-        for k in np.argsort(lens):
+        for k in ties.order(lens, descending=False):   # equal lengths: in vertex order
             if lens[k] >= params.detail_m:
                 break
             a, b = (k - 1) % V, (k + 1) % V

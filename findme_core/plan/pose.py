@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.motion import register
 from findme_core.plan.floorplan import Plan
 from findme_core.single.layout import Layout
@@ -48,7 +49,7 @@ def covariance(plan: Plan, L: Layout, pose, gate_m: float = 0.15, floor_m: float
     t = np.clip(np.einsum("sij,ij->si", q[:, None] - a[None], d)
                 / np.maximum(np.einsum("ij,ij->i", d, d), 1e-12), 0, 1)
     dist = np.linalg.norm(q[:, None] - (a[None] + t[..., None] * d[None]), axis=2)
-    k = dist.argmin(1)
+    k = ties.argmin(dist, axis=1)   # a sample at a corner: the first wall
     ok = dist[np.arange(len(q)), k] < gate_m
     if ok.sum() < min_samples:
         return None

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from findme_core.errors import GeometryError
+from findme_core.geometry import ties
 from findme_core.geometry.planar import wrap
 from findme_core.motion import register
 from findme_core.plan.floorplan import Plan
@@ -62,7 +63,7 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
     pn = L.normals                                    # toward the photo's camera
     pd = np.einsum("ij,ij->i", pn, L.walls[:, 0])
     plen = np.linalg.norm(L.walls[:, 1] - L.walls[:, 0], axis=1)
-    order = np.argsort(-plen)[:max_walls]
+    order = ties.order(plen)[:max_walls]   # walls of one length: in index order
     cands = []
     for i in order:
         for k in np.flatnonzero(seen):
@@ -91,7 +92,9 @@ def locate(plan: Plan, L: Layout, gate_m: float = 0.12, max_walls: int = 8,
         raise GeometryError("no pose that matches the photo's walls puts it inside the room")
     pts = L.points[(L.kind == SegKind.WALL) & np.isfinite(L.range)]
     scored = [_score(p, pts, a, b, seen, poly, gate_m) for p in c]
-    o = np.argsort([-s[0] for s in scored])
+    # best first; poses that score alike (a symmetric room turned half round) in the order
+    # of their candidates, so that every machine names the same one first
+    o = ties.order(np.array([s[0] for s in scored]))
     out = []
     for k in o:
         x, z, yaw = c[k]

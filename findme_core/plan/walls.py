@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.motion import register
 from findme_core.single.search import SegKind
 
@@ -217,9 +218,9 @@ def _main_run(ev: Evidence, n, inl, max_gap: float) -> np.ndarray:
     if len(idx) < 2:
         return inl
     t = ev.points[idx] @ direction(n)
-    o = np.argsort(t)
+    o = np.argsort(t, kind="stable")
     run = np.r_[0, np.cumsum(np.diff(t[o]) > max_gap)]
-    best = np.argmax(np.bincount(run, weights=ev.length[idx][o]))
+    best = ties.argmax(np.bincount(run, weights=ev.length[idx][o]))   # a tie: the first run
     out = np.zeros_like(inl)
     out[idx[o][run == best]] = True
     return out
@@ -240,7 +241,7 @@ def fit(ev: Evidence, params: WallParams = WallParams()) -> WallLines:
     N, D = [], []
     while len(N) < params.max_lines and props and free.any():
         sup = [float(ev.length[_inliers(ev, n, d, free, params)[0]].sum()) for n, d in props]
-        b = int(np.argmax(sup))
+        b = ties.argmax(sup)   # lines seen alike (a symmetric room): the first proposed
         if sup[b] < params.min_seen_m:
             break
         n, d, inl = _refit(ev, *props.pop(b), free, False, params)
@@ -289,7 +290,8 @@ def _manhattan(ev: Evidence, N, D, sample_line, seen, params: WallParams):
     def on_axes(a):
         return np.abs(np.angle(np.exp(4j * (ang - a)))) / 4.0 <= tol
     # the axis that the most seen length agrees with (each line's own direction a candidate)
-    axis = max(ang % (np.pi / 2), key=lambda a: seen[on_axes(a)].sum())
+    cands = ang % (np.pi / 2)
+    axis = cands[ties.argmax([seen[on_axes(a)].sum() for a in cands])]
     for _ in range(2):
         s = on_axes(axis)
         axis = float(np.angle(np.sum(seen[s] * np.exp(4j * ang[s]))) / 4.0) % (np.pi / 2)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from findme_core.errors import InputError
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.single.appearance import FloorLikelihood, RegionStats, to_lab
 from findme_core.single.lines import Lines, LineKind, classify, merge_collinear
@@ -140,7 +141,7 @@ def vertical_in_floor(rows: np.ndarray, verticals: np.ndarray, n_samples: int = 
     w = np.repeat(np.hypot(*(seg[:, 2:] - seg[:, :2]).T) / n_samples, n_samples)
     cols = np.clip(np.round(pts[:, 0]), 0, rows.shape[1] - 1).astype(int)
     inside = rows[:, cols] + tol_px < pts[:, 1][None, :]
-    return inside.astype(float) @ w
+    return ties.matvec(inside.astype(float), w)   # a ranking feature: without BLAS
 
 
 def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams,
@@ -289,9 +290,11 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows
     rows = full_rows[:, stats.cols]
     feats = feature_matrix(path_features(pieces, F, len(paths)), stats.gain(rows),
                            vertical_in_floor(full_rows, verts), rows, W, H)
-    score = feats @ w
-    order = np.argsort(-score, kind="stable")
-    seed = paths[int(np.argmax(feats[:found] @ ws))]   # among the search's own paths
+    # scores without BLAS, ties (equal within ties.RTOL) in the search's order: the same
+    # ranking on every CPU
+    score = ties.matvec(feats, w)
+    order = ties.order(score)
+    seed = paths[ties.argmax(ties.matvec(feats[:found], ws))]   # among the search's own paths
     return [(float(score[i]), paths[i], rows[i], feats[i]) for i in order], seed
 
 

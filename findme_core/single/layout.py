@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from findme_core.errors import HypothesisError
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.scan import Scan
 from findme_core.single.search import SegKind
@@ -255,7 +256,7 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
         t = np.clip(np.einsum("skj,kj->sk", pts[:, None] - a[None], d)
                     / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0, 1)
         dist = np.linalg.norm(pts[:, None] - (a[None] + t[..., None] * d[None]), axis=2)
-        wall[w] = np.argmin(dist, axis=1)
+        wall[w] = ties.argmin(dist, axis=1)   # a sample at a corner: the first wall
     keep = ~step & ((kind != SegKind.WALL) | np.isfinite(rng))
     o = np.argsort(az[keep], kind="stable")
     return az[keep][o], rng[keep][o], kind[keep][o], sigma[keep][o], wall[keep][o]

@@ -93,10 +93,13 @@ def _group_collinear(p1, p2, weight, angle_tol_deg, dist_tol_px):
     dirs = d / ln[:, None]
     nrm = np.column_stack([-dirs[:, 1], dirs[:, 0]])
     c = -(nrm * p1).sum(1)
-    cos_ok = np.abs(dirs @ dirs.T) >= np.cos(np.radians(angle_tol_deg))
+    # 2-D products summed in a fixed order (no BLAS): which segments group is then the same
+    # under every BLAS kernel
+    dot2 = lambda a, b: a[:, None, 0] * b[None, :, 0] + a[:, None, 1] * b[None, :, 1]  # noqa: E731
+    cos_ok = np.abs(dot2(dirs, dirs)) >= np.cos(np.radians(angle_tol_deg))
     # distance of segment j's endpoints to the line of segment i
-    d1 = np.abs(nrm @ p1.T + c[:, None])
-    d2 = np.abs(nrm @ p2.T + c[:, None])
+    d1 = np.abs(dot2(nrm, p1) + c[:, None])
+    d2 = np.abs(dot2(nrm, p2) + c[:, None])
     compat = cos_ok & (np.maximum(d1, d2) <= dist_tol_px)
     group = np.full(n, -1)
     g = 0

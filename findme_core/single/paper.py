@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.single.hypotheses import Hypothesis, HypothesisSet, _check_image, _timing
 from findme_core.single.lines import LineKind, classify, detect_segments, merge_collinear
@@ -75,7 +76,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         frac = sup / ln if ln > 0 else 0.0
         if frac >= params.min_support:
             hyps.append(Hypothesis(poly, np.full(len(poly) - 1, SegKind.WALL), frac, frac))
-    hyps.sort(key=lambda h: -h.score)
+    hyps = [hyps[i] for i in ties.order(np.array([h.score for h in hyps]))]
     if clock:
         t.append(clock())
     reason = None if hyps else "no hypothesis reaches the edge-support threshold"

@@ -29,11 +29,19 @@ from enum import IntEnum
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.single.support import SupportTable
 
 NEG = -1e18
 FORBIDDEN = 1e6  # reward per column where a track is not a floor boundary
+#: Two path values closer than ``TIE_ABS + TIE_REL * magnitude`` are a tie, decided by the
+#: order the events are met (then by candidate index), not by last-bit differences of the
+#: rewards (BLAS kernels, CPU features). Values carry their tracks' cumulative FORBIDDEN
+#: offsets (up to W * FORBIDDEN, 6.4e8 at 640 px), whose rounding TIE_REL covers (45 ulps);
+#: path scores are O(1), whose kernel noise (~1e-14) TIE_ABS covers. The smallest real
+#: difference seen between two dev paths is 2e-10.
+TIE_ABS, TIE_REL = 1e-11, 1e-14
 
 
 class SegKind(IntEnum):
@@ -157,7 +165,8 @@ def rewards(F: np.ndarray, valid: np.ndarray, weights: np.ndarray) -> np.ndarray
     """(T, W + 1) cumulative reward ``weights . F`` per column of the image width, with
     columns where a track is invalid forbidden."""
     W = F.shape[2] - 1
-    A = np.tensordot(np.asarray(weights, float), F, axes=1) / W
+    w = np.asarray(weights, float)
+    A = ties.dot(w[:, None, None], F, axis=0) / W   # not BLAS: the same bits on every CPU
     bad = np.zeros(A.shape)
     bad[:, 1:] = np.cumsum(~valid, axis=1)
     return A - FORBIDDEN * bad
@@ -255,8 +264,9 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
             continue
         val = fi + ai - c
         fval[e], pred[e] = val, ptr[i]
-        if val - aj > F[j]:
-            F[j], ptr[j] = val - aj, e
+        new, old = val - aj, F[j]
+        if new - old > TIE_ABS + TIE_REL * max(-new, new, -old, old):   # a tie: the first met
+            F[j], ptr[j] = new, e
     # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
     B = np.where(valid[:, -1], A[:, W], NEG).tolist()
     ptrb = [-1] * n_tracks
@@ -267,18 +277,23 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
             continue
         suf = bj - aj
         sval[e], succ[e] = suf, ptrb[j]
-        if suf - c + ai > B[i]:
-            B[i], ptrb[i] = suf - c + ai, e
+        new, old = suf - c + ai, B[i]
+        if new - old > TIE_ABS + TIE_REL * max(-new, new, -old, old):
+            B[i], ptrb[i] = new, e
     # candidates: single tracks spanning the image, then the best path through each event
     single = np.nonzero(valid[:, 0] & valid[:, -1])[0]
     fv, sv = np.array(fval), np.array(sval)
     through = np.nonzero((fv > NEG) & (sv > NEG))[0]
     total = np.concatenate([A[single, W] - A[single, 0], fv[through] + sv[through]])
+    size = np.concatenate([np.maximum(np.abs(A[single, W]), np.abs(A[single, 0])),
+                           np.maximum(np.abs(fv[through]), np.abs(sv[through]))])
     which = np.concatenate([-1 - single, through])   # < 0: a single track
     keep = total > -FORBIDDEN / 2
-    total, which = total[keep], which[keep]
+    total, which, size = total[keep], which[keep], size[keep]
     out, seen = [], set()
-    for c in np.argsort(-total, kind="stable").tolist():
+    # best first; ties (within the rounding of the values they were summed from) in
+    # candidate order: single tracks, then events by index
+    for c in ties.order(total, rtol=0.0, atol=TIE_ABS + TIE_REL * size).tolist():
         if len(out) >= limit:
             break
         e = int(which[c])

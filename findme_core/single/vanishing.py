@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.manhattan import (LineSet, pitch_roll_deg, refine, residuals,
                                             score_frames, search)
@@ -244,7 +245,7 @@ def _frame(L: LineSet, K: np.ndarray, p: GravityParams, pitch_range, roll_range)
         k = 0
     else:
         s, _ = score_frames(L, K, np.array([d[0][:, 1] for d in first]), p.inlier_deg)
-        k = int(np.argmax(s))
+        k = ties.argmax(s, rtol=ties.RTOL32)   # float32 scores
     if p.ambiguity_candidates <= 0 or len(done) == 1:
         return (*done[k], ())
     return (*done[k], _alternatives(L, K, p, done[k][0][:, 1],

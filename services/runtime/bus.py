@@ -29,8 +29,9 @@ SERVICES = f"{ROOT}/@services"
 #: peer's link is larger; anything above this is refused with a clear error at the sender.
 MAX_MESSAGE_BYTES = 16 * 1024 * 1024
 #: kinds whose message is a session's latest state, republished as it grows (odometry after
-#: each batch of poses: how selections batch is timing), so only the last one is compared
-LATEST_STATE_KINDS = ("trajectory",)
+#: each batch of poses, the mapper once per batch of ready photos: how photos batch is
+#: timing), so only the last one is compared
+LATEST_STATE_KINDS = ("trajectory", "plan")
 
 _SESSION_RE = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9_.-]{0,127}\Z")
 

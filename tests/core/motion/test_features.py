@@ -10,7 +10,6 @@ from findme_core.errors import InputError
 from findme_core.motion import features
 from findme_core.motion.features import FeatureParams, detect, match
 from findme_core.motion.lifting import Lifted, lift
-from findme_core.motion.features import FeatureParams, Lifted, detect, lift, match
 from findme_core.single.scene import Scene
 from findme_core.synth.render import Box, Pose, Room, render
 

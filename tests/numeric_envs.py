@@ -1,0 +1,57 @@
+"""The numeric environments the suite proves the answers the same under: three OpenBLAS
+kernels (``OPENBLAS_CORETYPE``; OpenBLAS inside numpy picks one per CPU, and each rounds
+matrix products differently) and numpy's newest SIMD dispatch switched off
+(``NPY_DISABLE_CPU_FEATURES=X86_V4``: AVX-512 versions of exp, log, arctan2, ...).
+
+A kernel the CPU cannot run (SkylakeX without AVX-512) is skipped with that reason: forcing
+it would stop the process on an illegal instruction, which says nothing about our code.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: name -> (environment, CPU flags it needs)
+ENVIRONMENTS = {
+    "Haswell": ({"OPENBLAS_CORETYPE": "Haswell"}, ("avx2", "fma")),
+    "SkylakeX": ({"OPENBLAS_CORETYPE": "SkylakeX"}, ("avx512f", "avx512bw", "avx512vl")),
+    "Sandybridge": ({"OPENBLAS_CORETYPE": "Sandybridge"}, ("avx",)),
+    "no-AVX512-numpy": ({"NPY_DISABLE_CPU_FEATURES": "X86_V4"}, ()),
+}
+
+
+def _cpu_flags() -> set[str]:
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return set()
+    line = next((x for x in text.splitlines() if x.startswith("flags")), "")
+    return set(line.partition(":")[2].split())
+
+
+def env_params():
+    """``pytest.param`` per environment, skipped (with the reason) where the CPU lacks what
+    the kernel needs."""
+    flags = _cpu_flags()
+    out = []
+    for name, (env, need) in ENVIRONMENTS.items():
+        missing = [f for f in need if f not in flags]
+        marks = [pytest.mark.skip(reason=f"this CPU lacks {', '.join(missing)}: the {name} "
+                                         "kernel cannot run here")] if missing else []
+        out.append(pytest.param(env, id=name, marks=marks))
+    return out
+
+
+def run_python(code: str, env: dict, timeout: float = 600.0) -> subprocess.CompletedProcess:
+    """``python -c code`` in the repository with ``env`` added to this environment (one
+    thread per BLAS: the suite's own setting)."""
+    full = {**os.environ, "PYTHONPATH": str(ROOT), "CI": "1", **env}
+    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=full, text=True,
+                          capture_output=True, timeout=timeout)
