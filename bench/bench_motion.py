@@ -29,7 +29,7 @@ from dataclasses import replace
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
-from findme.evaluate import pair_inputs  # noqa: E402
+from findme.evaluation.pairs import pair_inputs  # noqa: E402
 from findme_core.features import FeatureParams  # noqa: E402
 from findme_core.methods import hypothesize  # noqa: E402
 from findme_core.motion import MotionParams  # noqa: E402

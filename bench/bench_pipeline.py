@@ -42,7 +42,7 @@ from bench.common import EVAL_DIR, canny_hough, fmt, pin_one_core, stats  # noqa
 import cv2  # noqa: E402
 
 import schemas  # noqa: E402
-from findme.evaluate import view_inputs  # noqa: E402
+from findme.evaluation.views import view_inputs  # noqa: E402
 from findme_core import motion_photometric  # noqa: E402
 from findme_core.motion import MotionParams  # noqa: E402
 from findme_core.pair import photo_lines, prepare  # noqa: E402

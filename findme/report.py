@@ -19,8 +19,6 @@ from services.pipeline.capture import Lens, publish_frames, sources
 from findme_io.convert import motion_text
 from services.runtime import bus
 
-from .options import floats
-
 
 class Printer:
     """Prints a session's results as they arrive on the bus."""
@@ -130,7 +128,7 @@ class Printer:
         return done
 
 
-def _example_paths() -> list[str]:
+def example_paths() -> list[str]:
     base = resources.files("findme") / "examples"
     return [str(base / "room_a.jpg"), str(base / "room_b.jpg")]
 
@@ -179,9 +177,10 @@ def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: L
     return n
 
 
-def _measure(session, session_id, args, photos) -> None:
-    pixels = [floats(p, 2, "--measure") for p in args.measure or []]
-    if not pixels and not args.photos:  # the example: its ground-truth floor points
+def measure(session, session_id: str, pixels, example: bool) -> None:
+    """Ask the measurement service for ``pixels`` (u, v) of photo 0 and print its answer;
+    for the bundled ``example`` (no pixels given: its ground-truth floor points), its truth."""
+    if not pixels and example:  # the example: its ground-truth floor points
         import json
         meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())
         pixels = [tuple(q["px"]) for q in meta["ground_truth"]["floor_points"][1:3]]
@@ -205,7 +204,7 @@ def _measure(session, session_id, args, photos) -> None:
         for d in rep.distances:
             if not d.error:
                 print(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} {unit} ± {d.sigma_m:.3f}")
-        if not args.photos:
+        if example:
             _example_truth(pixels)
         return
 

@@ -136,8 +136,8 @@ def _with_height(handler, choices):
 
 def run_session(spec: Spec, out_dir: Path) -> Path:
     """Run the embedded pipeline on a spec with the recorder; the raw recording's path."""
-    from findme.regress import wait_result
-    from findme.replay import Watch, ask_measure
+    from findme.regression.regress import wait_result
+    from findme.regression.replay import Watch, ask_measure
     from services.pipeline.capture import CaptureHandler
     from services.pipeline.hypotheses import HypothesesHandler
     from services.pipeline.measurement import MeasurementHandler

@@ -25,7 +25,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.plan_cli import room_spots  # noqa: E402
+from findme.evaluation.rooms import room_spots  # noqa: E402
 from findme_core import features, fuse, motion, motion_photometric, session  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_io.imageio import read_image  # noqa: E402

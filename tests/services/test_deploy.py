@@ -26,7 +26,7 @@ def test_procfile_is_what_findme_up_runs():
     ``findme up``, and each line is a valid findme command."""
     lines = [ln for ln in (COMPOSE / "Procfile").read_text().splitlines()
              if ln.strip() and not ln.startswith("#")]
-    from findme.up_cli import processes
+    from findme.cli.up import processes
     parser = build_parser()
     want = [f"{name}: {shlex.join(['findme', *argv])}"
             for name, argv in processes(parser.parse_args(["up"]))]
@@ -203,6 +203,6 @@ def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
 
 
 def test_up_without_the_mapper():
-    from findme.up_cli import processes
+    from findme.cli.up import processes
     names = [n for n, _ in processes(build_parser().parse_args(["up", "--no-mapper"]))]
     assert "mapper" not in names and {"odometry", "measurement", "recorder"} <= set(names)

@@ -79,7 +79,7 @@ def processes(args) -> list[tuple[str, list[str]]]:
               if not (name == "mapper" and getattr(args, "no_mapper", False))]
     procs.append(("recorder", ["serve", "recorder", "--connect", ep, "--out", args.out, *quiet]))
     if args.gateway:
-        from .app_cli import https_files
+        from .web_options import https_files
         cert, key = https_files(args)
         http = args.http or ("0.0.0.0:8443" if cert else "127.0.0.1:8080")
         tls = ["--tls-cert", cert, "--tls-key", key] if cert else []

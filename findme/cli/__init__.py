@@ -1,4 +1,13 @@
-"""The ``findme`` command: one sub-command per job; each lives in its own module."""
+"""The ``findme`` command: the top-level parser and ``main``.
+
+Each family of sub-commands lives in its own module of this package, listed in
+``registry.COMMAND_MODULES`` (which the parser reads); each module has ``register(sub)``,
+which adds its sub-commands and sets their ``func``. The command modules use the shared
+option helpers (``options``: camera and value parsing; ``bus_options``: joining a bus;
+``web_options``: the gateway's page server) and, beside this package, ``findme.report``
+(a session's results on a terminal), ``findme.evaluation`` (``findme eval``) and
+``findme.regression`` (``findme replay`` / ``regress``); nothing there imports this package.
+"""
 
 from __future__ import annotations
 
@@ -51,15 +60,17 @@ def one_thread_per_process() -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import (app_cli, demo, deploy, evaluate, export_cli, motion_cli, plan_cli, record_cli,
-                   send_cli, single, up_cli)
+    """The whole parser: every module of ``registry.COMMAND_MODULES`` registers its commands
+    (imported here, not at import time: ``import findme.cli`` loads no numpy)."""
+    import importlib
+
+    from .registry import COMMAND_MODULES
     p = _Parser(prog="findme", description=DESCRIPTION,
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for mod in (demo, single, evaluate, motion_cli, plan_cli, deploy, app_cli, up_cli, send_cli,
-                record_cli, export_cli):
-        mod.register(sub)
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"{__name__}.{name}").register(sub)
     return p
 
 
@@ -95,6 +106,3 @@ def main(argv=None) -> int:
                          "(run with --debug for the traceback)\n")
         return 1
 
-
-if __name__ == "__main__":
-    sys.exit(main())

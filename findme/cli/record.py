@@ -19,13 +19,12 @@ from services.runtime import bus
 from services.recording.mcap_reader import Recorded, read_recording
 from services.recording.mcap_recover import recover
 
-from .regress import TOLERANCES, regress
-from .replay import rename_session, replay
+from ..regression.regress import TOLERANCES, regress
+from ..regression.replay import rename_session, replay
+from .bus_options import add_bus_args, open_bus, setup_logging
 
 
 def register(sub) -> None:
-    from .deploy import _bus_args
-
     r = sub.add_parser("recover", help="salvage a recording whose recorder died (no summary)")
     r.add_argument("recording", metavar="FILE.mcap")
     r.add_argument("-o", "--output", required=True, metavar="OUT.mcap")
@@ -48,7 +47,7 @@ def register(sub) -> None:
     v.add_argument("--live", action="store_true",
                    help="show every session on the bus as it happens (joins like serve)")
     v.add_argument("--out", default="recordings", help="--live without a viewer: .rrd folder")
-    _bus_args(v)
+    add_bus_args(v)
     v.set_defaults(func=cmd_view)
 
     p = sub.add_parser("replay", help="republish a recording onto the bus")
@@ -68,7 +67,7 @@ def register(sub) -> None:
                    help="start once these services are alive")
     p.add_argument("--timeout", type=float, default=60.0,
                    help="seconds to wait for hypotheses / scenes before going on")
-    _bus_args(p)
+    add_bus_args(p)
     p.set_defaults(func=cmd_replay)
 
     g = sub.add_parser("regress", help="re-run a recording through the current services and "
@@ -160,15 +159,14 @@ def _view_live(args) -> int:
     from services.runtime.service import Service
     from services.recording.viewer import Sink, ViewerHandler, has_display
 
-    from .deploy import _logging, _open
-    _logging()
+    setup_logging()
     if args.connect_viewer:
         sink = Sink("connect", url=args.connect_viewer)
     elif args.spawn or args.web or (has_display() and args.rrd is None):
         sink = Sink("web" if args.web else "spawn", bind=args.bind, port=args.port)
     else:
         sink = Sink("rrd", path=args.rrd or args.out)
-    session = _open(args)
+    session = open_bus(args)
     svc = Service(ViewerHandler(sink), session).start()
     try:
         wait_for_signal()
@@ -183,8 +181,7 @@ def _view_live(args) -> int:
 def cmd_replay(args) -> int:
     from services.runtime.bus import wait_alive
 
-    from .deploy import _logging, _open
-    _logging()
+    setup_logging()
     if args.rate <= 0 or not math.isfinite(args.rate):
         raise InputError(f"--rate must be a positive number, got {args.rate}")
     recs = read_recording(args.recording)
@@ -195,7 +192,7 @@ def cmd_replay(args) -> int:
             raise InputError(f"--session {args.session!r} is not a valid session id")
         recs = [rename_session(r, args.session) for r in recs]
     session_id = bus.parse_key(recs[0].key).session
-    session = _open(args)
+    session = open_bus(args)
     try:
         for name in args.wait_for:
             wait_alive(session, name)
@@ -211,8 +208,7 @@ def cmd_replay(args) -> int:
 def cmd_regress(args) -> int:
     import logging
 
-    from .deploy import _logging
-    _logging(logging.ERROR)
+    setup_logging(logging.ERROR)
     r = regress(args.recording, method=args.method, max_n=args.max, timeout=args.timeout)
     if args.json:
         import json

@@ -1,5 +1,5 @@
 """``findme plan`` (a room's floor plan from a session of photos) and ``findme locate-in``
-(where a new photo was taken on a plan); ``room_job`` plans a findme-eval room set.
+(where a new photo was taken on a plan).
 
 Photos are given in capture order: stand at a spot, turn right taking photos tilted down to
 see the floor, move to the next spot. Each photo's camera comes from its sidecar
@@ -16,9 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 
-import cv2
 import numpy as np
 
 from findme_core import relocalise, session
@@ -27,12 +25,9 @@ from findme_core.errors import FindmeError, InputError
 from findme_core.floorplan import Plan
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
-from findme_io.imageio import read_image, read_photo
+from findme_io.imageio import read_photo
 from findme_io.plan_svg import plan_svg
 from .options import add_camera_args, camera_height, photo_camera_from
-
-_SPOT = re.compile(r"_p(\d+)_")
-
 
 def register(sub) -> None:
     p = sub.add_parser("plan", help="a room's floor plan from a session of photos",
@@ -201,47 +196,3 @@ def _find_with_photos(plan: Plan, plan_names: list, args, photos):
                          "files in the same order as given to findme plan)")
     plan_photos = [session.analyse(*photo_inputs(p, args)[:3]) for p in args.photos]
     return session.find(plan_photos, plan.poses, photos)
-
-
-def room_photos(room_dir: str, view_dir: str, rid: str) -> tuple[list, list]:
-    """(view ids, analysed photos) of one findme-eval room set: only its ordered view ids
-    and their camera inputs are read."""
-    with open(os.path.join(room_dir, rid + ".json")) as f:
-        views = json.load(f)["views"]
-    photos = []
-    for v in views:
-        with open(os.path.join(view_dir, v + ".json")) as f:
-            meta = json.load(f)
-        k = meta["intrinsics"]
-        cam = Camera(k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"],
-                     meta.get("gravity_cam"))
-        photos.append(session.analyse(read_image(os.path.join(view_dir, meta["image"])),
-                                      cam, float(meta["camera_height_m"])))
-    return views, photos
-
-
-def room_spots(views, spots_mode: str):
-    """Spot labels from the ids' ``_p<N>_`` token ('ids'), or None ('auto': from the photos)."""
-    if spots_mode != "ids":
-        return None
-    return [(_SPOT.search(v).group(1) if _SPOT.search(v) else v) for v in views]
-
-
-def room_prediction(views, photos, spots_mode: str) -> dict:
-    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON."""
-    plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
-    d = plan.to_dict(views)
-    d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
-    return d
-
-
-def room_job(args) -> tuple[str, dict | None, str | None]:
-    """Plan of one findme-eval room set (``room_photos``); spots from the ids' ``_p<N>_``
-    token ('ids') or from the photos ('auto')."""
-    room_dir, view_dir, rid, spots_mode = args
-    cv2.setNumThreads(1)
-    try:
-        views, photos = room_photos(room_dir, view_dir, rid)
-        return rid, room_prediction(views, photos, spots_mode), None
-    except (FindmeError, OSError, KeyError, ValueError) as e:
-        return rid, None, str(e)

@@ -29,7 +29,10 @@ from services.runtime import bus
 from services.runtime.handler import Input, Output
 from services.runtime.service import Service
 
-from . import deploy, report
+from .. import report
+from .bus_options import add_bus_args, lens_from_args, open_bus, setup_logging
+from .options import floats
+from .status import alive_services
 from .options import add_camera_args
 
 
@@ -70,20 +73,20 @@ def register(sub) -> None:
                    help="seconds to wait for each photo's results (default 120)")
     p.add_argument("--wait", type=float, default=5.0, metavar="S",
                    help="seconds to wait for the router and the services (default 5)")
-    deploy._bus_args(p)
+    add_bus_args(p)
     p.set_defaults(func=cmd_send)
 
 
 def cmd_send(args) -> int:
-    deploy._logging(logging.WARNING)
+    setup_logging(logging.WARNING)
     if not args.connect and not args.config:
         raise InputError("send needs --connect ENDPOINT (e.g. tcp/127.0.0.1:7447) or --config")
-    photos = args.photos or report._example_paths()
+    photos = args.photos or report.example_paths()
     srcs, errors = report.read_photos(photos)
     prefix = f"{args.user}-" if args.user else "send-"
     session_id = args.session or f"{prefix}{uuid.uuid4().hex[:8]}"
     bus.key(session_id, "frame")                      # a valid session id, or say why now
-    session = deploy._open(args, mode="client", connect_timeout_s=args.wait)
+    session = open_bus(args, mode="client", connect_timeout_s=args.wait)
     svc = sub = None
     try:
         needed = ["hypotheses", "measurement"] + (["odometry"] if len(srcs) > 1 else [])
@@ -95,13 +98,14 @@ def cmd_send(args) -> int:
                 raise BusError(f"no {name} service is running on the bus at {where} (start "
                                f"the services: findme up, or findme serve {name} --connect "
                                "...)") from None
-        select = "selection" not in deploy.alive_services(session, args.wait)
+        select = "selection" not in alive_services(session, args.wait)
         printer = report.Printer(session_id)
         sub = session.declare_subscriber(f"findme/{session_id}/**", printer)
         svc = Service(ClientHandler(session_id, select), session).start()
-        report.report_session(printer, svc, session_id, srcs, deploy._lens(args),
+        report.report_session(printer, svc, session_id, srcs, lens_from_args(args),
                               "odometry" in needed, args.timeout)
-        report._measure(session, session_id, args, photos)
+        pixels = [floats(p, 2, "--measure") for p in args.measure or []]
+        report.measure(session, session_id, pixels, example=not args.photos)
     finally:
         if sub is not None:
             sub.undeclare()
