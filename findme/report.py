@@ -6,6 +6,7 @@ and, for the bundled example, its truth. Shared by ``findme run`` and ``findme s
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -75,20 +76,28 @@ class Printer:
             return self.cv.wait_for(lambda: done(self.seen, self.errors), timeout)
 
     def photo_done(self, n: int, odometry: bool):
-        """Photo n's results are all in: its scene (or an error about it), and its pose or
-        motion when odometry runs."""
+        """Photo n's results are all in: its scene (or an error about it), and, when
+        odometry runs, its pose (odometry publishes it with the motion that places it) or
+        the motion's failure (then there is no pose)."""
         def done(seen, errors):
             p = f"findme/{self.session}/"
             failed = any(self._about(e, n, ("frame", "hypotheses", "selection")) for e in errors)
             scene = (p + f"scene/{n}" in seen and p + f"hypotheses/{n}" in seen) or failed
-            if not odometry or not scene:
+            if not odometry or not scene or failed:
                 return scene
-            return p + f"pose/{n}" in seen or any(k.startswith(p + "motion/") and
-                                                   k.endswith(f"/{n}") for k in seen)
+            return p + f"pose/{n}" in seen or any(
+                k.startswith(p + "motion/") and k.endswith(f"/{n}") and m.error
+                for k, m in seen.items()) or any(self._about(e, n, ("motion", "pose"))
+                                                 for e in errors)
         return done
 
-    @staticmethod
-    def describe(k: str, m) -> str | None:
+    def unit(self, n: int) -> str:
+        """The length unit of photo n's results: "m" when its scene is metric, else "h"
+        (camera heights: no camera height was given)."""
+        scene = self.seen.get(f"findme/{self.session}/scene/{n}")
+        return "m" if scene is None or scene.metric else "h"
+
+    def describe(self, k: str, m) -> str | None:
         name = type(m).__name__
         if name == "Frame":
             return f"photo {m.index}: {m.device or 'frame'} ({len(m.image.data) // 1024} kB)"
@@ -99,21 +108,23 @@ class Printer:
         if name == "Selection":
             return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
         if name == "Scene":
-            return f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m" \
-                   f"{'' if m.metric else ', up to scale'})"
+            return (f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m above the "
+                    "floor)" if m.metric else f"photo {m.index}: scene ready (no camera "
+                    "height: lengths in camera heights, h)")
         if name == "Motion":
-            return motion_text(m)
+            return motion_text(m, self.unit(m.index_b))
         if name == "Pose":
-            return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
-                    f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
+            u = self.unit(m.index)
+            return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "
+                    f"{math.degrees(m.yaw_rad):+.1f} deg from photo 0")
         if name == "Plan":
             if m.reason:
                 return f"floor plan: none yet ({m.reason})"
             placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
-            unit = "m" if m.metric else "camera heights"
+            unit, area = ("m", "m²") if m.metric else ("h", "h²")
             return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
                 f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING else "")
-                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f}, "
+                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f} {area}, "
                 f"{placed} of {len(m.poses)} photos placed")
         if name == "Error":
             return f"error on {m.key}: {m.message}"
@@ -153,16 +164,17 @@ def read_photos(photos, out=None) -> list:
 
 
 def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: Lens,
-                   odometry: bool, timeout: float, mapper: bool = False) -> int:
+                   odometry: bool, timeout: float, mapper: bool = False, on_first=None) -> int:
     """Publish the photos through ``publisher`` (a running capture-like Service), then print
     each photo's results in order as they arrive, and the floor plan once it has taken in
-    every photo (when a mapper runs); returns the number of photos.
+    every photo (when a mapper runs); returns the number of photos. ``on_first()`` runs
+    once the first photo is out (``publish_frames``).
 
     Raises:
         BusError: a photo's results did not all arrive within ``timeout`` seconds.
     """
     t0 = time.perf_counter()
-    n = publish_frames(publisher, session_id, srcs, lens)
+    n = publish_frames(publisher, session_id, srcs, lens, on_first=on_first)
     for i in range(n):
         if not printer.wait(printer.photo_done(i, odometry), timeout):
             printer.report(i)
@@ -195,7 +207,7 @@ def measure(session, session_id: str, pixels, example: bool) -> None:
             continue
         rep = schemas.decode(schemas.MeasureReply, reply.ok.payload.to_bytes())
         bus.put(session, bus.key(session_id, "measured", rep.index), reply.ok.payload.to_bytes())  # for the record
-        unit = "m" if rep.metric else "camera heights"
+        unit = "m" if rep.metric else "h (camera heights)"
         for p in rep.points:
             where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "
                      f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"

@@ -242,9 +242,10 @@ def set_motion_estimate(msg, mo, max_alternatives: int = schemas.MAX_ALTERNATIVE
     return msg
 
 
-def motion_text(msg) -> str:
+def motion_text(msg, unit: str = "m") -> str:
     """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
-    this edge), its evidence, and 'ambiguous' when the evidence allows other motions."""
+    this edge; lengths in ``unit``: "m", or "h" when the scenes are in camera heights), its
+    evidence, and 'ambiguous' when the evidence allows other motions."""
     if msg.error:
         return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
     why = [f"{msg.inliers}/{msg.matches} inliers"]
@@ -254,5 +255,6 @@ def motion_text(msg) -> str:
     na = len(msg.alternatives)
     if na:
         why.append(f"ambiguous: {na} other motion{'s fit' if na > 1 else ' fits'} almost as well")
-    return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} m, z {msg.z_m:+.3f} m, "
-            f"yaw {math.degrees(msg.yaw_rad):+.2f} deg ({'; '.join(why)})")
+    return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} {unit}, "
+            f"z {msg.z_m:+.3f} {unit}, yaw {math.degrees(msg.yaw_rad):+.2f} deg "
+            f"({'; '.join(why)})")

@@ -20,16 +20,13 @@ from findme_core.errors import FindmeError
 
 
 DESCRIPTION = """\
-Measure a room and locate yourself from phone photos.
+Measure a room and locate yourself from phone photos: floor-wall boundaries,
+3D points with their uncertainty, how the camera moved, the room's floor plan.
+"""
 
-  findme run                      every service on the bundled example (or your photos)
-  findme hypotheses PHOTO         the photo's floor-boundary hypotheses, best first
-  findme locate PHOTO --point U,V 3D of tapped pixels under a hypothesis
-  findme motion PHOTO_A PHOTO_B   how the camera moved between two photos
-  findme plan PHOTO...            the room's floor plan from a session of photos
-  findme app                      the phone web page, with every service
-  findme up                       router + one process per service on this machine
-  findme send PHOTOS --connect E  photos to running services, with their results
+EPILOG = """\
+"findme COMMAND --help" describes a command and its options. Photos are JPEG,
+PNG, WebP, HEIC, AVIF, BMP or TIFF; bad input is one line on stderr, exit 2.
 """
 
 
@@ -38,6 +35,8 @@ class _Parser(argparse.ArgumentParser):
     as ``-0.05,0.9,0.4`` (a gravity vector) or ``-4,2`` (a pixel) are values, not options."""
 
     def __init__(self, *args, **kwargs):
+        # descriptions are written for the terminal: their line breaks and lists are kept
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = re.compile(r"^-\.?\d")
 
@@ -59,24 +58,47 @@ def one_thread_per_process() -> None:
         os.environ.setdefault(var, "1")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The whole parser: every module of ``registry.COMMAND_MODULES`` registers its commands
-    (imported here, not at import time: ``import findme.cli`` loads no numpy)."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser: every module of ``registry.COMMAND_MODULES`` registers its commands
+    (imported here, not at import time: ``import findme.cli`` loads no numpy), or, for a
+    known ``command``, only its module; ``--help`` lists the commands in the groups of
+    ``registry.GROUPS``."""
     import importlib
 
-    from .registry import COMMAND_MODULES
-    p = _Parser(prog="findme", description=DESCRIPTION,
-                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name in COMMAND_MODULES:
+    from .registry import COMMAND_MODULES, COMMANDS, GROUPS
+    modules = (COMMANDS[command],) if command in COMMANDS else COMMAND_MODULES
+    p = _Parser(prog="findme", usage="findme [-h] [--debug] COMMAND ...", epilog=EPILOG)
+    p.add_argument("--debug", action="store_true",
+                   help="show the traceback of an internal error (for a bug report)")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser, prog="findme",
+                           metavar="COMMAND", help=argparse.SUPPRESS)
+    for name in modules:
         importlib.import_module(f"{__name__}.{name}").register(sub)
+    p.description = DESCRIPTION + command_list(sub, GROUPS)
     return p
+
+
+def command_list(sub, groups) -> str:
+    """The commands' one-line helps under their group titles, for ``findme --help``."""
+    helps = {a.dest: a.help for a in sub._choices_actions}
+    width = max(len(name) for name in helps) + 2
+    out = []
+    for title, names in groups:
+        if any(name in helps for name in names):
+            out.append(f"\n{title}:")
+            out += [f"  {name:{width}s}{helps[name]}" for name in names if name in helps]
+    return "\n".join(out) + "\n"
+
+
+def _command_of(argv: list[str]) -> str | None:
+    """The command word of a command line (the first word that is not an option)."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
 
 def main(argv=None) -> int:
     one_thread_per_process()
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command_of(argv))
     args, extra = parser.parse_known_args(argv)
     # argparse cannot take positional photos after options (``serve capture --session s
     # a.jpg``): leftover non-option words go to the command's photo list, if it has one

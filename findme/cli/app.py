@@ -33,11 +33,28 @@ log = logging.getLogger("findme.app")
 APP_SERVICES = ("hypotheses", "measurement", "odometry", "mapper")
 
 
+APP_HELP = """\
+The phone page and every processing service in this one process: open the
+printed address in a browser (a phone's, or a desktop's with a file picker),
+take or pick photos, choose a boundary, tap points to measure, see where you
+moved and the room's floor plan as it grows. Sessions are recorded to
+OUT/<session>.mcap (default recordings/).
+
+It serves http://127.0.0.1:8080/ (this machine only). A phone needs HTTPS with a
+certificate it trusts for the live camera and the motion sensors: make one with
+python tools/make_certs.py certs --host THIS-MACHINE'S-ADDRESS, then --https
+serves https://0.0.0.0:8443/ (compose/README.md: "The phone trusts the page").
+
+Examples:  findme app
+           findme app --https"""
+
+
 def register(sub) -> None:
-    a = sub.add_parser("app", help="the phone web page with all services in one process",
-                       description=__doc__)
+    a = sub.add_parser("app", help="the phone page with every service, in this process",
+                       description=APP_HELP)
     add_web_args(a, None)
-    add_service_args(a)
+    add_service_args(a, selection=False, out_help="where sessions are recorded (default "
+                     "recordings)")
     a.add_argument("--no-record", action="store_true",
                    help="do not record the sessions (default: --out DIR, recordings/)")
     add_bus_args(a)

@@ -22,14 +22,19 @@ from services.runtime import bus
 from .options import floats
 
 
-def add_bus_args(p, default_listen=()):
+def add_bus_args(p, default_listen=(), mode: bool = True, group: bool = True):
+    """The options that say how to join the bus; ``mode``: offer ``--mode`` (not for a
+    router); ``group``: under their own heading in ``--help``."""
+    p = p.add_argument_group("joining the bus") if group else p
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                    help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 or "
                         "tls/server.example:7447 (repeatable)")
     p.add_argument("--listen", action="append", default=list(default_listen), metavar="ENDPOINT",
                    help="Zenoh endpoint to listen on (repeatable)")
-    p.add_argument("--mode", choices=("peer", "client"),
-                   help="Zenoh mode (default: client of the router with --connect, else peer)")
+    if mode:
+        p.add_argument("--mode", choices=("peer", "client"),
+                       help="Zenoh mode (default: client of the router with --connect, else "
+                            "peer)")
     p.add_argument("--config", metavar="FILE.json5", help="a full Zenoh configuration file")
     p.add_argument("--ca", metavar="CA.pem", help="tls/ endpoints: the CA that signed the "
                    "router's certificate (tools/make_certs.py writes certs/ca.pem)")
@@ -41,7 +46,7 @@ def add_bus_args(p, default_listen=()):
 
 
 def bus_config(args, mode: str | None = None) -> bus.BusConfig:
-    mode = mode or args.mode or ("client" if args.connect else "peer")
+    mode = mode or getattr(args, "mode", None) or ("client" if args.connect else "peer")
     if getattr(args, "config", None):
         return bus.BusConfig(mode=mode, extra={"__file__": args.config})
     tls = {"root_ca_certificate": args.ca} if getattr(args, "ca", None) else None
@@ -78,9 +83,80 @@ def open_bus(args, mode=None, connect_timeout_s: float | None = None) -> zenoh.S
             if "Timeout" in reason:
                 reason = f"no router answered ({reason})"
             raise BusError(f"cannot open the Zenoh session from {path}: {reason}") from None
-    if connect_timeout_s is not None:
-        cfg = dataclasses.replace(cfg, connect_timeout_ms=int(connect_timeout_s * 1000))
-    return bus.open_session(cfg)
+    if connect_timeout_s is None:
+        return bus.open_session(cfg)
+    return _open_or_say_why(cfg, connect_timeout_s)
+
+
+#: A client that fails fast tries Zenoh for this long first: opening a session takes a few
+#: round trips (10 ms on loopback with TLS and a password); a router that takes part in the
+#: TLS handshake at once but has given no session after this long refused it.
+FIRST_TRY_S = 2.0
+
+
+def _open_or_say_why(cfg: bus.BusConfig, timeout_s: float) -> zenoh.Session:
+    """A client session within ``timeout_s``, or a BusError saying why not: no router
+    answers (nothing listens, or the TLS handshake fails: its reason), or a router answers
+    but refuses this client (a wrong user or password, or none given). Zenoh itself only
+    says "timeout" and keeps retrying until then."""
+    import time
+    t0 = time.monotonic()
+    first = min(timeout_s, FIRST_TRY_S)
+    try:
+        return bus.open_session(dataclasses.replace(cfg, connect_timeout_ms=int(first * 1000)))
+    except BusError as e:
+        if not cfg.connect or cfg.mode != "client":
+            raise
+        failure = e
+    ca = (cfg.tls or {}).get("root_ca_certificate")
+    rtts, reasons = [], []
+    for ep in cfg.connect:
+        rtt, why = handshake(ep, ca, max(0.5, timeout_s - (time.monotonic() - t0)))
+        (rtts.append(rtt) if why is None else reasons.append(f"{ep}: {why}"))
+    where = ", ".join(cfg.connect)
+    if not rtts:
+        raise BusError(f"no router answered at {where} ({'; '.join(reasons)})") from None
+    left = timeout_s - (time.monotonic() - t0)
+    if min(rtts) * 8 > first and left > 0.2:   # a slow link, not a refusal: the time left
+        try:
+            return bus.open_session(dataclasses.replace(cfg, connect_timeout_ms=int(left * 1000)))
+        except BusError as e:
+            failure = e
+    if cfg.user:
+        why = (f"as user {cfg.user!r} the password is wrong, or {cfg.user!r} is not one of "
+               "its users (certs/users.txt on the router; --password-file or $FINDME_PASSWORD "
+               "here)")
+    else:
+        why = "it may want a user and password (--user, --password-file)"
+    raise BusError(f"the router at {where} answers but refused this client: {why}") \
+        from failure
+
+
+def handshake(endpoint: str, ca: str | None, timeout_s: float) -> tuple[float, str | None]:
+    """(seconds, None) when something at a tcp/ or tls/ ``endpoint`` accepts a connection
+    (and, for tls/, completes a TLS handshake whose certificate ``ca`` signed for the
+    endpoint's host name); else (0, the reason). Other protocols: (0, None)."""
+    import socket
+    import ssl
+    import time
+    proto, _, addr = endpoint.partition("/")
+    host, _, port = addr.rpartition(":")
+    host = host.strip("[]")
+    if proto not in ("tcp", "tls") or not port.isdigit():
+        return 0.0, None
+    t0 = time.monotonic()
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout_s) as raw:
+            if proto == "tls":
+                ctx = ssl.create_default_context(cafile=ca) if ca else ssl.create_default_context()
+                with ctx.wrap_socket(raw, server_hostname=host):
+                    pass
+    except ssl.SSLCertVerificationError as e:
+        return 0.0, f"its certificate is not trusted: {e.verify_message}" + (
+            "" if ca else " (give the CA that signed it: --ca certs/ca.pem)")
+    except (OSError, ssl.SSLError) as e:
+        return 0.0, e.strerror or str(e) or type(e).__name__
+    return time.monotonic() - t0, None
 
 
 def lens_from_args(args) -> Lens:

@@ -9,26 +9,41 @@ from findme_core.methods import METHODS
 from findme_core.motion import METHODS as MOTION_METHODS
 from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG
 
-from ..evaluation import __doc__ as EVAL_DOC
 from ..evaluation.dataset import evaluate
 from ..evaluation.views import GravityInput
 from .options import gravity_sigma
 
 
+EVAL_HELP = """\
+Predictions for a dataset in the findme-eval layout (index.json, views/, pairs/,
+rooms/), in the format its scorer reads: each view's boundary hypotheses and the
+3D position and 1-sigma of its query pixels, each pair's motion, each room set's
+floor plan. Only a view's inputs are read (image, intrinsics, gravity_cam,
+camera_height_m, the query pixels): the answers are the same on a copy without
+the ground truth. Each prediction says which gravity it used and where it came
+from; the options below withhold, disturb or refine the dataset's gravity.
+
+Example:  findme eval ../shared/data/findme-eval --out p.json --jobs 2
+          python ../shared/eval/score.py ../shared/data/findme-eval p.json"""
+
+
 def register(sub) -> None:
-    p = sub.add_parser("eval", help="predictions for a findme-eval dataset",
-                       description=EVAL_DOC)
-    p.add_argument("dataset", metavar="DATASET_DIR")
-    p.add_argument("--out", required=True, metavar="PREDICTIONS.json")
-    p.add_argument("--method", default="findme", choices=METHODS)
+    p = sub.add_parser("eval", help="predictions for a findme-eval dataset, for its scorer",
+                       description=EVAL_HELP)
+    p.add_argument("dataset", metavar="DATASET_DIR", help="the dataset's folder (index.json)")
+    p.add_argument("--out", required=True, metavar="PREDICTIONS.json",
+                   help="where the predictions go")
+    p.add_argument("--method", default="findme", choices=METHODS,
+                   help="hypothesis method: findme (default) or paper (the paper's)")
     p.add_argument("--max", type=int, default=10, metavar="N", help="hypotheses per view (10)")
     p.add_argument("--motion-method", default="findme", metavar="NAME[,NAME...]",
-                   help="pair motion estimator(s): " + ", ".join(MOTION_METHODS) + " (default "
-                        "findme; features = the matches alone, the default before layouts); "
-                        "with several, the first goes to --out and each other one to "
-                        "OUT.<name>.json, from the same features and hypotheses")
+                   help="pair motion estimator(s), comma-separated, among "
+                        + ", ".join(MOTION_METHODS) + " (default findme; features: the feature "
+                        "matches alone); the first goes to --out, each other one to "
+                        "OUT.<name>.json")
     add_gravity_args(p)
-    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                   help="worker processes (default: one per CPU)")
     p.add_argument("--room-spots", default="ids", choices=("ids", "auto"),
                    help="rooms: which photos share a spot: 'ids' (the spot token _p<N>_ of "
                         "the view ids, as a capture app marks a new spot) or 'auto' (from "
@@ -37,8 +52,9 @@ def register(sub) -> None:
 
 
 def add_gravity_args(p) -> None:
-    """The flags of ``GravityInput`` (``--no-gravity``, ``--gravity-noise``,
-    ``--gravity-sigma``, ``--gravity-refine``), shared by the tools that read views."""
+    """The flags of ``findme.evaluation.views.GravityInput`` (``--no-gravity``,
+    ``--gravity-noise``, ``--gravity-sigma``, ``--gravity-refine``), shared by the tools that
+    read views."""
     g = p.add_mutually_exclusive_group()
     g.add_argument("--no-gravity", action="store_true",
                    help="withhold the views' gravity_cam: gravity from the image, else level")

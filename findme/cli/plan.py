@@ -29,14 +29,37 @@ from findme_io.imageio import read_photo
 from findme_io.plan_svg import plan_svg
 from .options import add_camera_args, camera_height, photo_camera_from
 
+PLAN_HELP = """\
+The room's floor plan from a session of photos, in the order they were taken:
+stand at a spot, turn round taking photos tilted down so that they show the
+floor, move to the next spot. It prints the walls with their lengths and 1-sigma
+(walls not seen marked), openings, the floor area and where each photo was taken
+(x to the right, z forward of the first photo, yaw in degrees). A photo's camera
+comes from PHOTO.json beside it when there is one (intrinsics, gravity_cam,
+camera_height_m), else from the options and its EXIF.
+
+Example:  findme plan spot1_*.jpg spot2_*.jpg --camera-height 1.45 \\
+              --svg plan.svg"""
+
+LOCATE_IN_HELP = """\
+Where a new photo was taken on a floor plan made by findme plan --json: its
+position and heading in the plan, and the other places a symmetric room allows
+almost as well (a rectangular room looks alike turned half round). Several
+photos taken standing at one place (turning round) are found together; --photos
+with the plan's own photos adds their feature matches.
+
+Example:  findme plan a.jpg b.jpg c.jpg --json > plan.json
+          findme locate-in plan.json new.jpg --photos a.jpg b.jpg c.jpg"""
+
+
 def register(sub) -> None:
     p = sub.add_parser("plan", help="a room's floor plan from a session of photos",
-                       description=__doc__)
-    p.add_argument("photos", nargs="+", metavar="PHOTO")
+                       description=PLAN_HELP)
+    p.add_argument("photos", nargs="+", metavar="PHOTO", help="the photos, in capture order")
     add_camera_args(p)
     p.add_argument("--camera-height", type=float, metavar="M",
-                   help="camera height above the floor in metres (default: the sidecar's, "
-                        "else 1: the plan up to scale)")
+                   help="camera height above the floor in metres (default: PHOTO.json's, "
+                        "else unknown: lengths in camera heights)")
     p.add_argument("--spots", metavar="N,N,...",
                    help="spot label of each photo (photos with one label were taken standing "
                         "at one place); default: found from the photos")
@@ -44,22 +67,20 @@ def register(sub) -> None:
     p.add_argument("--svg", metavar="OUT.svg", help="also draw the plan")
     p.add_argument("--feet", action="store_true", help="wall lengths in feet in the drawing")
     p.set_defaults(func=cmd_plan)
-    q = sub.add_parser("locate-in", help="where a photo was taken on a floor plan",
-                       description="Register the photo's walls to the plan's walls: its pose "
-                                   "in the plan's frame, and the other poses a symmetric room "
-                                   "allows. Several photos taken standing at one place "
-                                   "(turning round) are found together: more walls and "
-                                   "matches than one photo has.")
-    q.add_argument("plan", metavar="PLAN.json")
+    q = sub.add_parser("locate-in", help="where a new photo was taken on a floor plan",
+                       description=LOCATE_IN_HELP)
+    q.add_argument("plan", metavar="PLAN.json", help="a plan from findme plan --json")
     q.add_argument("photo", nargs="+", metavar="PHOTO",
                    help="one photo, or several taken at one place")
     add_camera_args(q)
-    q.add_argument("--camera-height", type=float, metavar="M")
+    q.add_argument("--camera-height", type=float, metavar="M",
+                   help="camera height above the floor in metres, as the plan was made with "
+                        "(default: PHOTO.json's, else unknown: camera heights)")
     q.add_argument("--photos", nargs="+", metavar="SESSION_PHOTO",
                    help="the photos the plan was made from, as given to findme plan: the new "
                         "photo's feature matches and motions with them count too (the plan's "
                         "walls alone leave a rectangular room's quarter turns open)")
-    q.add_argument("--json", action="store_true")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_locate_in)
 
 

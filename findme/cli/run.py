@@ -19,18 +19,33 @@ from .options import add_camera_args, finite_float, floats
 
 PIPELINE = ("hypotheses", "selection", "measurement", "odometry", "mapper")
 
+RUN_HELP = """\
+Every service in this one process, on the bundled example pair (two rendered
+photos of a room, with their true values printed beside the answers) or on your
+photos, files, folders or a video: each photo's boundary hypotheses, the one
+selected, its 3D scene, the motion between photos and where each was taken, the
+room's floor plan, then a measurement. The session is recorded to
+OUT/<session>.mcap (default findme-run/). Without a camera height (options or
+PHOTO.json beside a photo) lengths are in camera heights (h).
+
+Examples:  findme run
+           findme run kitchen/*.jpg --camera-height 1.45 --interactive"""
+
 
 def register(sub) -> None:
-    r = sub.add_parser("run", help="all services in one process on the example or your photos",
-                       description=__doc__)
-    r.add_argument("photos", nargs="*", help="image files, folders, a video or camera:N "
+    r = sub.add_parser("run", help="every service in this process, on the example or your photos",
+                       description=RUN_HELP)
+    r.add_argument("photos", nargs="*", metavar="PHOTO",
+                   help="image files, folders, a video or camera:N "
                                              "(default: the bundled example)")
-    r.add_argument("--session", help="session id (default: a new one)")
+    r.add_argument("--session", help="session id (default: a new one, run-<random>)")
     add_camera_args(r)
-    r.add_argument("--camera-height", type=finite_float, metavar="M")
+    r.add_argument("--camera-height", type=finite_float, metavar="M",
+                   help="camera height above the floor in metres (default: PHOTO.json's, else "
+                        "unknown: lengths in camera heights)")
     r.add_argument("--measure", action="append", metavar="U,V",
                    help="pixels of photo 0 to measure at the end (repeatable)")
-    add_service_args(r)
+    add_service_args(r, out_help="where the session is recorded (default findme-run)")
     r.add_argument("--no-record", action="store_true",
                    help="do not record the session (default: <out>/<session>.mcap)")
     add_bus_args(r)

@@ -25,28 +25,61 @@ from .status import alive_services
 from .web_options import add_web_args, cmd_serve_gateway
 
 
+SERVE_HELP = """\
+One service in this process, joining a bus (a router: --connect ENDPOINT): the
+way to spread the services over processes and machines (findme up starts them
+all on one machine). The services:
+
+  capture      sends photos (PHOTO... --session S), waits for their results
+  hypotheses   each photo's floor-wall boundary hypotheses
+  selection    picks a hypothesis of each photo (rank 1, or --interactive)
+  measurement  the 3D scene of each selected hypothesis, and measurements
+  odometry     the motion between photos and where each was taken
+  mapper       the room's floor plan as photos come
+  store        the last minute of messages, for services that restart
+  recorder     every session to OUT/<session>.mcap
+  viewer       every session in Rerun
+  gateway      the phone page (--http, --https) and its bridge to the bus
+
+Example:  findme serve hypotheses --connect tcp/127.0.0.1:7447"""
+
+ROUTER_HELP = """\
+A Zenoh router: the meeting point of services and clients in other processes or
+on other machines (findme up starts one). Give where it listens (--listen), or a
+whole Zenoh configuration (--config, e.g. TLS with passwords and per-device
+access control: compose/README.md).
+
+Example:  findme router --listen tcp/0.0.0.0:7447"""
+
+
 def register(sub) -> None:
-    s = sub.add_parser("serve", help="run one service, joining a bus")
-    s.add_argument("service", choices=service_names())
-    s.add_argument("photos", nargs="*", help="capture: image files, folders, a video or camera:N")
+    s = sub.add_parser("serve", help="one service in this process, joining a bus",
+                       description=SERVE_HELP)
+    s.add_argument("service", choices=service_names(), metavar="SERVICE",
+                   help="which service (see above)")
+    s.add_argument("photos", nargs="*", metavar="PHOTO",
+                   help="capture: image files, folders, a video or camera:N")
     s.add_argument("--session", help="capture: session id")
     s.add_argument("--instance", help="instance id (default: random)")
     add_camera_args(s)
-    s.add_argument("--camera-height", type=finite_float, metavar="M")
+    s.add_argument("--camera-height", type=finite_float, metavar="M",
+                   help="capture: camera height above the floor in metres (default: "
+                        "PHOTO.json's, else unknown: lengths in camera heights)")
     s.add_argument("--wait-for", action="append", default=[], metavar="SERVICE",
                    help="capture: publish only once these services are alive")
     s.add_argument("--linger", type=float, default=120.0, metavar="S",
                    help="capture: after publishing, serve the frames until every photo's "
                         "results are in, at most S seconds (default 120), then exit")
     add_service_args(s)
-    add_bus_args(s)
-
-    t = sub.add_parser("router", help="a Zenoh router for services on other processes/machines")
-    add_bus_args(t, default_listen=())
-    t.set_defaults(func=cmd_router)
     add_web_args(s, None)   # findme serve gateway --connect ENDPOINT [--http HOST:PORT]
+    add_bus_args(s)
     s.set_defaults(func=lambda args: cmd_serve_gateway(args) if args.service == "gateway"
                    else cmd_serve(args))
+
+    t = sub.add_parser("router", help="a Zenoh router for services on other processes/machines",
+                       description=ROUTER_HELP)
+    add_bus_args(t, default_listen=(), mode=False)
+    t.set_defaults(func=cmd_router)
 
 
 def cmd_serve(args) -> int:

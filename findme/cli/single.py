@@ -27,41 +27,63 @@ OVERLAY_EXT = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
 KIND_NAMES = {int(k): k.name.lower() for k in SegKind}
 
 
+HYPOTHESES_HELP = """\
+The photo's floor-wall boundary hypotheses, best first: each a line across the
+photo with the floor below it, made of segments where a wall or an object stands
+on the floor, occluding steps, floor running past the top of the photo, and
+columns with no floor in view. The camera comes from --hfov / --intrinsics, else
+the photo's EXIF focal length, else a typical phone; gravity from --gravity
+(refined by the photo's lines), else from the photo's lines, else level (and
+then it says so). A photo that does not look like a room (no floor-wall
+boundary, taken from above, an object filling the view) is said to be one, with
+the reason.
+
+Example:  findme hypotheses room.jpg --overlay numbered.png"""
+
+LOCATE_HELP = """\
+The 3D position of pixels of one photo (camera frame: x right, y down, z
+forward) on the floor or a wall, under a boundary hypothesis (the best one
+unless --hypothesis says), with the 1-sigma of each and the distances between
+consecutive points. Without --camera-height lengths are in camera heights.
+
+Example:  findme locate room.jpg --camera-height 1.45 --point 320,400 \\
+              --point 500,410"""
+
+
 def register(sub) -> None:
-    p = sub.add_parser("hypotheses", help="ground-wall boundary hypotheses of one photo",
-                       description="Ranked ground-wall boundary hypotheses of one photo.")
-    p.add_argument("image")
+    p = sub.add_parser("hypotheses", help="a photo's floor-wall boundary hypotheses, best first",
+                       description=HYPOTHESES_HELP)
+    p.add_argument("image", metavar="PHOTO", help="the photo (JPEG, PNG, WebP, HEIC, ...)")
     add_camera_args(p)
     p.add_argument("--max", type=int, default=10, metavar="N", help="at most N hypotheses (10)")
     p.add_argument("--method", default="findme", choices=METHODS,
                    help="findme (default) or paper (the paper's method, for comparison)")
-    p.add_argument("--overlay", metavar="OUT.png", help="write the numbered selection image")
+    p.add_argument("--overlay", metavar="OUT.png",
+                   help="write the photo with the hypotheses drawn and numbered (best on top)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_hypotheses)
 
-    q = sub.add_parser("locate", help="3D position of tapped pixels of one photo",
-                       description="3D position (camera frame, metres) of pixels on the floor "
-                                   "or a wall, under a chosen boundary hypothesis.")
-    q.add_argument("image")
+    q = sub.add_parser("locate", help="3D position of pixels of a photo, and their distances",
+                       description=LOCATE_HELP)
+    q.add_argument("image", metavar="PHOTO", help="the photo")
     add_camera_args(q)
     q.add_argument("--camera-height", type=finite_float, metavar="M",
-                   help="camera height above the floor in metres (default: 1, results up to scale)")
+                   help="camera height above the floor in metres (default: unknown; lengths "
+                        "are then in camera heights)")
     q.add_argument("--hypothesis", type=int, default=1, metavar="RANK",
                    help="which hypothesis (1 = best ranked)")
-    q.add_argument("--max", type=int, default=10, metavar="N", help=argparse_suppress())
-    q.add_argument("--method", default="findme", choices=METHODS)
+    q.add_argument("--max", type=int, default=10, metavar="N",
+                   help="hypotheses to make before picking --hypothesis (default 10)")
+    q.add_argument("--method", default="findme", choices=METHODS,
+                   help="hypothesis method: findme (default) or paper")
     pts = q.add_mutually_exclusive_group(required=True)
     pts.add_argument("--point", action="append", metavar="U,V",
-                     help="a pixel; repeat for more (negative values: --point=-4,2)")
+                     help="a pixel (column, row from the top-left pixel's centre); repeat for "
+                          "more (a negative value: --point=-4,2)")
     pts.add_argument("--points", metavar="FILE.json",
                      help='pixels as JSON: [[u, v], ...] or {"points": [[u, v], ...]}')
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_locate)
-
-
-def argparse_suppress():
-    import argparse
-    return argparse.SUPPRESS
 
 
 def _load(args):

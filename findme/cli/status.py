@@ -13,10 +13,20 @@ from services.runtime import bus
 from .bus_options import add_bus_args, open_bus
 
 
+STATUS_HELP = """\
+Which services are alive on the bus, each instance with how long it has been up
+and its counters: messages in, results out, errors (by code), dropped, waiting.
+Without a router it says so in one line (exit status 2) within --wait seconds.
+
+Example:  findme status --connect tcp/127.0.0.1:7447"""
+
+
 def register(sub) -> None:
-    st = sub.add_parser("status", help="which services are alive, with their counters")
+    st = sub.add_parser("status", help="which services are alive, with their counters",
+                        description=STATUS_HELP)
     add_bus_args(st)
-    st.add_argument("--json", action="store_true")
+    st.add_argument("--json", action="store_true", help="print a JSON list, one object per "
+                    "service instance")
     st.add_argument("--wait", type=float, default=2.0, metavar="S",
                     help="how long to wait for the router (default 2 s)")
     st.set_defaults(func=cmd_status)
