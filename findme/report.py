@@ -17,7 +17,7 @@ import zenoh
 import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
-from findme_io.convert import motion_text
+from findme_io.convert import motion_text, msg_room_view
 from services.runtime import bus
 
 
@@ -103,8 +103,13 @@ class Printer:
             return f"photo {m.index}: {m.device or 'frame'} ({len(m.image.data) // 1024} kB)"
         if name == "HypothesisSet":
             t = sum(m.timing_ms.values())
+            frame = self.seen.get(f"findme/{self.session}/frame/{m.index}")
+            h = (frame.camera_height_m if frame is not None and frame.HasField("camera_height_m")
+                 else None)
+            view = msg_room_view(m, h)
             return (f"photo {m.index}: {len(m.hypotheses)} hypotheses in {t:.0f} ms"
-                    + (f" ({m.reason})" if m.reason else ""))
+                    + (f" ({m.reason})" if m.reason else "")
+                    + (f"; NOT A ROOM VIEW: {view.reason}" if view and not view.ok else ""))
         if name == "Selection":
             return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
         if name == "Scene":

@@ -189,6 +189,21 @@ def msg_hypotheses(msg) -> list[Hypothesis]:
     return out
 
 
+def msg_room_view(msg, camera_height: float | None = None):
+    """Whether the photo of a HypothesisSet message looks like a room view
+    (``room_view.judge`` on what the message carries: its hypotheses, size and camera;
+    ``camera_height`` metres, when known, only for the wording), or None when the message
+    has no hypotheses (its ``reason`` says why) or no camera."""
+    from findme_core.lines import Lines
+    from findme_core.room_view import judge
+    if not msg.hypotheses or not msg.HasField("camera"):
+        return None
+    hs = HypothesisSet(msg.width, msg.height, msg_hypotheses(msg),
+                       Lines(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)),
+                       np.zeros(0, int), msg.reason or None)
+    return judge(hs, msg_camera(msg.camera), camera_height)
+
+
 _SURFACE = {"floor": schemas.SURFACE_FLOOR, "wall": schemas.SURFACE_WALL, None: schemas.SURFACE_NONE}
 
 

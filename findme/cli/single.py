@@ -14,6 +14,7 @@ from findme_core.errors import HypothesisError, InputError
 from findme_core.methods import METHODS
 from findme_io.camera_source import hypothesize_photo
 from findme_core.overlay import draw_hypotheses
+from findme_core.room_view import judge
 from findme_core.scene import Scene, boundary_sigma_px, distances
 from findme_core.search import SegKind
 
@@ -100,10 +101,13 @@ def _check_overlay(path: str | None) -> None:
                          + ", ".join(OVERLAY_EXT))
 
 
-def hypotheses_json(hs, camera=None, provenance=None) -> dict:
+def hypotheses_json(hs, camera=None, provenance=None, view=None) -> dict:
     """The JSON contract of ``findme hypotheses --json`` (best first, rank from 1), with the
-    camera and gravity used and where they came from when given."""
+    camera and gravity used and where they came from when given, and whether the photo
+    looks like a room view (``view``: ``room_view.judge``) when given."""
     out = camera_json(camera, provenance) if camera is not None else {}
+    if view is not None:
+        out["room_view"] = {"ok": view.ok, "reason": view.reason}
     return {**out,
         "width": hs.width, "height": hs.height,
         "hypotheses": [{"rank": i + 1, "score": round(float(h.score), 6),
@@ -124,7 +128,8 @@ def cmd_hypotheses(args) -> int:
     hs, cam, prov = hypothesize_photo(image, cam, prov, args.method, args.max,
                                       clock=time.perf_counter,
                                       camera_height=getattr(args, "camera_height", None))
-    out = hypotheses_json(hs, cam, prov)
+    view = judge(hs, cam, getattr(args, "camera_height", None))
+    out = hypotheses_json(hs, cam, prov, view)
     out["timing_ms"]["decode_and_camera"] = round(1e3 * (t1 - t0), 3)
     out["timing_ms"]["total"] = round(1e3 * (time.perf_counter() - t0), 3)
     if args.overlay:
@@ -142,7 +147,10 @@ def cmd_hypotheses(args) -> int:
         print(f"no hypotheses: {hs.reason}")
         return 0
     _say_sources(out)
-    print(f"{len(hs.hypotheses)} hypotheses for {args.image} ({hs.width}x{hs.height}), best first:")
+    if not view.ok:
+        print(f"not a room view: {view.reason}")
+    print(f"{len(hs.hypotheses)} hypotheses for {args.image} ({hs.width}x{hs.height}), best first"
+          + (" (guesses: this photo does not look like a room):" if not view.ok else ":"))
     for h in out["hypotheses"]:
         corners = " ".join(f"({u:.0f},{v:.0f})" for u, v in h["polyline"])
         print(f"  {h['rank']:2d}  score {h['score']:7.3f}  edge support {h['support']:.2f}  {corners}")
@@ -234,9 +242,14 @@ def cmd_locate(args) -> int:
             f"hypothesis {args.hypothesis} does not exist: this photo has "
             f"{len(hs.hypotheses)} hypotheses" + (f" ({hs.reason})" if hs.reason else ""))
     hyp = hs.hypotheses[args.hypothesis - 1]
+    view = judge(hs, cam, h if metric else None)
+    if not view.ok:
+        print(f"findme locate: warning: not a room view: {view.reason}; the points below "
+              "rest on a guessed boundary", file=sys.stderr)
     scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov,
                   boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
     out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov)
+    out["room_view"] = {"ok": view.ok, "reason": view.reason}
     if args.json:
         print(json.dumps(out))
         return 0

@@ -82,6 +82,7 @@ const HANDLERS = {
     if (!p) return;
     p.hyps = m.hypotheses;
     p.reason = m.reason;
+    p.notRoom = m.not_room_view || '';
     p.camera = m.camera || null;
     clearBusy('upload');
     if (p.camera && p.camera.gravity_source === 'level') {
@@ -92,6 +93,10 @@ const HANDLERS = {
     if (!m.hypotheses.length) {
       notify(`No floor boundary found in photo ${m.index + 1}: ${m.reason}`, 'warn', 'NO_HYPOTHESES');
     } else {
+      if (p.notRoom) {
+        notify(`Photo ${m.index + 1} does not look like a room: ${p.notRoom}. Its boundaries ` +
+               'below are guesses.', 'warn', 'NOT_ROOM_VIEW');
+      }
       setBusy('scene', 'Building the 3D scene…');
     }
     if (p.index === state.current) render();

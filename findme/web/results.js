@@ -105,7 +105,10 @@ export function render() {
   let status;
   if (!p.hyps) status = `Photo ${p.index + 1} (${p.width}×${p.height}): finding the floor boundary…`;
   else if (!hyps.length) status = `Photo ${p.index + 1}: no floor boundary found (${p.reason}).`;
-  else {
+  else if (p.notRoom) {
+    status = `Photo ${p.index + 1} does not look like a room view: ${p.notRoom}. ` +
+             `${hyps.length} boundary guesses; showing ${p.rank}.`;
+  } else {
     status = `Photo ${p.index + 1}: ${hyps.length} boundary hypotheses; showing ` +
              `${p.rank}${p.by === 'user' ? ' (your choice)' : p.rank === 1 ? ' (best)' : ''}.`;
     if (p.sceneRank && p.sceneRank === p.rank) {
@@ -114,6 +117,8 @@ export function render() {
     }
   }
   $('photo-status').textContent = status;
+  $('photo-status').classList.toggle('warn', Boolean(p.notRoom));
+  $('photo-status').dataset.notRoomView = p.notRoom || '';
   renderSources(p);
   renderPoints(p);
 }
