@@ -82,7 +82,11 @@ def cmd_status(args) -> int:
     print(f"{'service':12s} {'instance':10s} {'up':>8s} {'in':>7s} {'out':>7s} {'errors':>7s} "
           f"{'dropped':>8s} {'queue':>6s}")
     for s in st:
-        up = f"{(now - s.started_ns) / 1e9:.0f} s" if s.started_ns else "?"
+        if not s.started_ns:    # alive (its token), but its status did not come back
+            print(f"{s.service:12s} {s.instance:10s} {'alive':>8s}  no counters (this client may "
+                  "not read them, or the service does not answer)")
+            continue
+        up = f"{(now - s.started_ns) / 1e9:.0f} s"
         print(f"{s.service:12s} {s.instance:10s} {up:>8s} {s.frames_in:7d} {s.results_out:7d} "
               f"{s.errors:7d} {s.dropped:8d} {s.queue_depth:6d}")
         detail = delivery_detail(s)

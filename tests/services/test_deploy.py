@@ -253,6 +253,12 @@ def test_a_refused_session_or_password_is_one_clear_line_within_5_s(tls_router, 
         assert rc == 2 and err.count("\n") == 1 and took < 5.0, (rc, took, err)
         assert (f"the router at {endpoint} answers but refused this client: as user 'alice' "
                 "the password is wrong") in err
+        # a device sees which services are alive, not their counters: said, not zeros
+        from findme.cli import main
+        assert main(["status", *auth, "--password-file", str(good)]) == 0
+        out = capsys.readouterr().out
+        assert "hypotheses   t             alive  no counters (this client may not read them" \
+            in out, out
     finally:
         for t in tokens:
             t.undeclare()
