@@ -139,7 +139,7 @@ def cmd_plan(args) -> int:
         return 0
     unit = "m" if metric else "camera heights"
     print(f"floor plan: {len(plan.walls)} walls, area {plan.area_m2:.2f} "
-          f"{'m2' if metric else '(camera heights)^2'}"
+          f"{'m²' if metric else 'h² (h: the camera height)'}"
           + ("" if plan.closed else f"; missing walls (not seen): {plan.missing}"))
     for k, w in enumerate(plan.walls):
         print(f"  wall {k}: {w.length_m:.2f} ± {w.sigma_m:.2f} {unit}"
