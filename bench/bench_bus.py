@@ -31,7 +31,7 @@ import schemas  # noqa: E402
 from bench.common import EVAL_DIR, dev_views  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
 from findme_io.imageio import decode_image  # noqa: E402
-from findme_core.methods import hypothesize  # noqa: E402
+from findme_core.single.methods import hypothesize  # noqa: E402
 from services.runtime.bus import BusConfig, open_session, wait_alive  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from services.pipeline.hypotheses import HypothesesHandler  # noqa: E402
@@ -48,7 +48,7 @@ def photos(n):
                                 [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
             out.append((data, cam, h))
         return out
-    from findme_core.synth import Pose, Room, render
+    from findme_core.synth.render import Pose, Room, render
     room = Room.rectangle(5.0, 6.0)
     for i in range(n):
         v = render(room, Pose(0.2, -1.5, 1.45, yaw_deg=-60 + 7 * i, pitch_deg=5 * (i % 5)), 640, 480,

@@ -28,7 +28,7 @@ def base_image() -> np.ndarray:
     p = EVAL_DIR / "views" / "zt_r01_p14_v1.jpg"
     if p.exists():
         return cv2.imread(str(p))
-    from findme_core.synth import Pose, Room, render
+    from findme_core.synth.render import Pose, Room, render
     return render(Room.rectangle(5.0, 6.0), Pose(0.2, -1.5, 1.45, yaw_deg=20), 640, 480,
                   hfov_deg=70.0).image
 

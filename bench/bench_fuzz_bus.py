@@ -63,7 +63,7 @@ import schemas  # noqa: E402
 from bench.fuzz_messages import KIND_TYPE, SESSIONS, mutate, templates, verdict  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from services.runtime.bus import BusConfig, SERVICES, open_session, wait_alive  # noqa: E402
-from services.runtime.registry import make_handler, service_names  # noqa: E402
+from services.registry import make_handler, service_names  # noqa: E402
 
 EXAMPLES = resources.files("findme") / "examples"
 

@@ -32,9 +32,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import canny_hough, dev_photos, fmt, pin_one_core, stats  # noqa: E402
-from findme_core.methods import hypothesize  # noqa: E402
-from findme_core.segments import photo_segments  # noqa: E402
-from findme_core.vanishing import estimate_gravity, with_floor  # noqa: E402
+from findme_core.single.methods import hypothesize  # noqa: E402
+from findme_core.single.segments import photo_segments  # noqa: E402
+from findme_core.single.vanishing import estimate_gravity, with_floor  # noqa: E402
 
 RAYLEIGH_68 = math.sqrt(-2 * math.log(1 - 0.68))
 

@@ -27,8 +27,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import canny_hough, dev_photos, dev_views, fmt, pin_one_core, stats  # noqa: E402
-from findme_core.methods import hypothesize  # noqa: E402
-from findme_core.photo import hypothesize_without_gravity  # noqa: E402
+from findme_core.single.methods import hypothesize  # noqa: E402
+from findme_core.single.photo import hypothesize_without_gravity  # noqa: E402
 
 
 def timed2(fn, *args, repeat: int = 3):

@@ -42,7 +42,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import schemas  # noqa: E402
-from findme_core.synth import Pose, Room, render  # noqa: E402
+from findme_core.synth.render import Pose, Room, render  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from services.runtime import bus  # noqa: E402
 

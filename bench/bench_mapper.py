@@ -39,8 +39,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="OUT.json")
     a = ap.parse_args(argv)
     print(pin_one_core())
-    from findme_core import session as plan_session
-    from findme_core.room import Room
+    from findme_core.plan import session as plan_session
+    from findme_core.synth.room import Room
     from services.pipeline.mapper import MapperHandler
     from tests.plan_room import rendered_session
 

@@ -30,10 +30,10 @@ from dataclasses import replace
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
 from findme.evaluation.pairs import pair_inputs  # noqa: E402
-from findme_core.features import FeatureParams  # noqa: E402
-from findme_core.methods import hypothesize  # noqa: E402
-from findme_core.motion import MotionParams  # noqa: E402
-from findme_core.pair import motion_photos, prepare  # noqa: E402
+from findme_core.motion.features import FeatureParams  # noqa: E402
+from findme_core.single.methods import hypothesize  # noqa: E402
+from findme_core.motion.methods import MotionParams  # noqa: E402
+from findme_core.motion.pair import motion_photos, prepare  # noqa: E402
 
 DETECTORS = {
     "orb 3000 grid, lsh matching (chosen)": FeatureParams(),
@@ -55,7 +55,7 @@ def pairs():
                 (ia, ca, ha), (ib, cb, hb) = photos
                 yield pid, ia, ib, ca, cb, ha, hb
         return
-    from findme_core.synth import Box, Pose, Room, render
+    from findme_core.synth.render import Box, Pose, Room, render
     room = Room.rectangle(5.0, 6.0, floor_style="carpet", boxes=(Box(1.0, 1.6, 0.8, 0.5, 0.9, 20),))
     for i in range(8):
         a = render(room, Pose(0.2, -1.6, 1.45, yaw_deg=10 * i - 30, pitch_deg=20), 640, 480,

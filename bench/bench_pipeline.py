@@ -43,9 +43,9 @@ import cv2  # noqa: E402
 
 import schemas  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
-from findme_core import motion_photometric  # noqa: E402
-from findme_core.motion import MotionParams  # noqa: E402
-from findme_core.pair import photo_lines, prepare  # noqa: E402
+from findme_core.motion import photometric as motion_photometric  # noqa: E402
+from findme_core.motion.methods import MotionParams  # noqa: E402
+from findme_core.motion.pair import photo_lines, prepare  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from findme_io.imageio import decode_image  # noqa: E402
 from services.pipeline.hypotheses import HypothesesHandler  # noqa: E402
@@ -74,7 +74,7 @@ def pairs():
             if all((c.width, c.height) == (640, 480) for _, c, _ in photos):
                 yield pid, photos
         return
-    from findme_core.synth import Pose, Room, render
+    from findme_core.synth.render import Pose, Room, render
     room = Room.rectangle(5.0, 6.0, floor_style="carpet")
     for i in range(8):
         out = []
@@ -140,8 +140,8 @@ def odometry_parts(photos) -> dict[str, float]:
     """CPU ms of what odometry does for a pair, by part, with the core calls its handler
     makes: per photo decode and prepare (features; layouts and the room's orientation from
     the lines the hypotheses sent), then matching, lifting and motion of A -> B."""
-    from findme_core.methods import hypothesize
-    from findme_core.pair import motion_photos
+    from findme_core.single.methods import hypothesize
+    from findme_core.motion.pair import motion_photos
     ins = []
     for jpeg, cam, h in photos:        # hypotheses come from their own stage (not timed here)
         img = decode_image(jpeg, "bench")

@@ -66,7 +66,7 @@ class Stream:
 
     def __init__(self, fps: int):
         import schemas
-        from findme_core.methods import hypothesize
+        from findme_core.single.methods import hypothesize
         from findme_io.convert import camera_msg, frame_inputs, hypothesis_set_msg, make_frame
         self.S, self.fps = schemas, fps
         self.jpegs = jpeg_frames()

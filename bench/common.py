@@ -78,7 +78,7 @@ def dev_photos():
             cam, _, _ = view_inputs(meta)
             yield vid, cv2.imread(str(EVAL_DIR / "views" / meta["image"])), cam
         return
-    from findme_core.synth import Pose, Room, render
+    from findme_core.synth.render import Pose, Room, render
     room = Room.rectangle(5.0, 6.0)
     for i in range(12):
         v = render(room, Pose(0.2, -1.5, 1.45, yaw_deg=-60 + 10 * i, pitch_deg=5 * (i % 4)),

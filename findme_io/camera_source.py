@@ -16,13 +16,13 @@ import numpy as np
 
 from dataclasses import replace
 
-from findme_core.camera import DEFAULT_HFOV_DEG, Camera
-from findme_core.gravity_fusion import with_sensor
-from findme_core.hypotheses import HypothesisSet
-from findme_core.methods import hypothesize
-from findme_core.photo import hypothesize_estimated
-from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance, tilt_cov
-from findme_core.vanishing import estimate_gravity, level_estimate
+from findme_core.geometry.camera import DEFAULT_HFOV_DEG, Camera
+from findme_core.single.gravity_fusion import with_sensor
+from findme_core.single.hypotheses import HypothesisSet
+from findme_core.single.methods import hypothesize
+from findme_core.single.photo import hypothesize_estimated
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance, tilt_cov
+from findme_core.single.vanishing import estimate_gravity, level_estimate
 
 from .exif import ExifInfo, focal_px
 

@@ -14,11 +14,11 @@ import numpy as np
 import schemas
 from .camera_source import lens_camera, with_gravity
 from .imageio import decode_photo, probe
-from findme_core.camera import Camera
+from findme_core.geometry.camera import Camera
 from findme_core.errors import CameraError, ImageError, InputError
-from findme_core.hypotheses import Hypothesis, HypothesisSet
-from findme_core.provenance import Provenance, tilt_cov
-from findme_core.scene import Located, distances
+from findme_core.single.hypotheses import Hypothesis, HypothesisSet
+from findme_core.geometry.provenance import Provenance, tilt_cov
+from findme_core.single.scene import Located, distances
 
 _FORMATS = {b"\xff\xd8\xff": "jpeg", b"\x89PNG": "png", b"RIFF": "webp"}
 
@@ -194,8 +194,8 @@ def msg_room_view(msg, camera_height: float | None = None):
     (``room_view.judge`` on what the message carries: its hypotheses, size and camera;
     ``camera_height`` metres, when known, only for the wording), or None when the message
     has no hypotheses (its ``reason`` says why) or no camera."""
-    from findme_core.lines import Lines
-    from findme_core.room_view import judge
+    from findme_core.single.lines import Lines
+    from findme_core.single.room_view import judge
     if not msg.hypotheses or not msg.HasField("camera"):
         return None
     hs = HypothesisSet(msg.width, msg.height, msg_hypotheses(msg),
@@ -225,7 +225,7 @@ def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
 
 def set_motion_estimate(msg, mo, max_alternatives: int = schemas.MAX_ALTERNATIVES):
     """Fill a ``schemas.Motion`` (in place: a builder, like protobuf's own setters) with a
-    ``findme_core.motion_model.PlanarMotion``: B's pose in A's level frame (metres,
+    ``findme_core.motion.model.PlanarMotion``: B's pose in A's level frame (metres,
     radians, as on the bus), its 1-sigmas, inliers and its evidence: score, the lifted
     points that fixed the scale, the layouts' agreement and the ``max_alternatives`` best
     alternatives (a symmetric room). ``matches`` is the caller's (the matching stage's)."""

@@ -11,7 +11,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from findme_core.floorplan import Plan
+from findme_core.plan.floorplan import Plan
 
 FT_PER_M = 3.280839895
 FONT_PX = 12

@@ -115,7 +115,7 @@ def log_hypotheses(rec, path: str, hset) -> None:
     """Ranked hypotheses as numbered 2D line strips over the photo (``path`` = the image
     entity, world/photo/<n>/camera/image); rank 1 thickest, colours as the selection image."""
     rr = _rr()
-    from findme_core.overlay import palette
+    from findme_io.overlay import palette
     strips = [_strip(h.polyline.points) for h in hset.hypotheses]
     if not strips:
         rec.log(f"{path}/hypotheses", rr.Clear(recursive=False))
@@ -152,7 +152,7 @@ def log_boundary(rec, path: str, scene) -> None:
 def scene_geometry(scene, samples: int = 48):
     """(floor (V, T) or None, walls (V, T) or None, 3D boundary strips) in the LEVEL frame
     of the photo (y down, floor y = h) from a Scene message."""
-    from findme_core.search import SegKind
+    from findme_core.single.search import SegKind
     cam = camera_of(scene)
     h = float(scene.camera_height_m) or 1.0
     poly, kinds = schemas.msg_to_polyline(scene.polyline)

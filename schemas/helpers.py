@@ -38,7 +38,7 @@ def msg_to_pixels(pixels) -> np.ndarray:
 def polyline_to_msg(points, kinds=None) -> common_pb2.Polyline:
     """(M, 2) vertices and (M - 1,) segment kinds -> Polyline.
 
-    ``kinds`` are SegKind numbers (findme_core.search.SegKind values are the same numbers);
+    ``kinds`` are SegKind numbers (findme_core.single.search.SegKind values are the same numbers);
     None means every segment is a WALL.
     """
     pts = np.asarray(points, dtype=float)

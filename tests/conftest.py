@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from findme_core.synth import Box, Pose, Room, render
+from findme_core.synth.render import Box, Pose, Room, render
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 EVAL_DIR = Path(os.environ.get("FINDME_EVAL_DIR", SHARED / "data" / "findme-eval"))

@@ -16,9 +16,9 @@ import cv2
 import numpy as np
 
 import schemas
-from findme_core.room import Pose, Room
-from findme_core.search import SegKind
-from findme_core.synth import render
+from findme_core.synth.room import Pose, Room
+from findme_core.single.search import SegKind
+from findme_core.synth.render import render
 from findme_io.convert import make_frame
 
 H = 1.4

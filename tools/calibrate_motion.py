@@ -15,7 +15,7 @@ normalised error on the ``--fit`` subset equals a calibrated Gaussian's (0.674):
 It prints the coverage (fraction within 1 and 3 sigma along, across and in yaw, and of the
 translation within 2 sigma as ``tools/motion_pairs.py`` counts it) of the current and the
 fitted values on every pair subset; the other subsets are the held-out check. Put the fitted
-values in ``MotionParams`` (findme_core/motion_model.py: ``findme_*`` for findme, the others
+values in ``MotionParams`` (findme_core/motion/model.py: ``findme_*`` for findme, the others
 for features, lifted and paper).
 """
 
@@ -33,9 +33,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from findme.evaluation.pairs import pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
-from findme_core.motion import MotionParams  # noqa: E402
-from findme_core.motion import METHODS  # noqa: E402
-from findme_core.pair import motion_photos, photo_of  # noqa: E402
+from findme_core.motion.methods import MotionParams  # noqa: E402
+from findme_core.motion.methods import METHODS  # noqa: E402
+from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
 
 SUBSETS = ("tum-cabinet-pairs", "zind-pairs-tilted", "zind-pairs-level", "kitti06-pairs")
 MEDIAN_ABS_Z = 0.6745   # median |z| of a standard normal

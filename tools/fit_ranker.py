@@ -1,4 +1,4 @@
-"""Fit the hypothesis ranking weights (findme_core.ranking.RankWeights) on a labelled split.
+"""Fit the hypothesis ranking weights (findme_core.single.ranking.RankWeights) on a labelled split.
 
     python tools/fit_ranker.py ../shared/data/findme-eval [--out weights.json] [--show]
 
@@ -28,8 +28,8 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from findme_core import hypotheses as H  # noqa: E402
-from findme_core.ranking import FEATURES  # noqa: E402
+from findme_core.single import hypotheses as H  # noqa: E402
+from findme_core.single.ranking import FEATURES  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
 
 SUBSETS = ("zind-level", "zind-level-lowfloor", "zind-tilted", "zind-pairs-level",
@@ -144,7 +144,7 @@ def main(argv=None):
         for vid in index["subsets"][s]["views"]:
             subset_of.setdefault(vid, s)
     vids = sorted(subset_of)
-    from findme_core.ranking import RANK_WEIGHTS
+    from findme_core.single.ranking import RANK_WEIGHTS
     w = RANK_WEIGHTS.vector()
     names = set(a.free.split(",")) if a.free else set(FEATURES) - {"support"}
     unknown = names - set(FEATURES)

@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from findme_core.synth import Box, Pose, Room, planar_motion, render
+from findme_core.synth.render import Box, Pose, Room, planar_motion, render
 
 OUT = Path(__file__).resolve().parents[1] / "findme" / "examples"
 

@@ -11,7 +11,7 @@ the new files with the change. Never to make a failing regression test pass by i
 Each golden session runs the embedded pipeline (as ``findme run``: capture, hypotheses,
 selection, measurement, odometry when installed) with the recorder, on pictures the project
 may ship: the bundled examples (rendered by tools/make_examples.py) and rooms rendered here by
-``findme_core.synth``; never ../shared data. The recording is then made deterministic: its
+``findme_core.synth.render``; never ../shared data. The recording is then made deterministic: its
 messages are put in a canonical order (photo, then pipeline stage), log times become a fixed
 clock (T0 + photo s + stage ms), time fields become those log times, stage timings 0 and
 instance ids "golden"; so the same code gives byte-identical files.
@@ -74,7 +74,7 @@ def _example(name: str) -> Photo:
 
 
 def _render(room, pose, w, h, hfov, seed, height_known=True) -> Photo:
-    from findme_core.synth import render
+    from findme_core.synth.render import render
     v = render(room, pose, w, h, hfov_deg=hfov, seed=seed)
     c = v.camera
     return Photo(encode_jpeg(v.image, 90), (c.fx, c.fy, c.cx, c.cy, c.width, c.height),
@@ -83,7 +83,7 @@ def _render(room, pose, w, h, hfov, seed, height_known=True) -> Photo:
 
 
 def specs() -> list[Spec]:
-    from findme_core.synth import Box, Pose, Room
+    from findme_core.synth.render import Box, Pose, Room
     pair = _example("room_a"), _example("room_b")
     meta = json.loads((ROOT / "findme" / "examples" / "room_a.json").read_text())
     gt = [tuple(map(float, q["px"])) for q in meta["ground_truth"]["floor_points"][1:4]]

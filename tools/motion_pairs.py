@@ -52,10 +52,10 @@ from findme.cli.evaluate import add_gravity_args  # noqa: E402
 from findme.evaluation.pairs import pair_inputs  # noqa: E402
 from findme.evaluation.views import GravityInput  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
-from findme_core.motion import MotionParams  # noqa: E402
-from findme_core.pair import motion_photos, photo_of  # noqa: E402
-from findme_core.planar import _epipolar_terms, bearings  # noqa: E402
-from findme_core.search import SegKind  # noqa: E402
+from findme_core.motion.methods import MotionParams  # noqa: E402
+from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
+from findme_core.geometry.planar import _epipolar_terms, bearings  # noqa: E402
+from findme_core.single.search import SegKind  # noqa: E402
 
 SUBSETS = ("zind-pairs-level", "zind-pairs-tilted", "tum-cabinet-pairs", "kitti06-pairs")
 
@@ -106,7 +106,7 @@ def _why(reg, g, base):
 
 def _traced(methods):
     """Run ``motion_photos`` keeping the ``findme`` Registration (its ``trace``)."""
-    from findme_core import motion
+    from findme_core.motion import methods as motion
     seen = []
     real = motion.Registration
 
@@ -136,7 +136,7 @@ def diagnose(job):
         res = motion_photos(pa, pb, methods, params=params)
     finally:
         restore()
-    from findme_core import features
+    from findme_core.motion import features
     m = features.match(pa.features, pb.features)
     a, b = bearings(pa.camera, m.ua), bearings(pb.camera, m.ub)
     t = np.array([g["x_m"], pair.get("out_of_plane", {}).get("dy_m", 0.0), g["z_m"]])

@@ -43,10 +43,10 @@ def dump(out: str, code: str | None) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from bench.bench_motion import pairs
     from findme_core.errors import FindmeError
-    from findme_core.features import FeatureParams
-    from findme_core.methods import hypothesize
-    from findme_core.motion import MotionParams
-    from findme_core.pair import motion_photos, prepare
+    from findme_core.motion.features import FeatureParams
+    from findme_core.single.methods import hypothesize
+    from findme_core.motion.methods import MotionParams
+    from findme_core.motion.pair import motion_photos, prepare
     import findme_core
     print(f"code: {Path(findme_core.__file__).parent}", file=sys.stderr)
     params, fp, res = MotionParams(), FeatureParams(), {}

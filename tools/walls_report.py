@@ -39,8 +39,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from findme.cli.evaluate import add_gravity_args  # noqa: E402
 from findme.evaluation.views import GravityInput, view_camera, view_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
-from findme_core.scene import MAX_REL_SIGMA, Scene, boundary_sigma_px  # noqa: E402
-from findme_core.search import SegKind  # noqa: E402
+from findme_core.single.scene import MAX_REL_SIGMA, Scene, boundary_sigma_px  # noqa: E402
+from findme_core.single.search import SegKind  # noqa: E402
 from findme_io.camera_source import hypothesize_photo  # noqa: E402
 from findme_io.imageio import read_image  # noqa: E402
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import logging
 
-from services.runtime.registry import _extra_services, add_service_args, make_handler, wait_for_signal
+from services.registry import _extra_services, add_service_args, make_handler, wait_for_signal
 from services.runtime.service import Group
 
 from .bus_options import add_bus_args, open_bus, setup_logging

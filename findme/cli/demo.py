@@ -16,10 +16,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from findme_core.camera import Camera
-from findme_core.methods import hypothesize
-from findme_core.overlay import draw_hypotheses
-from findme_core.scene import Scene, distances
+from findme_core.geometry.camera import Camera
+from findme_core.single.methods import hypothesize
+from findme_io.overlay import draw_hypotheses
+from findme_core.single.scene import Scene, distances
 
 from findme_io.imageio import read_image
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import os
 
 from findme_core.errors import InputError
-from findme_core.methods import METHODS
-from findme_core.motion import METHODS as MOTION_METHODS
-from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG
+from findme_core.single.methods import METHODS
+from findme_core.motion.methods import METHODS as MOTION_METHODS
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
 
 from ..evaluation.dataset import evaluate
 from ..evaluation.views import GravityInput

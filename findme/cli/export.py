@@ -23,7 +23,7 @@ import math
 from pathlib import Path
 
 from findme_core.errors import RecordingError
-from findme_core.trajectory import PlanarPose, to_tum
+from findme_core.motion.trajectory import PlanarPose, to_tum
 from services.recording.mcap_reader import read_available
 
 

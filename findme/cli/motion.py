@@ -1,9 +1,9 @@
 """``findme motion``: the planar motion between two photos (two-image mode, paper step 5).
 
-Pipeline (``findme_core.pair``, shared with ``findme eval``, the odometry service and the
+Pipeline (``findme_core.motion.pair``, shared with ``findme eval``, the odometry service and the
 benchmark): hypotheses of each photo (the chosen rank becomes the photo's scene, the next ranks
 candidate layouts), its room orientation from its lines, ORB features and matches, then
-``findme_core.motion.estimate`` registers the two photos' layouts with the matches and gives
+``findme_core.motion.methods.estimate`` registers the two photos' layouts with the matches and gives
 (x, z, yaw) of photo B in photo A's level frame, with its evidence and, where the evidence
 allows several, the alternatives. Degrees only here, at the edge.
 """
@@ -15,9 +15,9 @@ import math
 import sys
 import time
 
-from findme_core.methods import METHODS as HYPOTHESIS_METHODS
-from findme_core.motion import METHODS
-from findme_core.pair import PairResult, motion_photos, photo_of
+from findme_core.single.methods import METHODS as HYPOTHESIS_METHODS
+from findme_core.motion.methods import METHODS
+from findme_core.motion.pair import PairResult, motion_photos, photo_of
 
 from findme_io.camera_source import camera_json
 from findme_io.imageio import read_photo

@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 import math
 
-from findme_core.camera import DEFAULT_HFOV_DEG
+from findme_core.geometry.camera import DEFAULT_HFOV_DEG
 from findme_core.errors import CameraError, InputError
-from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
 
 
 def floats(text: str, n: int, name: str) -> tuple[float, ...]:

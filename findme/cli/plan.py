@@ -19,10 +19,10 @@ import os
 
 import numpy as np
 
-from findme_core import relocalise, session
-from findme_core.camera import Camera
+from findme_core.plan import relocalise, session
+from findme_core.geometry.camera import Camera
 from findme_core.errors import FindmeError, InputError
-from findme_core.floorplan import Plan
+from findme_core.plan.floorplan import Plan
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.imageio import read_photo

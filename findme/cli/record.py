@@ -160,7 +160,7 @@ def cmd_view(args) -> int:
     where, shown = view_recording(recs, sink)
     print(f"{src}: {shown} messages shown -> {where}")
     if sink.mode == "web":   # the web viewer lives as long as this command: until Ctrl-C
-        from services.runtime.registry import wait_for_signal
+        from services.registry import wait_for_signal
         print("serving the web viewer; Ctrl-C to stop", flush=True)
         try:
             wait_for_signal()
@@ -200,7 +200,7 @@ def view_recording(recs: list[Recorded], sink) -> tuple[str, int]:
 
 
 def _view_live(args) -> int:
-    from services.runtime.registry import wait_for_signal
+    from services.registry import wait_for_signal
     from services.runtime.service import Service
     from services.recording.viewer import Sink, ViewerHandler, has_display
 

@@ -10,7 +10,7 @@ import uuid
 from pathlib import Path
 
 from services.pipeline.capture import CaptureHandler
-from services.runtime.registry import add_service_args, make_handler
+from services.registry import add_service_args, make_handler
 from services.runtime.service import Group
 
 from ..report import Printer, example_paths, measure, read_photos, report_session

@@ -14,7 +14,7 @@ import time
 from findme_core.errors import InputError
 from services.pipeline.capture import publish_frames, sources
 from services.runtime import bus
-from services.runtime.registry import (add_service_args, make_handler, service_names,
+from services.registry import (add_service_args, make_handler, service_names,
                                       service_options, wait_for_signal)
 from services.runtime.service import Service
 

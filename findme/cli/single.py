@@ -11,12 +11,12 @@ import cv2
 import numpy as np
 
 from findme_core.errors import HypothesisError, InputError
-from findme_core.methods import METHODS
+from findme_core.single.methods import METHODS
 from findme_io.camera_source import hypothesize_photo
-from findme_core.overlay import draw_hypotheses
-from findme_core.room_view import judge
-from findme_core.scene import Scene, boundary_sigma_px, distances
-from findme_core.search import SegKind
+from findme_io.overlay import draw_hypotheses
+from findme_core.single.room_view import judge
+from findme_core.single.scene import Scene, boundary_sigma_px, distances
+from findme_core.single.search import SegKind
 
 from findme_io.camera_source import camera_json
 from findme_io.imageio import read_photo

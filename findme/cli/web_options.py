@@ -10,7 +10,7 @@ import logging
 from pathlib import Path
 
 from findme_core.errors import InputError
-from services.runtime.registry import wait_for_signal
+from services.registry import wait_for_signal
 
 from .bus_options import open_bus, setup_logging
 

@@ -12,7 +12,7 @@ import os
 import cv2
 
 from findme_core.errors import FindmeError
-from findme_core.pair import motion_photos, photo_of
+from findme_core.motion.pair import motion_photos, photo_of
 
 from findme_io.camera_source import hypothesize_photo
 from findme_io.imageio import read_image

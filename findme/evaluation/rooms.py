@@ -16,8 +16,8 @@ from concurrent.futures import ProcessPoolExecutor
 import cv2
 from tqdm import tqdm
 
-from findme_core import session
-from findme_core.camera import Camera
+from findme_core.plan import session
+from findme_core.geometry.camera import Camera
 from findme_core.errors import FindmeError
 
 from findme_io.imageio import read_image

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from findme_core.camera import Camera
+from findme_core.geometry.camera import Camera
 from findme_core.errors import FindmeError, InputError
-from findme_core.manhattan import gravity_of, pitch_roll_deg
-from findme_core.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
-from findme_core.scene import Scene, boundary_sigma_px
+from findme_core.geometry.manhattan import gravity_of, pitch_roll_deg
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
+from findme_core.single.scene import Scene, boundary_sigma_px
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.imageio import read_image

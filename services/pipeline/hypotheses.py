@@ -15,7 +15,7 @@ import time
 
 import schemas
 from ..runtime import authority, bus
-from findme_core.pair import photo_lines, segment_lines
+from findme_core.motion.pair import photo_lines, segment_lines
 from findme_io.camera_source import hypothesize_photo
 from findme_io.convert import frame_photo_camera, hypothesis_set_msg
 from ..runtime.handler import Handler, Input, Output

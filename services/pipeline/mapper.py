@@ -41,9 +41,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import schemas
-from findme_core import features, fuse, layout, plan_pose, session as plan_session
+from findme_core.motion import features
+from findme_core.plan import fuse, pose as plan_pose, session as plan_session
+from findme_core.single import layout
 from findme_core.errors import FindmeError, HypothesisError, InputError
-from findme_core.scene import Scene
+from findme_core.single.scene import Scene
 from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
 from findme_io.imageio import decode_image
 

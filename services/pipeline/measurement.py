@@ -19,8 +19,8 @@ from collections import OrderedDict
 import schemas
 from findme_io.imageio import image_size
 from findme_core.errors import HypothesisError
-from findme_core.provenance import Provenance
-from findme_core.scene import Scene, boundary_sigma_px
+from findme_core.geometry.provenance import Provenance
+from findme_core.single.scene import Scene, boundary_sigma_px
 
 from ..runtime import bus
 from findme_io.convert import (camera_msg, frame_camera, measure_reply_msg, msg_camera,

@@ -19,7 +19,7 @@ numbers) and the photo gets no pose; later photos chain from the last one that d
 State is bounded (``odometry_session``) and expires: a session idle for ``idle_s`` is
 evicted; when it comes back, its poses are fetched from the bus (the store, the caches).
 Instances share the load by session (``shard``). Same pipeline as ``findme motion``
-(``findme_core.pair``), so the numbers are equal for the same photos.
+(``findme_core.motion.pair``), so the numbers are equal for the same photos.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ import numpy as np
 
 import schemas
 from findme_core.errors import FindmeError, HypothesisError
-from findme_core.pair import motion_photos, prepare
-from findme_core.trajectory import PlanarPose, compose
+from findme_core.motion.pair import motion_photos, prepare
+from findme_core.motion.trajectory import PlanarPose, compose
 from findme_io.convert import (frame_camera, msg_camera, msg_hypotheses, msg_lines,
                                set_motion_estimate)
 from findme_io.imageio import decode_image

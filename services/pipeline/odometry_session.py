@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from findme_core.trajectory import PlanarPose
+from findme_core.motion.trajectory import PlanarPose
 
 CLOSED_MEMORY = 1024   # resolved photo numbers remembered per session (not to wait on again)
 
@@ -26,7 +26,7 @@ class Photo:
     hset: object | None = None       # HypothesisSet message
     selection: object | None = None  # Selection message
     selected_at: float | None = None
-    prepared: tuple | None = None    # (rank, findme_core.pair prepared photo): its motions' inputs
+    prepared: tuple | None = None    # (rank, findme_core.motion.pair prepared photo): its motions' inputs
 
 
 class OdometrySession:

@@ -17,7 +17,7 @@ import cv2
 
 import schemas
 from findme_core.errors import HypothesisError
-from findme_core.overlay import draw_hypotheses
+from findme_io.overlay import draw_hypotheses
 
 from ..runtime import bus
 from findme_io.convert import msg_hypotheses

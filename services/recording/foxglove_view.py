@@ -84,7 +84,7 @@ def _label_anchor(pts, width: int, height: int, slot: float) -> tuple[float, flo
 
 @functools.lru_cache(maxsize=64)
 def _palette(n: int) -> tuple[Color, ...]:
-    from findme_core.overlay import palette
+    from findme_io.overlay import palette
     return tuple(_rgba(c) for c in palette(n))
 
 

@@ -11,8 +11,7 @@ from dataclasses import dataclass
 
 import schemas
 from findme_core.errors import (BusError, CameraError, FindmeError, GeometryError,
-                                HypothesisError, ImageError, InputError, MotionError,
-                                SchemaError)
+                                HypothesisError, ImageError, InputError, MotionError, SchemaError)
 
 from . import authority, bus
 

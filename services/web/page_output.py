@@ -12,7 +12,7 @@ codes upper-case, without their prefix), unset optional fields ``None``, and an 
 is given relative to the session (``frame/3``). A scene also carries its boundary's walls on
 the floor (``walls_m``, the photo's level frame) for the page's floor map, and a hypothesis
 set says why its photo does not look like a room view (``not_room_view``,
-``findme_core.room_view``; "" when it does).
+``findme_core.single.room_view``; "" when it does).
 
 Pure: no bus, no server; the message is only read.
 """
@@ -20,7 +20,7 @@ Pure: no bus, no server; the message is only read.
 from __future__ import annotations
 
 import schemas
-from findme_core import layout
+from findme_core.single import layout
 from findme_core.errors import FindmeError
 from findme_io.convert import msg_camera, msg_room_view
 
@@ -45,7 +45,7 @@ def _pose(p) -> dict:
 
 def _walls(scene) -> list:
     """The walls of a Scene's boundary on the floor, [[x0, z0], [x1, z1]] metres in the
-    photo's level frame (``findme_core.layout``), for the page's floor map; [] when the
+    photo's level frame (``findme_core.single.layout``), for the page's floor map; [] when the
     boundary gives none."""
     try:
         poly, kinds = schemas.msg_to_polyline(scene.polyline)

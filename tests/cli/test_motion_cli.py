@@ -8,7 +8,7 @@ import json
 import cv2
 import pytest
 
-from findme_core.synth import Box, Pose, Room, planar_motion, render
+from findme_core.synth.render import Box, Pose, Room, planar_motion, render
 from tests.cli.conftest import as_json, intrinsics_flag, run_findme
 
 POSES = (Pose(0.2, -1.6, 1.45, -5.0, 22.0, 2.0), Pose(0.6, -1.0, 1.45, 12.0, 25.0, -2.0))

@@ -12,9 +12,9 @@ import cv2
 import numpy as np
 import pytest
 
-from findme_core import fuse
-from findme_core.room import Pose, Room
-from findme_core.synth import render
+from findme_core.plan import fuse
+from findme_core.synth.room import Pose, Room
+from findme_core.synth.render import render
 from tests.cli.conftest import as_json, run_findme
 from tests.plan_room import H, first_frame_truth, rendered_session
 

@@ -11,7 +11,7 @@ from importlib import resources
 import cv2
 import pytest
 
-from findme_core.synth import Box, Pose, Room, render
+from findme_core.synth.render import Box, Pose, Room, render
 from tests.cli.conftest import run_findme
 
 EXAMPLES = resources.files("findme") / "examples"

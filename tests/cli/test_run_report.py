@@ -13,8 +13,8 @@ from importlib import resources
 import cv2
 import numpy as np
 
-from findme_core.overlay import palette
-from findme_core.trajectory import from_tum
+from findme_io.overlay import palette
+from findme_core.motion.trajectory import from_tum
 from tests.cli.conftest import run_findme
 
 EXAMPLES = resources.files("findme") / "examples"

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from findme_core.synth import FLOOR
+from findme_core.synth.render import FLOOR
 from tests.cli.conftest import as_json, intrinsics_flag, run_findme
 from tests.conftest import floor_pixel_error
 

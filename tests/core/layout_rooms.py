@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from findme_core import layout
-from findme_core.orientation import Orientation
-from findme_core.features import Matches
-from findme_core.search import SegKind
-from findme_core.synth import Pose, render
+from findme_core.single import layout
+from findme_core.geometry.orientation import Orientation
+from findme_core.motion.features import Matches
+from findme_core.single.search import SegKind
+from findme_core.synth.render import Pose, render
 
 
 def exact_polyline(view):

@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from findme_core.camera import Camera
-from findme_core.methods import hypothesize
+from findme_core.geometry.camera import Camera
+from findme_core.single.methods import hypothesize
 from findme_io.camera_source import hypothesize_photo, with_gravity
 
 

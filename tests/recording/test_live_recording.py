@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from findme_core.trajectory import from_tum
+from findme_core.motion.trajectory import from_tum
 from services.recording.mcap_reader import read_available, read_recording
 from services.recording.recorder import RecorderHandler
 

@@ -10,7 +10,7 @@ import threading
 import pytest
 
 import schemas
-from findme_core.room import Room
+from findme_core.synth.room import Room
 from services.pipeline.mapper import MapperHandler
 from services.recording.recorder import RecorderHandler
 from services.recording.viewer import Sink, ViewerHandler

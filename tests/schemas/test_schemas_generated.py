@@ -120,7 +120,7 @@ def test_field_names_are_snake_case_with_units():
 
 
 def test_seg_kind_numbers_match_core():
-    from findme_core.search import SegKind
+    from findme_core.single.search import SegKind
 
     for k in SegKind:
         assert S.SegKind.Value(f"SEG_KIND_{k.name}") == int(k)

@@ -25,7 +25,7 @@ def test_polyline_default_kinds_are_walls():
 
 
 def test_polyline_accepts_core_seg_kinds():
-    from findme_core.search import SegKind
+    from findme_core.single.search import SegKind
 
     msg = S.polyline_to_msg([(0, 1), (5, 2), (9, 3)], [SegKind.STEP, SegKind.NONE])
     assert list(msg.kinds) == [S.SEG_KIND_STEP, S.SEG_KIND_NONE]

@@ -173,7 +173,7 @@ class ProcBus:
 def walk_views(n: int, width: int = 160, height: int = 120):
     """``n`` small rendered photos walking slowly through one room (successive photos
     overlap, so their motion can be estimated)."""
-    from findme_core.synth import Pose, Room, render
+    from findme_core.synth.render import Pose, Room, render
     room = Room.rectangle(5.0, 6.0, floor_style="wood")
     return [render(room, Pose(-0.3 + 0.04 * i, -1.8 + 0.08 * i, 1.4, yaw_deg=10 - 2 * i,
                               pitch_deg=27), width, height, hfov_deg=70, seed=5) for i in range(n)]

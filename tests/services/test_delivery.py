@@ -9,7 +9,7 @@ import pytest
 
 import schemas
 from findme.cli.status import service_statuses
-from findme_core.synth import Pose, Room, render
+from findme_core.synth.render import Pose, Room, render
 from services.runtime import bus
 from tests.cli.conftest import run_findme
 from tests.services.conftest import ProcBus, frame_of

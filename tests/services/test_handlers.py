@@ -10,9 +10,9 @@ from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.convert import msg_camera
 from findme_io.imageio import decode_image
 from findme_core.errors import HypothesisError, ImageError, InputError
-from findme_core.methods import hypothesize
-from findme_core.pair import photo_lines
-from findme_core.scene import Scene
+from findme_core.single.methods import hypothesize
+from findme_core.motion.pair import photo_lines
+from findme_core.single.scene import Scene
 from services.pipeline.hypotheses import HypothesesHandler
 from services.pipeline.measurement import MeasurementHandler
 from services.runtime.authority import KeyAuthorityError
@@ -54,7 +54,7 @@ def test_hypotheses_handler_sends_the_photos_lines_once(pipeline, tilted_view):
     odometry need not detect them again: with the phone's gravity (refined by them) and with
     gravity estimated from them, the gravity estimate's own detection (the hypotheses then
     took only the part below the horizon)."""
-    from findme_core.pair import line_segments
+    from findme_core.motion.pair import line_segments
     from findme_io.convert import msg_lines
     view, frame, hset, _ = pipeline
     sent = msg_lines(hset)
@@ -77,7 +77,7 @@ def test_hypotheses_handler_frame_without_gravity(tilted_view):
     """A frame without gravity: the service estimates it from the image, the hypotheses
     reuse that estimate's segments (photo.hypothesize_without_gravity gives the same), and
     the set's camera says so."""
-    from findme_core.photo import hypothesize_without_gravity
+    from findme_core.single.photo import hypothesize_without_gravity
     frame = frame_of(tilted_view)
     frame.ClearField("gravity")
     (out,) = HypothesesHandler().on_message("findme/t1/frame/0", frame)
@@ -87,7 +87,7 @@ def test_hypotheses_handler_frame_without_gravity(tilted_view):
     assert np.degrees(np.arccos(np.clip(g @ tilted_view.camera.gravity, -1, 1))) < 0.3
     image = decode_image(frame.image.data)
     c = tilted_view.camera
-    from findme_core.camera import Camera
+    from findme_core.geometry.camera import Camera
     core, est = hypothesize_without_gravity(image, Camera(c.fx, c.fy, c.cx, c.cy, c.width, c.height))
     assert np.allclose(g, est.vector)
     for m, h in zip(out.msg.hypotheses, core.hypotheses):

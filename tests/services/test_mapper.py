@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import schemas
-from findme_core import fuse, polygon, session as plan_session
+from findme_core.plan import fuse, polygon, session as plan_session
 from findme_core.errors import HypothesisError, InputError
-from findme_core.provenance import Provenance, tilt_cov
-from findme_core.room import Room
+from findme_core.geometry.provenance import Provenance, tilt_cov
+from findme_core.synth.room import Room
 from findme_io.convert import camera_msg
 from services.pipeline.mapper import MapperHandler
 from services.runtime.service import Service
@@ -213,7 +213,7 @@ def test_sessions_are_bounded_and_expire(room):
 
 def test_the_registry_makes_the_mapper():
     import argparse
-    from services.runtime.registry import add_service_args, make_handler, service_names
+    from services.registry import add_service_args, make_handler, service_names
     p = argparse.ArgumentParser()
     add_service_args(p)
     assert "mapper" in service_names()

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import schemas
-from findme_core.search import SegKind
-from findme_core.synth import Pose, Room, planar_motion, render
+from findme_core.single.search import SegKind
+from findme_core.synth.render import Pose, Room, planar_motion, render
 from services.pipeline.hypotheses import HypothesesHandler
 from findme_io.convert import motion_text, set_motion_estimate
 from services.pipeline.odometry import OdometryHandler
@@ -143,7 +143,7 @@ def test_a_symmetric_room_reaches_the_page_as_alternatives():
     """A square room seen as in tests/core/test_register.py: two motions a quarter turn
     apart fit equally; the bus message carries both, each with its evidence."""
     from tests.core.layout_rooms import exact_orientation, no_matches, view_layout
-    from findme_core.motion import estimate
+    from findme_core.motion.methods import estimate
     pa, pb = Pose(0.0, -1.5, 1.45, 0.0, 25.0), Pose(1.2, 1.0, 1.45, 45.0, 30.0)
     square = Room.rectangle(5.0, 5.0)
     (va, la), (vb, lb) = view_layout(square, pa), view_layout(square, pb)

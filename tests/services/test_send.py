@@ -10,7 +10,7 @@ import signal
 
 import pytest
 
-from findme_core.trajectory import from_tum
+from findme_core.motion.trajectory import from_tum
 from findme_io.capture_time import exif_time_ns, parse_exif_time
 from services.runtime.bus import BusConfig, open_session, wait_alive
 from tests.cli.conftest import run_findme

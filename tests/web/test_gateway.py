@@ -209,8 +209,8 @@ def test_one_page_sees_only_its_own_session():
 def test_a_scene_carries_its_walls_on_the_floor():
     """The floor map draws each photo's walls: a scene's boundary as floor segments (metres,
     the photo's level frame), [] when its boundary or camera gives none."""
-    from findme_core.camera import Camera
-    from findme_core.search import SegKind
+    from findme_core.geometry.camera import Camera
+    from findme_core.single.search import SegKind
     from findme_io.convert import camera_msg
     cam = Camera.from_hfov(70, 640, 480)
     sc = schemas.Scene(session="s", index=0, rank=1, camera=camera_msg(cam), camera_height_m=1.5,

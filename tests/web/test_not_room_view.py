@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import pytest
 
-from findme_core.synth import Pose, Room, render
+from findme_core.synth.render import Pose, Room, render
 
 pytestmark = pytest.mark.timeout(120)
 

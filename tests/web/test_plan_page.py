@@ -13,7 +13,7 @@ import json
 
 import pytest
 
-from findme_core.room import Room
+from findme_core.synth.room import Room
 from services.web.page_output import to_page
 from tests.plan_room import rendered_session
 from tests.schemas.conftest import sample_messages

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from findme_core.floorplan import Plan, Wall
+from findme_core.plan.floorplan import Plan, Wall
 from findme_io.plan_svg import plan_svg
 
 pytestmark = pytest.mark.timeout(120)

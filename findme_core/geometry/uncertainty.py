@@ -1,0 +1,143 @@
+"""How far the 3D points of a scene may be off: the 1-sigma terms of ``scene.Scene``.
+
+A located point's 1-sigma radius (metres) is the root sum of squares of four parts:
+
+* boundary: the chosen boundary off by ``boundary_sigma_px`` (linearised: the scene rebuilt
+  under the boundary moved by one pixel, the displacement scaled up), moved down or sideways,
+  whichever moves the point more: a steep boundary (the base of a wall running away from the
+  camera) moved down slides along itself, so only the sideways move shows its error;
+* height: the camera height off by its sigma (every point scales with it);
+* pixel: the tap off by one pixel in u and in v;
+* gravity: gravity's tilt off along each principal axis of its covariance (central
+  differences of the scene rebuilt under gravity tilted by +-``TILT_STEP``).
+
+Frames and units: pixels (u, v); points in the camera's level frame (y down along gravity)
+inside, camera frame for the gravity displacements; metres, radians.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from findme_core.errors import GeometryError, HypothesisError
+
+#: 1-sigma of a chosen boundary's position on real photos, pixels of the ~640 px working
+#: size (the hypotheses' resolution): fitted on the dev split so that 68 % of wall and
+#: non-floor points lie within their 1-sigma (tools/calibrate_sigma.py).
+BOUNDARY_SIGMA_WORK_PX = 34.0
+WORK_SIZE_PX = 640
+
+
+def boundary_sigma_px(width: int, height: int) -> float:
+    """``BOUNDARY_SIGMA_WORK_PX`` in pixels of a ``width`` x ``height`` photo."""
+    return BOUNDARY_SIGMA_WORK_PX * max(width, height) / WORK_SIZE_PX
+
+
+#: tilt step of the numerical derivative of the gravity part, radians
+TILT_STEP = 1e-3
+
+
+def point_sigmas(scene, px: np.ndarray, rays: np.ndarray, P: np.ndarray,
+                 surface: np.ndarray) -> tuple[dict, np.ndarray]:
+    """The sigma parts of located points.
+
+    Args:
+        scene: the ``scene.Scene``.
+        px: (N, 2) finite pixels; rays: (N, 3) their level rays; P: (N, 3) their level-frame
+            points (NaN where none); surface: (N,) 1 floor, 2 wall, 0 none.
+    Returns:
+        ({"height", "boundary", "pixel", "gravity"}: (N,) metres (inf where undefined),
+         (N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
+         along each principal axis of ``scene.gravity_cov``).
+    """
+    cam = scene.camera
+
+    def moved(pieces, r):
+        t2, _, _ = scene._solve(pieces, r)
+        # a floor point stays on the floor (the boundary does not move it)
+        t2 = np.where(surface == 1, np.where(r[:, 1] > 0, scene.height / np.maximum(r[:, 1], 1e-300),
+                                             np.nan), t2)
+        d = np.linalg.norm(t2[:, None] * r - P, axis=1)
+        return np.where(np.isfinite(d), d, np.inf)
+
+    shift = scene._shift_px
+    parts = {"height": np.linalg.norm(P, axis=1) * scene.height_sigma / scene.height,
+             "boundary": np.maximum(moved(scene._pieces_shifted, rays),
+                                    moved(scene._pieces_sideways, rays)) * (
+                 scene.boundary_sigma_px / shift if shift > 0 else 0.0),
+             "pixel": np.hypot(moved(scene._pieces, cam.rays_level(px + (1.0, 0.0))),
+                               moved(scene._pieces, cam.rays_level(px + (0.0, 1.0))))}
+    jac = gravity_displacements(scene, px, P, surface)
+    parts["gravity"] = np.sqrt((jac ** 2).sum((1, 2)))
+    return parts, jac
+
+
+def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndarray) -> np.ndarray:
+    """(N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
+    along each principal axis of ``scene.gravity_cov`` (linearised: central differences of
+    the scene rebuilt under gravity tilted by +-``TILT_STEP``; the point keeps its
+    surface). Zero when gravity is exact."""
+    n = len(px)
+    out = np.zeros((n, 2, 3))
+    evals, evecs = np.linalg.eigh(scene.gravity_cov)
+    if n == 0 or not np.any(evals > 0):
+        return out
+    cam = scene.camera
+    R = cam.R_level_from_cam
+    x_l, z_l = R[0], R[2]
+    P_cam = P @ R
+    for k in range(2):
+        s = float(np.sqrt(max(evals[k], 0.0)))
+        if s == 0.0:
+            continue
+        e_p, e_r = evecs[:, k]
+        axis = e_p * x_l - e_r * z_l            # dg = axis x g = e_p z_l + e_r x_l
+        moved = []
+        for sign in (1.0, -1.0):
+            w = sign * TILT_STEP * axis
+            Rw, _ = cv2.Rodrigues(w.reshape(3, 1))
+            c2 = cam.with_gravity(Rw @ cam.gravity)
+            try:
+                pieces = scene._build(scene.polyline, c2)
+            except (HypothesisError, GeometryError):
+                moved.append(np.full((n, 3), np.nan))
+                continue
+            rays = c2.rays_level(px)
+            t, s2, _ = scene._solve(pieces, rays)
+            t = np.where(surface == 1, np.where(rays[:, 1] > 0,
+                                                scene.height / np.maximum(rays[:, 1], 1e-300),
+                                                np.nan), t)
+            moved.append((t[:, None] * rays) @ c2.R_level_from_cam)
+        d = (moved[0] - moved[1]) * (s / (2 * TILT_STEP))
+        out[:, k] = np.where(np.isfinite(d), d, np.inf)
+    out[~np.isfinite(P_cam).all(1)] = 0.0
+    return out
+
+
+def distances(points: list, height: float, height_sigma: float):
+    """Distances between consecutive located points (``scene.Located``, metres) and their
+    1-sigma.
+
+    Height errors scale every point alike, so that part of a distance's sigma is
+    d * height_sigma / height; a gravity tilt moves every point of the photo together, so
+    its part is the change of the distance along each tilt axis (``Located.gravity_jac``);
+    boundary and pixel parts are taken as independent.
+
+    Returns:
+        list of (distance | None, sigma | None, error | None), len(points) - 1 entries.
+    """
+    out = []
+    for a, b in zip(points[:-1], points[1:]):
+        if a.xyz is None or b.xyz is None:
+            out.append((None, None, "an end point has no 3D position"))
+            continue
+        d = float(np.linalg.norm(b.xyz - a.xyz))
+        grav = 0.0
+        if a.gravity_jac is not None and b.gravity_jac is not None and d > 0:
+            grav = float(np.sum(((b.gravity_jac - a.gravity_jac) @ ((b.xyz - a.xyz) / d)) ** 2))
+        s = np.sqrt((d * height_sigma / height) ** 2 + grav
+                    + a.sigma_parts["boundary"] ** 2 + b.sigma_parts["boundary"] ** 2
+                    + a.sigma_parts["pixel"] ** 2 + b.sigma_parts["pixel"] ** 2)
+        out.append((d, float(s), None))
+    return out

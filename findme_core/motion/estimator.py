@@ -1,0 +1,331 @@
+"""The default motion estimator (``findme``): 3-DOF planar registration of two photos by
+their room layouts and their feature matches together (see ``motion`` for the method and the
+conventions: the pose of camera B in A's level frame, X_A = R_y(yaw) X_B + t, t = (x, dy, z)
+metres, yaw radians > 0 when B is turned right of A).
+
+``Registration(...).run()``: yaw candidates (room orientations, the free epipolar RANSAC,
+wall pairs), per yaw the baseline directions the matches agree on and the translations the
+walls fix, all scored by matches + layouts + orientations + a baseline prior; the best
+distinct ones refined by robust Levenberg-Marquardt, ranked; close seconds are alternatives.
+Pure numpy; seeded randomness.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from findme_core.motion import (one_sided as motion_lifted, photometric as motion_photometric,
+                                register)
+from findme_core.errors import MotionError
+from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
+                                               _model_error, check_matches, local_optimisation)
+from findme_core.motion.model import MotionInputs, MotionParams, PlanarMotion, motion_result
+from findme_core.geometry.planar import bearings, rot_y
+from findme_core.motion.fit import Fit, Turned, YawScale, common_depth_sigma, known_yaw_score
+
+
+class Registration:
+    """One run of the ``findme`` estimator (see the module docstring); arguments as
+    ``motion.estimate``."""
+
+    def __init__(self, matches, cam_a, cam_b, h_a, h_b, lift_a, lift_b, layouts, orientations,
+                 params: MotionParams, copies: int = 0, surfaces=(None, None)):
+        self.p, self.m, self.n, self.copies = params, matches, len(matches), copies
+        self.surfaces = surfaces
+        self.trace = None   # (yaws, candidate yaws (C,), t (C, 3), scores (C,)) once scored
+        self.feats = self.n >= params.min_matches
+        if self.feats:
+            check_matches(matches, params)       # identical photos: an error whatever else
+        self.a, self.b = bearings(cam_a, matches.ua), bearings(cam_b, matches.ub)
+        self.pix = 1.0 / np.sqrt(cam_a.fx * cam_b.fx)
+        self.turned = Turned(self.a, self.b, self.pix)   # per-yaw terms, shared with the Fit
+        self.planar, self.dy, self.h = abs(h_a - h_b) < 1e-6, float(h_a - h_b), (h_a, h_b)
+        self.lifts = (lift_a, lift_b)
+        self.la = list(layouts[0])[:params.max_layouts]
+        self.lb = list(layouts[1])[:params.max_layouts]
+        oa, ob = orientations
+        self.orient = (None if oa is None or ob is None
+                       or min(oa.support, ob.support) < params.min_orientation_support
+                       else (oa.angle - ob.angle, min(oa.support, ob.support)))
+        self.rng = np.random.default_rng(params.seed)
+        self.normal = None        # (floor normal in A, yaw) when the features correct gravity
+        self.depth = None         # the scene's depth scale (``_scene_depth``), metres
+        self.seeds = np.argsort(matches.ratio, kind="stable")[:params.max_direction_seeds]
+        self.rp = register.RegisterParams(weight=params.layout_weight,
+                                          violation=params.layout_violation)
+
+    # ------------------------------------------------------------------ candidates
+    def _yaws(self):
+        yaws, free = [], None
+        if self.orient is not None:
+            yaws += [self.orient[0] + k * np.pi / 2 for k in range(4)]
+        if self.feats:
+            try:
+                y, t, e = _epipolar_ransac(self.a, self.b, self.planar, self.pix,
+                                           replace(self.p, max_iters=self.p.free_iters), self.rng)
+                y, t, e, sig_elev = local_optimisation(self.a, self.b, y, t, e, self.planar,
+                                                       self.pix, self.p)
+                yaws.append(y)
+                free = (y, t, e)
+                if self.planar and abs(t[1]) > 3.0 * np.sin(sig_elev):
+                    # moved parallel to the floor: the floor normal is orthogonal to t, and
+                    # floor points are lifted on that corrected floor (``features``)
+                    normal = np.array([0.0, 1.0, 0.0]) - t[1] * t
+                    self.normal = (normal / np.linalg.norm(normal), y)
+            except MotionError:
+                pass
+        if self.la and self.lb:   # the longest wall pairs first
+            yaws += list(register.wall_yaws(self.la[0], self.lb[0], self.rp)[:self.p.max_wall_yaws])
+        out = []
+        for y in np.angle(np.exp(1j * np.array(yaws, float))):
+            if all(abs(np.angle(np.exp(1j * (y - z)))) > np.radians(2.0) for z in out):
+                out.append(float(y))
+        return out, free
+
+    def _directions(self, yaw: float):
+        """Unit horizontal baseline directions (K, 3) the matches agree on at this yaw, with
+        their epipolar inliers (K, M): one match fixes the direction (t . (R b x a) = 0);
+        all of them are scored at once (matrix products) and the best distinct ones kept."""
+        a, p = self.a, self.p
+        Rb, m, ab, far = self.turned(yaw)
+        seeds = self.seeds   # the directions of the most distinctive matches are tried
+        T = np.column_stack([m[seeds, 2], np.zeros(len(seeds)), -m[seeds, 0]])
+        T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
+        T = np.vstack([T, -T])
+        score, inl = known_yaw_score(a, Rb, m, T, self.pix, p.thr_px, ab, far)
+        keep, order = [], np.argsort(-score)
+        floor = max(2.0, 0.3 * score[order[0]])
+        for i in order:
+            if score[i] < floor or len(keep) == 3:
+                break
+            if all(T[i] @ T[j] < np.cos(np.radians(3.0)) for j in keep):
+                keep.append(i)
+        return T[keep], inl[keep], score[keep]
+
+    def _lift(self, first):
+        sel = _lift_order(self.a, self.m.ratio, first, self.p.max_lift)
+        na = nb = None
+        if self.normal is not None:
+            na, nb = self.normal[0], rot_y(self.normal[1]).T @ self.normal[0]
+        return MotionInputs(self.a, self.b,
+                            _inflate(self.lifts[0], sel, self.n, self.h[0], self.p, na, self.a),
+                            _inflate(self.lifts[1], sel, self.n, self.h[1], self.p, nb, self.b),
+                            self.dy, self.h[0], self.pix)
+
+    def _scene_depth(self):
+        """Depth scale of the scene, metres: the median horizontal distance of the two
+        photos' boundary samples (chosen layouts) and lifted points, weighted by 1 / sigma^2
+        (a boundary near the horizon is far and says little); None without either."""
+        d, w = [np.zeros(0)], [np.zeros(0)]
+        for lays, L in ((self.la, self.P.la), (self.lb, self.P.lb)):
+            d.append(np.hypot(L.points[L.valid, 0], L.points[L.valid, 2]))
+            w.append(L.sigma[L.valid] ** -2.0)
+            if lays:
+                k = (lays[0].kind == 0) & np.isfinite(lays[0].range)
+                d.append(lays[0].range[k])
+                w.append(lays[0].sigma[k] ** -2.0)
+        d, w = np.concatenate(d), np.concatenate(w)
+        if len(d) == 0:
+            return None
+        o = np.argsort(d)
+        c = np.cumsum(w[o])
+        return float(d[o][np.searchsorted(c, 0.5 * c[-1])])
+
+    def _candidates(self, yaws, free):
+        none = (np.zeros((0, 3)), np.zeros((0, self.n), bool), np.zeros(0))
+        per_yaw = [self._directions(y) if self.feats else none for y in yaws]
+        # lift the inliers of the free RANSAC and of the best direction at any yaw first
+        first = np.zeros(self.n, bool) if free is None else free[2].copy()
+        best = max(per_yaw, key=lambda d: d[2][0] if len(d[2]) else -1.0)
+        if len(best[2]):
+            first |= best[1][0]
+        self.P = self._lift(first)
+        self.depth = self._scene_depth()
+        self.fit = Fit(self.P, self.la, self.lb, self.orient, self.depth, self.p, self.rp,
+                       self.turned)
+        uses = (self.P.usable(False), self.P.usable(True))   # floor points first
+        cy, ct = [], []
+
+        def add(yaw, t):   # (N, 2) x, z (dy: h_A - h_B) or (N, 3)
+            t = np.asarray(t, float)
+            t = self._t3(t.reshape(-1, 2)) if t.shape[-1] == 2 else t.reshape(-1, 3)
+            cy.extend([yaw] * len(t))
+            ct.append(t)
+
+        dirs = [(y, T, inl, False) for y, (T, inl, _) in zip(yaws, per_yaw)]
+        if free is not None:   # with equal heights (assumed, not measured), its direction
+            # may rise or fall: uneven ground, a hand-held phone
+            dirs.append((free[0], free[1][None], free[2][None], self.planar))
+        scale = YawScale(self.P, self.turned)   # ``_scale`` with its per-yaw terms kept
+        wall_only = (uses[1][0] & ~uses[0][0]) | (uses[1][1] & ~uses[0][1])
+        for y, T, inl, free_dir in dirs:
+            for t, e in zip(T, inl):
+                for k, use in enumerate(uses):
+                    if k == 0 or (e & wall_only).any():
+                        s = scale(y, t, e, use)
+                    # else: no wall point among the inliers: the same points, the same s
+                    if s is not None:   # the direction's own elevation, and dy = h_A - h_B
+                        add(y, s * t[[0, 2]])
+                        if free_dir:
+                            add(y, s * t)
+            d2 = T[:, [0, 2]] / np.maximum(np.linalg.norm(T[:, [0, 2]], axis=1, keepdims=True), 1e-12)
+            for la, lb in self._layout_pairs():
+                add(y, register.translations(la, lb, y, d2, self.rp))
+        # matches lifted in one photo only, placed in the other by their height
+        corr = motion_lifted.correspondences(self.P, self.p.lift_min_elev_deg)
+        for y in yaws:
+            add(y, motion_lifted.at_yaw(corr, y))
+        for la, lb in self._layout_pairs():   # the walls alone (one wall: one direction)
+            for y in yaws:
+                add(y, register.translations(la, lb, y, None, self.rp, single=not self.feats))
+        if not cy:
+            return np.zeros(0), np.zeros((0, 3))
+        return np.array(cy), np.vstack(ct)
+
+    def _layout_pairs(self):
+        """The layout pairs that propose translations: every pair of the candidate
+        hypotheses, up to ``gen_layouts`` of each photo (the chosen ones first)."""
+        k = self.p.gen_layouts
+        return [(la, lb) for la in self.la[:k] for lb in self.lb[:k]]
+
+    def _t3(self, t2):
+        return np.column_stack([t2[:, 0], np.full(len(t2), self.dy), t2[:, 1]])
+
+    # ------------------------------------------------------------------ answer
+    def run(self) -> PlanarMotion:
+        yaws, free = self._yaws()
+        if not yaws:
+            raise self._refusal(0)
+        cy, ct = self._candidates(yaws, free)
+        if len(cy) == 0 and free is not None:
+            raise MotionError("no matched point lies on the floor or on a chosen wall "
+                              "consistently with the motion in either photo, and no wall is "
+                              "known in both, so the distance between the photos cannot be "
+                              "measured")
+        if len(cy) == 0:
+            raise self._refusal(0)
+        ok = np.isfinite(ct).all(1) & (np.hypot(ct[:, 0], ct[:, 2]) < self.p.max_baseline_m)
+        cy, ct = cy[ok], ct[ok]
+        if len(cy) == 0:
+            raise self._refusal(0)
+        total, which = self.fit.score(cy, ct)
+        # the photos' appearance where each sees the other's surfaces: the best candidates
+        top_k = _distinct_top(cy, ct, total, self.p.photometric_top)
+        total[top_k] += self._photometric(cy[top_k], ct[top_k])[0]
+        self.trace = (yaws, cy, ct, total)   # what was weighed (``tools/motion_pairs.py``)
+        results, top = [], float(total.max())
+        for i in np.argsort(-total):
+            if len(results) == self.p.refine_top or (
+                    results and total[i] < self.p.alternative_ratio * top):
+                break
+            if any(self._same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
+                continue
+            q, cov = self.fit.refine(cy[i], ct[i], which[i])
+            s, w = self.fit.score(q[0], q[1:4])
+            ph, corr, n = self._photometric(q[:1], q[None, 1:4])
+            results.append((q, cov, float(s[0] + ph[0]), w[0], (float(corr[0]), int(n[0]))))
+        results.sort(key=lambda r: -r[2])
+        out = []
+        for r in results:
+            o = self._result(*r)
+            if not any(self._same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
+                out.append((o, r[3]))
+        # the best motion the evidence determines: one with too few matches and walls along
+        # one direction only is a family of motions, not an answer (the next one may be)
+        first = None
+        for k, (best, pair) in enumerate(out):
+            try:
+                self._check_determined(best, pair)
+                break
+            except MotionError as e:
+                first = first or e
+        else:
+            raise first
+        alts = tuple(o for o, _ in out[:k] + out[k + 1:]
+                     if o.score >= self.p.alternative_ratio * best.score)
+        return _spread_over(replace(best, alternatives=alts))
+
+    def _photometric(self, yaw, t3):
+        """(C,) score of C motions by the photos' appearance (``motion_photometric``: the
+        summed products of the normalised images over the samples each photo sees of the
+        other's surfaces, times ``photometric_weight``), (C,) their correlation and (C,)
+        sample counts."""
+        corr, n = motion_photometric.agreement(*self.surfaces, yaw, t3)
+        return self.p.photometric_weight * corr * n, corr, n
+
+    def _check_determined(self, m: PlanarMotion, pair) -> None:
+        if m.n_inliers < self.p.min_inliers:
+            if m.layout is None or m.layout.samples < self.p.min_layout_samples:
+                raise self._refusal(m.n_inliers)
+            self._check_layout_only(m, pair)
+
+    def _same(self, y1, t1, y2, t2) -> bool:
+        dt = np.hypot(t1[0] - t2[0], t1[1] - t2[1])
+        return (abs(np.angle(np.exp(1j * (y1 - y2)))) < np.radians(3.0)
+                and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
+
+    def _result(self, q, cov, score, pair, appearance) -> PlanarMotion:
+        t3 = q[1:4]
+        e_in, ta, tb = self.fit.inliers(q[0], t3)
+        i, j = max(pair[0], 0), max(pair[1], 0)
+        lay = (register.agreement(self.la[i], self.lb[j], q[0], t3[[0, 2]], self.rp)
+               if self.la and self.lb else None)
+        r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
+                          e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
+        depth = common_depth_sigma([(L.points[m], L.sigma[m])
+                                    for L, m in ((self.P.la, ta), (self.P.lb, tb))])
+        return _model_error(replace(r, layout=lay, score=score, appearance=appearance), self.p,
+                            depth)
+
+    def _refusal(self, k: int) -> MotionError:
+        walls = ("the photos' boundaries share no wall" if self.la and self.lb else
+                 "a photo has no boundary hypothesis, so its walls are unknown")
+        if not self.feats:
+            more = f", plus {self.copies} copies of them" if self.copies else ""
+            return MotionError(f"only {self.n} distinct feature matches between the photos "
+                               f"({self.m.n_a} and {self.m.n_b} keypoints{more}; need "
+                               f"{self.p.min_matches}) and "
+                               f"{walls}: they show too little in common")
+        return MotionError(f"the photos have no common view: only {k} of {self.n} distinct "
+                           f"feature matches agree on one camera motion and {walls}")
+
+    def _check_layout_only(self, m: PlanarMotion, pair) -> None:
+        """Without matches, the walls must fix both directions of the translation."""
+        lay = m.layout
+        if lay.corners:
+            return
+        la = self.la[max(pair[0], 0)]
+        n = la.normals[[i for i, _ in lay.walls]] if lay.walls else np.zeros((0, 2))
+        cross = n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0]
+        if len(n) and np.abs(cross).max() > np.sin(np.radians(30)):
+            return
+        what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
+        raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
+                          "along the wall cannot be measured")
+
+
+def _distinct_top(cy, ct, total, k: int) -> np.ndarray:
+    """Indices of the k best-scoring candidates (yaw (C,), t (C, 3), score (C,)) that are
+    not copies of a better one (the same yaw and t: a scale found twice)."""
+    order = np.argsort(-total, kind="stable")
+    _, first = np.unique(np.column_stack([cy, ct])[order], axis=0, return_index=True)
+    return order[np.sort(first)[:k]]
+
+
+def _spread_over(m: PlanarMotion) -> PlanarMotion:
+    """``m`` with its sigmas widened to cover its alternatives: the variance of the mixture of
+    it and them, weighted by score (the 1-sigma of an answer the evidence cannot tell from
+    another one includes the other one)."""
+    if not m.alternatives:
+        return m
+    cands = (m, *m.alternatives)
+    w = np.array([max(c.score, 1e-9) for c in cands])
+    w /= w.sum()
+    dx = np.array([c.x - m.x for c in cands])
+    dz = np.array([c.z - m.z for c in cands])
+    dyaw = np.angle(np.exp(1j * np.array([c.yaw - m.yaw for c in cands])))
+    return replace(m, sigma_x=float(np.sqrt(m.sigma_x ** 2 + w @ dx ** 2)),
+                   sigma_z=float(np.sqrt(m.sigma_z ** 2 + w @ dz ** 2)),
+                   sigma_yaw=float(np.sqrt(m.sigma_yaw ** 2 + w @ dyaw ** 2)))

@@ -1,0 +1,112 @@
+"""How well candidate poses of a block of photos agree with the photos already placed: the
+three terms ``fuse.place`` adds up for each candidate.
+
+* layout: ``register.scores`` of every (placed photo, block photo) pair, both ways
+  (agreeing wall samples minus samples on floor the other photo sees);
+* features: feature matches the pose puts on their epipolar planes, in front of both
+  cameras (planar motion, no height change; full within a few pixels, then fading);
+* motions: two-photo motions (``fuse.Link`` with ``t``) between a placed photo and a block
+  photo, a Gaussian in the position error (relative to the distance) and in the yaw error.
+
+Frames: the room frame (x, z metres; yaw radians, > 0 turned right). A candidate is the
+pose (x, z, yaw) of the block's first photo; photo j of the block has yaw ``cand yaw +
+rel[j]`` and the block's position (one spot). ``params`` is a ``fuse.FuseParams`` (its
+``register``, ``feature_*`` and ``motion_*`` fields). Pure numpy; no I/O.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from findme_core.geometry import planar
+from findme_core.motion import register
+from findme_core.geometry.planar import wrap
+
+
+def oriented(motions, members):
+    """The motions between a placed photo i and a block photo j (``members``), each as
+    (i, j, yaw, t (2,)): photo j's pose in photo i's level frame (a motion given the other
+    way round is inverted)."""
+    mem = set(int(m) for m in members)
+    for m in motions:
+        i, j = m.i, m.j
+        if (i in mem) == (j in mem) or m.t is None:
+            continue
+        yaw, t = m.yaw, np.asarray(m.t, float)
+        if i in mem:   # invert: photo i's pose in photo j's frame
+            i, j = j, i
+            t = -register.rot2(np.array([-yaw]), t[None])[0, 0]
+            yaw = -yaw
+        yield i, j, yaw, t
+
+
+def _block_poses(cands, rel, j):
+    """(C, 3) poses of block photo j for C block candidates."""
+    return np.column_stack([cands[:, 0], cands[:, 1], wrap(cands[:, 2] + rel[j])])
+
+
+def _in_frame(pi, pj):
+    """(yaw (C,), t (C, 2)) of poses pj (C, 3) in the frame of pose pi (3,)."""
+    yaw = wrap(pj[:, 2] - pi[2])
+    t = register.rot2(np.full(len(pj), -pi[2]), (pj[:, :2] - pi[:2])[:, None])[:, 0]
+    return yaw, t
+
+
+def layout_score(layouts, poses, rel, placed, mine, cands, params) -> np.ndarray:
+    """(C,) summed layout score of C block poses (C, 3) over every (placed photo, block
+    photo with a layout ``mine``) pair."""
+    total = np.zeros(len(cands))
+    for j in mine:
+        pj = _block_poses(cands, rel, j)
+        for i in placed:
+            yaw, t = _in_frame(poses[i], pj)
+            total += register.scores(layouts[i], layouts[j], yaw, t, params.register)
+    return total
+
+
+def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
+    """(C,) feature matches between placed photos and the block's photos that C block poses
+    put near their epipolar planes, in front of both cameras (planar motion, no height
+    change: t = (x, 0, z)); each scores ``feature_weight`` within ``feature_px`` (at 500 px
+    focal length), falling linearly to 0 at ``feature_fade_px`` (``fuse.FuseParams``); with
+    ``feature_fade_px`` <= ``feature_px``, MSAC: 1 - (r / ``feature_px``)^2 within it."""
+    total = np.zeros(len(cands))
+    mem = set(int(m) for m in members)
+    pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
+    for (i, j), (a, b) in matches.items():
+        if (i in mem) == (j in mem):
+            continue
+        if i in mem:                     # block photo first: swap to (placed, block)
+            i, j, a, b = j, i, b, a
+        if not np.isfinite(poses[i, 0]) or len(a) == 0:
+            continue
+        yaw, t2 = _in_frame(poses[i], _block_poses(cands, rel, j))
+        t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
+        r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
+        la, lb = planar.depths(yaw, t, a, b)
+        front = (la > 0) & (lb > 0)
+        if fade > pix:
+            s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
+        else:          # MSAC
+            s = np.where(front & (r < pix), 1.0 - (r / pix) ** 2, 0.0)
+        total += params.feature_weight * np.sum(s, 1)
+    return total
+
+
+def motion_score(motions, poses, rel, members, cands, params) -> np.ndarray:
+    """(C,) agreement of C block poses with the two-photo motions between placed photos and
+    the block's photos: ``motion_weight`` x a Gaussian in the position error (1-sigma
+    ``motion_rel`` x the motion's length, at least 0.3 m) and in the yaw error (1-sigma
+    ``motion_yaw_deg``)."""
+    total = np.zeros(len(cands))
+    for i, j, yaw, t in oriented(motions, members):
+        if not np.isfinite(poses[i, 0]):
+            continue
+        dyaw = wrap(cands[:, 2] + rel[j] - poses[i, 2] - yaw)
+        # where the motion puts photo j, in the room frame; the candidates put it at cands[:, :2]
+        want = poses[i, :2] + register.rot2(np.array([poses[i, 2]]), t[None])[0, 0]
+        sig = params.motion_rel * max(float(np.hypot(*t)), 0.3)
+        d = np.hypot(*(cands[:, :2] - want).T)
+        total += params.motion_weight * np.exp(-0.5 * (d / sig) ** 2
+                                               - 0.5 * (dyaw / np.radians(params.motion_yaw_deg)) ** 2)
+    return total

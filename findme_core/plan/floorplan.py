@@ -1,0 +1,299 @@
+"""The floor plan of a room: its outline, walls with lengths and 1-sigma, doors and openings
+seen in them, and the pose of every photo, from posed layouts (``fuse``) and the outline
+(``polygon``).
+
+Frames and units: the room frame is the level frame of the session's first photo (x right,
+z forward, floor at y = camera height; metres). A photo's pose is (x, z, yaw) with yaw > 0
+turned right (radians inside, degrees in ``to_dict``). The polygon is counter-clockwise seen
+from above (positive shoelace area in (x, z)); wall k runs from vertex k to vertex k + 1.
+
+Steps: wall lines (``walls``), the outline on them (``polygon``), then poses and lines refined
+together (``adjust``), whose covariance gives each wall length its 1-sigma (plus the camera
+height's relative error times L: every distance scales with the height). Without the
+refinement a wall's ends move with its neighbours' offsets: sigma_L^2 = sum over both
+neighbours of (sigma_d / sin(angle))^2 plus the height term; a line's offset sigma is the
+spread of its samples about it over the square root of their number.
+
+Pure numpy + OpenCV rasterisation; no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from findme_core.plan import adjust, polygon, wall_kinds, walls
+from findme_core.motion import register
+from findme_core.errors import GeometryError
+from findme_core.single.layout import Layout
+from findme_core.single.search import SegKind
+
+
+@dataclass(frozen=True)
+class PlanParams:
+    """Outline and uncertainty settings.
+
+    Attributes:
+        polygon: free floor and cell voting (``polygon.PolygonParams``).
+        lines: wall line search and classification (``walls.WallParams``).
+        adjust: the joint refinement (``adjust.RefineParams``).
+        height_rel: relative 1-sigma of the camera height (scales every length).
+        offset_floor_m: smallest 1-sigma of a wall line's offset.
+        aperture_min_m: a stretch of wall at least this long where floor was seen beyond it
+            (and no wall base) is a door or opening.
+        max_range_m: floor samples are cut at this distance from their camera.
+    """
+
+    polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)
+    lines: walls.WallParams = field(default_factory=walls.WallParams)
+    adjust: adjust.RefineParams = field(default_factory=adjust.RefineParams)
+    height_rel: float = 0.02
+    offset_floor_m: float = 0.01
+    aperture_min_m: float = 0.5
+    max_range_m: float = 8.0
+
+
+@dataclass(frozen=True)
+class Wall:
+    """One edge of the outline: ends a, b (2,) metres, length and 1-sigma, whether it was
+    seen as a wall ("missing" edges close the outline where nothing was seen), and the
+    apertures (from_m, to_m measured from a) where the floor was seen beyond it."""
+
+    a: np.ndarray
+    b: np.ndarray
+    length_m: float
+    sigma_m: float
+    seen: bool
+    apertures: tuple = ()
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A room's floor plan (see the module docstring for frames and units).
+
+    Attributes:
+        polygon: (V, 2) outline vertices, counter-clockwise.
+        walls: V ``Wall`` s, wall k from vertex k to k + 1.
+        area_m2: floor area of the outline.
+        poses: (N, 3) (x, z, yaw) per photo, NaN rows for photos not placed.
+        manhattan: True when the walls were found on two perpendicular axes.
+        notes: per photo, why it was not placed (None when placed).
+        ambiguity: per photo, the score of the best clearly different pose over the chosen
+            pose's score (NaN when there was none; near 1: ambiguous).
+        pose_sigma: (N, 3) 1-sigma of each pose (x, z metres, yaw radians) from the joint
+            refinement (NaN: not refined), or None.
+    """
+
+    polygon: np.ndarray
+    walls: tuple
+    area_m2: float
+    poses: np.ndarray
+    manhattan: bool
+    notes: tuple = ()
+    ambiguity: tuple = ()
+    pose_sigma: np.ndarray | None = None
+
+    @property
+    def closed(self) -> bool:
+        """Every edge of the outline was seen as a wall."""
+        return all(w.seen for w in self.walls)
+
+    @property
+    def missing(self) -> list[int]:
+        """Indices of the edges that close the outline where no wall was seen."""
+        return [k for k, w in enumerate(self.walls) if not w.seen]
+
+    def to_dict(self, ids=None) -> dict:
+        """JSON-ready dict: metres and degrees. ``ids`` name the photos (default 0..N-1)."""
+        ids = list(ids) if ids is not None else [str(i) for i in range(len(self.poses))]
+        poses = {}
+        sig = self.pose_sigma if self.pose_sigma is not None else np.full((len(ids), 3), np.nan)
+        for k, p, s in zip(ids, self.poses, sig):
+            poses[k] = (None if not np.isfinite(p[0]) else
+                        {"x_m": round(float(p[0]), 4), "z_m": round(float(p[1]), 4),
+                         "yaw_deg": round(math.degrees(float(p[2])), 3)})
+            if poses[k] is not None and np.all(np.isfinite(s)):
+                poses[k]["sigma_xz_m"] = round(float(np.hypot(s[0], s[1])), 4)
+                poses[k]["sigma_yaw_deg"] = round(math.degrees(float(s[2])), 3)
+        return {
+            "floor_polygon_m": np.round(self.polygon, 4).tolist(),
+            "area_m2": round(self.area_m2, 3),
+            "closed": self.closed,
+            "manhattan": self.manhattan,
+            "walls": [{"a": np.round(w.a, 4).tolist(), "b": np.round(w.b, 4).tolist(),
+                       "length_m": round(w.length_m, 4), "sigma_m": round(w.sigma_m, 4),
+                       "seen": w.seen,
+                       "apertures": [{"kind": "opening", "from_m": round(a, 3), "to_m": round(b, 3)}
+                                     for a, b in w.apertures]} for w in self.walls],
+            "missing_walls": self.missing,
+            "poses": poses,
+            "notes": {k: n for k, n in zip(ids, self.notes) if n},
+            "ambiguity": {k: round(float(a), 3) for k, a in zip(ids, self.ambiguity)
+                          if np.isfinite(a)},
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Plan":
+        """Inverse of ``to_dict`` (poses in the order of the dict)."""
+        walls = tuple(Wall(np.array(w["a"], float), np.array(w["b"], float),
+                           float(w["length_m"]), float(w.get("sigma_m", 0.0)),
+                           bool(w.get("seen", True)),
+                           tuple((a["from_m"], a["to_m"]) for a in w.get("apertures", ())))
+                      for w in d["walls"])
+        poses = np.array([[p["x_m"], p["z_m"], math.radians(p["yaw_deg"])] if p else
+                          [np.nan] * 3 for p in d.get("poses", {}).values()], float).reshape(-1, 3)
+        return cls(np.array(d["floor_polygon_m"], float).reshape(-1, 2), walls,
+                   float(d.get("area_m2", abs(polygon.area(d["floor_polygon_m"])))), poses,
+                   bool(d.get("manhattan", False)))
+
+
+def world_walls(L: Layout, pose) -> np.ndarray:
+    """(K, 2, 2) a layout's wall base segments in the room frame."""
+    if len(L.walls) == 0:
+        return np.zeros((0, 2, 2))
+    return register.rot2(np.array([pose[2]]), L.walls.reshape(-1, 2))[0].reshape(-1, 2, 2) + pose[:2]
+
+
+def floor_fans(L: Layout, pose, max_range_m: float = 8.0) -> list:
+    """Polygons (camera first, then boundary samples in azimuth order) of the floor a layout
+    saw, in the room frame; split where no floor was seen (NONE samples)."""
+    ok = np.isfinite(L.range) & (L.kind != SegKind.NONE)
+    r = np.minimum(np.where(ok, L.range, 0.0), max_range_m)
+    pts = r[:, None] * np.column_stack([np.sin(L.azimuth), np.cos(L.azimuth)])
+    out, cur = [], []
+    for k in range(len(pts)):
+        if ok[k]:
+            cur.append(pts[k])
+        elif cur:
+            out.append(cur)
+            cur = []
+    if cur:
+        out.append(cur)
+    fans = []
+    for c in out:
+        if len(c) >= 2:
+            P = np.vstack([np.zeros((1, 2)), np.array(c)])
+            fans.append(register.rot2(np.array([pose[2]]), P)[0] + pose[:2])
+    return fans
+
+
+def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=(),
+          spot=None, links=(), matches=None, focal=None, refine: bool = True) -> Plan:
+    """The plan from N photos' layouts (None for a photo without one) and poses (N, 3) (NaN
+    rows for photos not placed); with ``refine``, poses and walls are then refined together
+    (``adjust.refine``: ``spot`` labels (N,) (default: one per photo), turns ``links`` and
+    feature ``matches`` as ``fuse.place`` takes them, ``focal`` (N,) pixels) and the wall
+    lengths' 1-sigma come from its covariance.
+
+    Raises:
+        GeometryError: no placed photo saw any floor.
+    """
+    poses = np.asarray(poses, float).reshape(-1, 3)
+    ev, wl, out, snapped = _outline(layouts, poses, params)
+    V, sig_len, pose_sig = out.vertices, None, None
+    if refine:   # refine, redraw the outline at the refined poses, refine once more
+        try:
+            spot = np.arange(len(poses)) if spot is None else spot
+            r = adjust.refine(layouts, poses, spot, out, wl.manhattan, snapped, links, matches,
+                              focal, params.adjust)
+            ev, wl, out, snapped = _outline(layouts, r.poses, params)
+            r = adjust.refine(layouts, r.poses, spot, out, wl.manhattan, snapped, links,
+                              matches, focal, params.adjust, prior=poses)
+            poses, V, sig_len, pose_sig = r.poses, r.vertices, r.sigma_length, r.sigma_pose
+        except GeometryError:
+            pass
+    lines = polygon.Lines.of(wl)
+    used = out.line[out.line >= 0]
+    manhattan = wl.manhattan is not None and bool(np.all(snapped[used]))
+    if sig_len is None:
+        sig_len = _line_sigmas(out, lines, _offset_sigmas(ev, wl, params), params)
+    fans = []
+    for L, p in zip(layouts, poses):
+        if L is not None and np.isfinite(p[0]):
+            fans += floor_fans(L, p, params.max_range_m)
+    walls_ = []
+    for k in range(len(V)):
+        a, b = V[k], V[(k + 1) % len(V)]
+        walls_.append(Wall(a, b, float(np.linalg.norm(b - a)), float(sig_len[k]),
+                           bool(out.seen[k]), _apertures(a, b, fans, params) if out.seen[k] else ()))
+    n = len(poses)
+    return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, manhattan,
+                tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n,
+                pose_sig if pose_sig is not None else np.full((n, 3), np.nan))
+
+
+def _outline(layouts, poses, params: PlanParams):
+    """(evidence, classified lines, outline, which outline lines are on the axes) at poses."""
+    ev = walls.evidence(layouts, poses)
+    wl = wall_kinds.classify(ev, walls.fit(ev, params.lines), params.lines)
+    lines = polygon.Lines.of(wl)
+    free = polygon.free_space(layouts, poses, lines, params.polygon)
+    cams = poses[np.isfinite(poses[:, 0]), :2]
+    anchor = cams.mean(0) if len(cams) else np.zeros(2)
+    out = polygon.outline(lines, free, params.polygon, anchor)
+    snapped = (wl.snapped[wl.walls] if wl.snapped is not None
+               else np.zeros(len(lines.normals), bool))
+    return ev, wl, out, snapped
+
+
+def _line_sigmas(out: polygon.Outline, lines: polygon.Lines, sig_d, params: PlanParams):
+    """(V,) wall length 1-sigma without the refinement: each end moves with its neighbour's
+    offset, sigma_L^2 = sum over both neighbours of (sigma_d / sin(angle))^2, plus the camera
+    height's relative error times L."""
+    V = out.vertices
+    res = []
+    for k in range(len(V)):
+        length = float(np.linalg.norm(V[(k + 1) % len(V)] - V[k]))
+        s2 = (params.height_rel * length) ** 2
+        for j in (k - 1, (k + 1) % len(V)):
+            lk, lj = out.line[k], out.line[j]
+            if lk >= 0 and lj >= 0:
+                na, nb = lines.normals[lk], lines.normals[lj]
+                sin = abs(float(na[0] * nb[1] - na[1] * nb[0]))
+                s2 += (sig_d[lj] / max(sin, 0.2)) ** 2
+            else:
+                s2 += 0.1 ** 2   # an end not on a wall line: only the floor raster bounds it
+        res.append(math.sqrt(s2))
+    return np.array(res)
+
+
+def _offset_sigmas(ev: walls.Evidence, wl: walls.WallLines, params: PlanParams) -> np.ndarray:
+    """(K,) 1-sigma of each wall line's offset: the weighted spread of its samples about it
+    over the square root of their number (the wall lines of ``polygon.Lines.of``)."""
+    k_all = wl.walls
+    out = np.full(len(k_all), 0.1)
+    for i, k in enumerate(k_all):
+        m = wl.sample_line == k
+        e = ev.points[m] @ wl.normals[k] - wl.offsets[k]
+        if len(e) >= 2:
+            out[i] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e))), params.offset_floor_m)
+    return out
+
+
+def _apertures(a, b, fans, params: PlanParams, beyond_m: float = 0.25, step_m: float = 0.05):
+    """Stretches of the wall a->b where some photo saw floor ``beyond_m`` past it."""
+    L = float(np.linalg.norm(b - a))
+    if L < params.aperture_min_m:
+        return ()
+    u = (b - a) / L
+    n_out = np.array([u[1], -u[0]])   # outward for a counter-clockwise polygon
+    s = np.arange(step_m / 2, L, step_m)
+    pts = a[None] + s[:, None] * u[None] + beyond_m * n_out[None]
+    hit = np.zeros(len(s), bool)
+    for f in fans:
+        c = f.astype(np.float32).reshape(-1, 1, 2)
+        hit |= np.array([cv2.pointPolygonTest(c, (float(x), float(z)), False) > 0
+                         for x, z in pts])
+    out, start = [], None
+    for i, h in enumerate(np.append(hit, False)):
+        if h and start is None:
+            start = i
+        elif not h and start is not None:
+            if (i - start) * step_m >= params.aperture_min_m:
+                out.append((round(float(s[start] - step_m / 2), 3),
+                            round(float(min(L, s[i - 1] + step_m / 2)), 3)))
+            start = None
+    return tuple(out)

@@ -1,0 +1,173 @@
+"""Photos taken turning at one spot: the yaw between two of them from their feature matches,
+and whether they share a position at all.
+
+A user maps a room by standing at a few spots and turning round at each. Two photos of one
+spot differ by a pure rotation about gravity, so with gravity known (each photo's level
+frame) a matched point's level bearing b_A (unit, level frame of A) is the bearing b_B of B
+turned by the yaw alone: b_A = R_y(yaw) b_B, R_y = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+(DESIGN.md: level_A <- level_B, yaw > 0 when B is turned right of A). Hence azimuths
+(atan2(x, z)) add, az_A = az_B + yaw, and elevations agree. One match gives a yaw
+(1-point consensus); photos from two different spots show parallax, and few matches agree
+on one yaw, so the consensus also tells the spots apart.
+
+Gravity is never exact (a phone's sensor, each photo's own estimate): tilts a degree apart
+move the bearings by ~8 px, beyond the yaw's residual. When the yaw alone leaves too few
+matches, the rotation is fitted whole: b_A = M b_B with M any rotation (Kabsch, on the
+matches a 1-point yaw gathers within ``tilt_tol_deg``, then re-selected at
+``residual_px``); still a pure rotation, so parallax still tells two spots apart, and the
+turn is accepted when M tilts the vertical by at most ``tilt_tol_deg``. Its yaw is M's
+about the vertical: atan2(M[0, 2], M[2, 2]).
+
+Units: radians inside; pixels for the matches. Pure numpy; no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from findme_core.geometry.camera import Camera
+from findme_core.motion.features import Matches
+
+
+@dataclass(frozen=True)
+class SpotParams:
+    """Thresholds of the rotation-only consensus.
+
+    Attributes:
+        residual_px: a match agrees with a yaw when its bearings differ by less than this
+            many pixels (at the focal length of A) after the turn.
+        min_inliers: fewer agreeing matches do not make a rotation.
+        min_fraction: nor do fewer than this fraction of the matches (parallax between
+            two spots leaves most matches off any single yaw).
+        sigma_floor_deg: the yaw's 1-sigma is never below this (gravity and pixel model
+            errors that averaging does not remove).
+        tilt_tol_deg: the photos' gravities may disagree by this much (the whole rotation
+            is then fitted, see the module doc).
+    """
+
+    residual_px: float = 2.0
+    min_inliers: int = 10
+    min_fraction: float = 0.05
+    sigma_floor_deg: float = 0.1
+    tilt_tol_deg: float = 3.0
+
+
+@dataclass(frozen=True)
+class SpotYaw:
+    """Rotation-only yaw between two photos of one spot.
+
+    Attributes:
+        yaw: heading of B relative to A, radians in (-pi, pi], > 0 when B is turned right.
+        sigma: its 1-sigma, radians.
+        inliers: matches that agree with it.
+        matches: matches there were.
+        rms_px: rms residual of the inliers, pixels.
+    """
+
+    yaw: float
+    sigma: float
+    inliers: int
+    matches: int
+    rms_px: float
+
+
+def _bearings(camera: Camera, pixels) -> np.ndarray:
+    r = camera.rays_level(np.asarray(pixels, float).reshape(-1, 2))
+    return r / np.linalg.norm(r, axis=1, keepdims=True)
+
+
+def _turn(yaw, b):
+    """R_y(yaw) b for bearings (N, 3)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.column_stack([c * b[:, 0] + s * b[:, 2], b[:, 1], -s * b[:, 0] + c * b[:, 2]])
+
+
+def rotation_yaw(matches: Matches, cam_a: Camera, cam_b: Camera,
+                 params: SpotParams = SpotParams()) -> SpotYaw | None:
+    """The yaw of B relative to A if the photos were taken at one spot, else None.
+
+    Args:
+        matches: putative matches, pixels ``ua`` in A and ``ub`` in B.
+        cam_a, cam_b: intrinsics and gravity of A and B.
+
+    Returns:
+        The consensus yaw, or None when fewer than ``min_inliers`` matches (or fewer than
+        ``min_fraction`` of them) agree on one turn: the photos do not overlap, or were
+        taken at different spots.
+    """
+    n = len(matches.ua)
+    if n < params.min_inliers:
+        return None
+    ba, bb = _bearings(cam_a, matches.ua), _bearings(cam_b, matches.ub)
+    yaws = np.arctan2(ba[:, 0], ba[:, 2]) - np.arctan2(bb[:, 0], bb[:, 2])
+    thr = params.residual_px / cam_a.fx
+    found = _yaw_only(ba, bb, yaws, thr, params)
+    return found if found is not None else _whole_rotation(ba, bb, yaws, thr, params,
+                                                           cam_a.fx)
+
+
+def _consensus(ba, bb, yaws, thr):
+    """The 1-point yaw with the most matches within ``thr`` (every match's yaw a hypothesis,
+    exhaustive: n is a few hundred), and those matches."""
+    n = len(ba)
+    best, best_in = 0.0, np.zeros(n, bool)
+    for y in yaws[:: max(1, n // 400)]:
+        inl = np.linalg.norm(ba - _turn(y, bb), axis=1) < thr
+        if inl.sum() > best_in.sum():
+            best, best_in = y, inl
+    return best, best_in
+
+
+def _accepts(k: int, n: int, params: SpotParams) -> bool:
+    return k >= params.min_inliers and k >= params.min_fraction * n
+
+
+def _whole_rotation(ba, bb, yaws, thr, params: SpotParams, fx: float) -> SpotYaw | None:
+    """The turn as a whole rotation M (b_A = M b_B, level frames) when the gravities
+    disagree (module doc), or None."""
+    tol = np.radians(params.tilt_tol_deg)
+    _, inl = _consensus(ba, bb, yaws, thr + 2 * np.sin(tol / 2))
+    for _ in range(3):
+        if not _accepts(int(inl.sum()), len(ba), params):
+            return None
+        M = _kabsch(ba[inl], bb[inl])
+        res = np.linalg.norm(ba - bb @ M.T, axis=1)
+        inl = res < thr
+    k = int(inl.sum())
+    tilt = np.arccos(np.clip(M[1, 1], -1.0, 1.0))     # how far M moves the vertical
+    if not _accepts(k, len(ba), params) or tilt > tol:
+        return None
+    yaw = float(np.arctan2(M[0, 2], M[2, 2]))
+    rms = float(np.sqrt(np.mean(res[inl] ** 2)))
+    return SpotYaw(yaw, max(rms / np.sqrt(k), np.radians(params.sigma_floor_deg)), k, len(ba),
+                   rms * fx)
+
+
+def _kabsch(a, b) -> np.ndarray:
+    """(3, 3) the rotation M minimising sum |a_i - M b_i|^2 (a, b: (N, 3) unit vectors)."""
+    U, _, Vt = np.linalg.svd(a.T @ b)
+    d = np.sign(np.linalg.det(U @ Vt))
+    return U @ np.diag([1.0, 1.0, d]) @ Vt
+
+
+def _yaw_only(ba, bb, yaws, thr, params: SpotParams) -> SpotYaw | None:
+    """The turn as a yaw about the photos' common gravity (module doc), or None."""
+    n = len(ba)
+    best, best_in = _consensus(ba, bb, yaws, thr)
+    if not best_in.any():
+        return None
+    for _ in range(3):   # refine: circular mean of the inliers' yaws, then re-select
+        best = float(np.angle(np.mean(np.exp(1j * yaws[best_in]))))
+        res = np.linalg.norm(ba - _turn(best, bb), axis=1)
+        best_in = res < thr
+        if not best_in.any():
+            return None
+    k = int(best_in.sum())
+    if not _accepts(k, n, params):
+        return None
+    spread = np.angle(np.exp(1j * (yaws[best_in] - best)))
+    sigma = max(float(np.std(spread)) / np.sqrt(k), np.radians(params.sigma_floor_deg))
+    return SpotYaw(float(np.angle(np.exp(1j * best))), sigma, k, n,
+                   float(np.sqrt(np.mean(res[best_in] ** 2))) * params.residual_px / thr)

@@ -1,0 +1,190 @@
+"""Snap a boundary to the wall base when a baseboard band lies between it and the floor.
+
+Line detectors find the crisp top edge of a baseboard (wall paint against wood) and often
+miss its soft bottom edge against the floor, which is the real ground-wall boundary: a
+wall point computed from the top edge is ~10 % too far. A baseboard is a band of the wall
+of fixed height; in the image its width is a fixed fraction of the boundary's depression
+below the horizon (a level camera sees height y above the floor at (h - y) / h of the
+floor's depression). So we average the colour profile across each WALL segment in
+*relative* offsets s = offset / depression, over the whole segment (a strong average where
+one column is noise), find where the profile settles into the floor colour, and move the
+segment's line down to the last colour edge before it. A band with the floor's chromaticity
+but darker is a shadow on the floor (under furniture) and is left alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import math
+
+import cv2
+import numpy as np
+
+from findme_core.geometry.camera import Camera
+from findme_core.single.search import SegKind
+
+
+@dataclass(frozen=True)
+class SnapParams:
+    max_rel: float = 0.16        # deepest band searched, relative to the depression
+    floor_band: tuple[float, float] = (0.2, 0.3)  # where the floor colour is sampled
+    settle_tol: float = 12.0     # Lab distance counted as "floor colour"
+    settle_len: float = 0.04     # the profile must stay at the floor colour this long
+    min_shift_px: float = 1.5
+    shadow_chroma: float = 6.0   # a band with the floor's chroma (a, b) and lower L is a shadow
+    step_px: float = 3.0         # spacing of profile columns along the segment
+    s_step: float = 0.01         # profile resolution, relative to the depression
+    robust: bool = True          # median over columns (else mean)
+
+
+def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
+    """(M,) pixel distance from each point to the horizon, measured along the image
+    direction 'down' (towards the floor)."""
+    l = camera.horizon_line()
+    n = np.hypot(l[0], l[1])
+    return (pts @ l[:2] + l[2]) / max(n, 1e-12)
+
+
+def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
+                  kinds: np.ndarray, p: SnapParams = SnapParams(),
+                  cache: dict | None = None, keys=None) -> np.ndarray:
+    """Return a copy of ``polyline`` with WALL segments moved down to the wall base.
+
+    Args:
+        image_lab: (H, W, 3) Lab image (``appearance.to_lab``: uint8; float32 works too).
+        polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
+        cache: optional dict reused across the hypotheses of one image.
+        keys: optional cache key per segment, e.g. the id of the image line it lies on: the
+            band under a line is a property of the line, so each line is measured once
+            (default: the segment's rounded end points).
+    """
+    poly = np.array(polyline, float)
+    H, W = image_lab.shape[:2]
+    l = camera.horizon_line()
+    down = l[:2] / max(np.hypot(l[0], l[1]), 1e-12)   # unit image direction away from horizon
+    lines = {}
+    for s, kind in enumerate(kinds):
+        if kind != SegKind.WALL:
+            continue
+        a, b = poly[s], poly[s + 1]
+        key = keys[s] if keys is not None else (round(a[0]), round(a[1]), round(b[0]), round(b[1]))
+        if cache is not None and key in cache:
+            shift = cache[key]
+        else:
+            shift = _segment_shift(image_lab, camera, a, b, down, p)
+            if cache is not None and shift is not None:
+                cache[key] = shift
+        if shift is None:  # too short to measure: its corners follow the neighbours
+            continue
+        d = b - a
+        n = np.array([-d[1], d[0]]) / max(math.hypot(d[0], d[1]), 1e-12)
+        if n[0] * down[0] + n[1] * down[1] < 0:
+            n = -n
+        lines[s] = (a + shift * n, d)   # point on the moved line, direction
+    if not lines:
+        return poly
+    out = poly.copy()
+    for k in range(len(poly)):
+        left, right = lines.get(k - 1), lines.get(k)
+        if left and right:
+            x = _intersect(*left, *right)
+            lo = poly[k - 1, 0] if k > 0 else 0.0
+            hi = poly[k + 1, 0] if k + 1 < len(poly) else W - 1.0
+            # a corner of two nearly parallel lines can slide far when they move: then keep
+            # its column (the polyline must stay monotonic in u) and take the lines' mean row
+            if x is not None and abs(x[0] - poly[k, 0]) <= 2.0 and lo <= x[0] <= hi:
+                out[k] = x
+            else:
+                out[k, 1] = (_row_at(*left, poly[k, 0]) + _row_at(*right, poly[k, 0])) / 2
+            continue
+        ln = left or right
+        if ln is not None:
+            out[k, 1] = _row_at(*ln, poly[k, 0])
+    return out
+
+
+def _row_at(q, d, u):
+    return q[1] + (u - q[0]) * d[1] / d[0] if abs(d[0]) > 1e-9 else q[1]
+
+
+def _intersect(p, d, q, e):
+    """Intersection of the lines p + t d and q + s e (None if nearly parallel)."""
+    det = e[0] * d[1] - d[0] * e[1]
+    if abs(det) < 1e-9:
+        return None
+    t = (e[0] * (q[1] - p[1]) - e[1] * (q[0] - p[0])) / det
+    return p + t * d
+
+
+def _median0(x: np.ndarray) -> np.ndarray:
+    """np.median(x, axis=0), by one partition (same values, less overhead)."""
+    n = x.shape[0]
+    k = n // 2
+    if n % 2:
+        return np.partition(x, k, axis=0)[k]
+    q = np.partition(x, (k - 1, k), axis=0)
+    return (q[k - 1] + q[k]) / 2
+
+
+def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
+    """Pixels to move the segment a-b along its normal (0 = keep; None = too little of it
+    in the image to tell)."""
+    H, W = lab.shape[:2]
+    d = b - a
+    n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
+    if n_cols < 4:
+        return None
+    t = (np.arange(n_cols) + 0.5) / n_cols
+    base = a[None, :] + t[:, None] * d[None, :]
+    inside = (base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0) & (base[:, 1] <= H - 1)
+    base = base[inside]
+    if len(base) < 4:
+        return None
+    dep = np.maximum(_depression(camera, base), 1.0)
+    s = _offsets(p)
+    pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
+    # a column of samples is a straight run: inside the image iff both its ends are
+    ends = pts[:, [0, -1]]
+    cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
+            & (ends[..., 1] <= H - 1)).all(1)
+    n_in = int(cols.sum())
+    if n_in < 4:
+        return None
+    P = pts[cols].reshape(-1, 2).astype(np.float32)
+    prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
+    prof = prof.reshape(n_in, len(s), 3).astype(np.float32)
+    prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
+    fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
+    floor = _median0(prof[fb])
+    diff = prof - floor
+    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
+    win = max(1, int(round(p.settle_len / p.s_step)))
+    # first offset >= 0 from which the profile stays at the floor colour for `win` samples
+    start = int(np.searchsorted(s, 0.0))
+    cf = np.concatenate([[0], np.cumsum(far)])
+    ks = np.arange(start, len(s) - win)
+    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
+    settle = int(ks[hit[0]]) if len(hit) else None
+    if settle is None or settle == start:
+        return 0.0
+    # the colour edge just before settling: largest profile gradient between the top edge
+    # (skipping its own blur, 2 samples) and the settling point
+    grad = np.empty_like(prof)   # np.gradient(prof, axis=0)
+    grad[1:-1] = (prof[2:] - prof[:-2]) / 2.0
+    grad[0], grad[-1] = prof[1] - prof[0], prof[-1] - prof[-2]
+    g = np.sqrt((grad * grad).sum(1))
+    lo = min(start + 3, settle)
+    k = lo + int(np.argmax(g[lo:settle + 1]))
+    band = _median0(prof[start + 1:k + 1]) if k > start else prof[start]
+    if (math.hypot(band[1] - floor[1], band[2] - floor[2]) < p.shadow_chroma
+            and band[0] < floor[0]):
+        return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
+    shift = float(s[k] * _median0(dep[cols]))
+    return shift if shift >= p.min_shift_px else 0.0
+
+
+def _offsets(p: SnapParams) -> np.ndarray:
+    """Profile offsets s (relative to the depression), from just above the line to the
+    bottom of the floor band."""
+    return np.arange(-0.02, p.floor_band[1] + 1e-9, p.s_step)

@@ -1,0 +1,270 @@
+"""3D scene of one photo under a chosen boundary: the floor plane and the walls on it.
+
+Frames: pixels (u, v); rays and points in the camera's level frame (y down along gravity,
+floor at y = h) inside, camera frame (OpenCV) at the interface. Metres.
+
+* Floor point (paper eq. 2, P = h (x/y, 1, 1/y) for a level camera's normalised pixel
+  (x, y)); generalised by gravity: P_level = (h / r_y) r for the level ray r of the pixel.
+* Wall (eqs. 3-4): the vertical plane through the floor line of a boundary segment. The
+  segment's image vertices are lifted to the floor (eq. 2), giving a 2D line in the level
+  x-z plane; a wall pixel's 3D point is its ray scaled to meet that plane.
+
+Each boundary segment covers an interval of azimuth (angle of the horizontal ray,
+atan2(x, z)). A tapped pixel's azimuth selects its segment; it is on the floor if its ray
+meets the floor before the wall, else on the wall. OPEN segments (floor continues past the
+image) have floor but no known wall; NONE segments (no floor in view) have neither.
+
+A point whose 1-sigma (``uncertainty``) exceeds ``max_rel_sigma`` of its distance is not
+placed: an honest "unknown" (reason ``REASONS[7]``) rather than a guess. On real photos these
+are mostly wall points above a boundary chosen near the horizon (a counter's or a sill's edge
+taken for the floor line), where a pixel is worth metres.
+
+How far each point may be off (boundary, height, tap, gravity) is ``uncertainty``'s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from findme_core.geometry.camera import Camera
+from findme_core.errors import GeometryError, HypothesisError
+from findme_core.single.search import SegKind
+# the uncertainty of the points lives in ``uncertainty``; re-exported here, where it began
+from findme_core.geometry.uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_PX,
+                                              boundary_sigma_px, distances, point_sigmas)
+
+_PARALLEL = 1e-9
+_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE = range(1, 8)
+#: default ``max_rel_sigma``: a point whose 1-sigma is more than half its distance is not
+#: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
+#: not fitted
+MAX_REL_SIGMA = 0.5
+#: Why a pixel has no 3D position (``Scene.locate_level``'s reason codes).
+REASONS = {
+    _ABOVE_HORIZON: "the pixel is at or above the horizon, so it is not on the floor, and no "
+                    "wall is known in its direction",
+    _PARALLEL_RAY: "the pixel's ray runs parallel to the wall: it never meets it",
+    _BEHIND: "the wall's plane lies behind the camera in this direction: the point would be "
+             "behind the camera",
+    _NO_FLOOR: "no floor is visible in this direction under the chosen boundary, so the wall's "
+               "distance is unknown",
+    _OUTSIDE: "the pixel is outside the image",
+    _NOT_FINITE: "the pixel is not finite",
+    _LOOSE: "the boundary places this point too loosely (its 1-sigma exceeds the allowed "
+            "share of its distance): the wall's base is barely seen or lies near the horizon",
+}
+_SURFACES = {1: "floor", 2: "wall"}
+@dataclass(frozen=True)
+class Located:
+    """3D position of one tapped pixel.
+
+    Attributes:
+        pixel: (u, v).
+        surface: "floor" or "wall", None when there is no answer.
+        xyz: (3,) camera-frame point in metres, None when there is no answer.
+        sigma_m: 1-sigma radius of the point in metres: the root sum of squares of
+            ``sigma_parts`` ("boundary": the boundary off by one pixel, "height": the camera
+            height off by its sigma, "pixel": the tap off by one pixel, "gravity": gravity's
+            tilt off by its covariance).
+        error: why there is no answer, else None.
+        gravity_jac: (2, 3) camera-frame displacement of the point (metres) for a 1-sigma
+            tilt of gravity along each principal axis of its covariance (every point of a
+            photo moves together: ``distances`` uses it), None when gravity is exact.
+    """
+
+    pixel: tuple[float, float]
+    surface: str | None
+    xyz: np.ndarray | None
+    sigma_m: float | None = None
+    sigma_parts: dict | None = None
+    error: str | None = None
+    gravity_jac: np.ndarray | None = None
+
+
+class Scene:
+    """Floor and walls of one photo under one hypothesis.
+
+    Args:
+        camera: intrinsics and gravity.
+        height: camera height above the floor, metres (> 0); 1.0 gives results up to scale.
+        polyline: (M, 2) boundary vertices in pixels, u non-decreasing.
+        kinds: (M - 1,) SegKind per segment (default: all WALL).
+        height_sigma: 1-sigma error of ``height`` in metres.
+        boundary_sigma_px: boundary error used for the uncertainty, pixels.
+        gravity_cov: (2, 2) covariance (rad^2) of gravity's tilt about the level x (pitch)
+            and z (roll) axes (``provenance.Provenance.gravity_cov``); None = exact.
+        max_rel_sigma: a point whose 1-sigma exceeds this share of its distance from the
+            camera gets no answer (reason in ``REASONS``); None answers every point.
+    """
+
+    def __init__(self, camera: Camera, height: float, polyline, kinds=None,
+                 height_sigma: float = 0.03, boundary_sigma_px: float = 1.0,
+                 gravity_cov=None, max_rel_sigma: float | None = MAX_REL_SIGMA):
+        if not np.isfinite(height) or height <= 0:
+            raise GeometryError(f"camera height must be a positive number of metres, got {height!r}")
+        poly = np.asarray(polyline, float).reshape(-1, 2)
+        if len(poly) < 2 or not np.all(np.isfinite(poly)):
+            raise HypothesisError(f"a boundary needs at least 2 finite vertices, got {poly.tolist()}")
+        kinds = np.full(len(poly) - 1, SegKind.WALL) if kinds is None else np.asarray(kinds, int)
+        if len(kinds) != len(poly) - 1:
+            raise HypothesisError(f"{len(kinds)} segment kinds for {len(poly)} vertices")
+        self.camera, self.height, self.polyline, self.kinds = camera, float(height), poly, kinds
+        self.height_sigma, self.boundary_sigma_px = float(height_sigma), float(boundary_sigma_px)
+        self.gravity_cov = (np.zeros((2, 2)) if gravity_cov is None
+                            else np.asarray(gravity_cov, float).reshape(2, 2))
+        if not np.all(np.isfinite(self.gravity_cov)):
+            raise GeometryError(f"gravity_cov must be finite, got {self.gravity_cov.tolist()}")
+        if max_rel_sigma is not None and not (np.isfinite(max_rel_sigma) and max_rel_sigma > 0):
+            raise GeometryError(f"max_rel_sigma must be a positive number or None, got "
+                                f"{max_rel_sigma!r}")
+        self.max_rel_sigma = None if max_rel_sigma is None else float(max_rel_sigma)
+        self._pieces = self._build(poly)
+        # the boundary part is linearised: the scene under the boundary moved down (and, for
+        # a steep boundary, sideways) by at most one pixel, the displacement scaled up to
+        # ``boundary_sigma_px``
+        self._shift_px = min(self.boundary_sigma_px, 1.0)
+        self._pieces_shifted = self._build(poly + np.array([0.0, self._shift_px]))
+        self._pieces_sideways = self._build(poly + np.array([self._shift_px, 0.0]))
+
+    def _build(self, poly, cam: Camera | None = None):
+        """Pieces: (az0, az1, kind, normal (2,), offset) with n . (x, z) = offset on the wall."""
+        cam = self.camera if cam is None else cam
+        R = cam.R_level_from_cam
+        r = cam.rays_cam(poly) @ R.T
+        az = np.arctan2(r[:, 0], r[:, 2])
+        pieces = []
+        for s, kind in enumerate(self.kinds):
+            if kind == SegKind.STEP:
+                continue
+            a0, a1 = az[s], az[s + 1]
+            normal, offset = np.zeros(2), 0.0
+            if kind == SegKind.WALL:
+                if r[s, 1] <= 0 or r[s + 1, 1] <= 0:
+                    raise HypothesisError(
+                        f"boundary segment {s} from {poly[s].round(1).tolist()} to "
+                        f"{poly[s + 1].round(1).tolist()} reaches the horizon: not a floor line")
+                q0 = self.height / r[s, 1] * r[s, [0, 2]]   # eq. 2 on each vertex
+                q1 = self.height / r[s + 1, 1] * r[s + 1, [0, 2]]
+                d = q1 - q0
+                if np.hypot(*d) < 1e-9:
+                    continue
+                normal = np.array([-d[1], d[0]]) / np.hypot(*d)
+                offset = float(normal @ q0)
+            pieces.append((min(a0, a1), max(a0, a1), int(kind), normal, offset))
+        if not pieces:
+            raise HypothesisError("the boundary has no floor or wall segment")
+        return pieces
+
+    # ------------------------------------------------------------------ queries
+    def _solve(self, pieces, rays):
+        """Vectorised: (N, 3) level rays -> ((N,) ray parameter t, (N,) surface code, (N,)
+        failure reason); the point is t * ray. Surfaces: 1 floor, 2 wall, 0 none."""
+        n = len(rays)
+        az = np.arctan2(rays[:, 0], rays[:, 2])
+        a0 = np.array([p[0] for p in pieces])
+        a1 = np.array([p[1] for p in pieces])
+        kind = np.array([p[2] for p in pieces])
+        normal = np.array([p[3] for p in pieces])
+        offset = np.array([p[4] for p in pieces])
+        inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
+        # outside every interval: the nearest end piece (walls extend past the image)
+        gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
+        k = np.where(inside.any(1), np.argmax(inside, 1), np.argmin(gap, 1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_floor = np.where(rays[:, 1] > 0, self.height / rays[:, 1], np.inf)
+            den = (normal[k] * rays[:, [0, 2]]).sum(1)
+            t = offset[k] / den
+        wall = kind[k] == SegKind.WALL
+        parallel = wall & (np.abs(den) <= _PARALLEL)
+        behind = wall & ~parallel & ~(t > 0)
+        t_wall = np.where(wall & ~parallel & ~behind, t, np.inf)
+        floor = t_floor <= t_wall
+        t_out = np.where(floor, t_floor, t_wall)
+        surface = np.where(floor, 1, 2)
+        reason = np.zeros(n, int)
+        none = kind[k] == SegKind.NONE
+        bad = ~np.isfinite(t_out) | none
+        reason[bad & parallel] = _PARALLEL_RAY
+        reason[bad & behind] = _BEHIND
+        reason[bad & (reason == 0)] = _ABOVE_HORIZON
+        reason[none] = _NO_FLOOR
+        surface[bad] = 0
+        return np.where(bad, np.nan, t_out), surface, reason
+
+    def locate_level(self, pixels):
+        """Vectorised 3D of (N, 2) pixels in the LEVEL frame.
+
+        Returns:
+            points: (N, 3) metres (NaN where there is no answer),
+            surface: (N,) 1 floor, 2 wall, 0 none,
+            sigma: (N,) 1-sigma radius (m; inf where no answer),
+            parts: dict of (N,) sigma components "height", "boundary", "pixel", "gravity",
+            reason: (N,) failure reason code (0 = answered; see ``REASONS``).
+        """
+        return self._locate_all(pixels)[:5]
+
+    def _locate_all(self, pixels):
+        """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
+        (``uncertainty.point_sigmas``)."""
+        cam = self.camera
+        px = np.asarray(pixels, float).reshape(-1, 2)
+        finite = np.isfinite(px).all(1)
+        pxs = np.where(finite[:, None], px, 0.0)
+        inside = (finite & (pxs[:, 0] >= -0.5) & (pxs[:, 0] <= cam.width - 0.5)
+                  & (pxs[:, 1] >= -0.5) & (pxs[:, 1] <= cam.height - 0.5))
+        rays = cam.rays_level(pxs)
+        t, surface, reason = self._solve(self._pieces, rays)
+        reason = np.where(inside, reason, np.where(finite, _OUTSIDE, _NOT_FINITE))
+        ok = reason == 0
+        surface = np.where(ok, surface, 0)
+        P = t[:, None] * rays
+        P[~ok] = np.nan
+
+        parts, jac = point_sigmas(self, pxs, rays, P, surface)
+        sigma = np.sqrt(sum(x * x for x in parts.values()))
+        if self.max_rel_sigma is not None:
+            with np.errstate(invalid="ignore"):
+                loose = ok & ~(sigma <= self.max_rel_sigma * np.linalg.norm(P, axis=1))
+            reason = np.where(loose, _LOOSE, reason)
+            ok &= ~loose
+            surface = np.where(ok, surface, 0)
+            P[~ok] = np.nan
+        sigma = np.where(ok, sigma, np.inf)
+        return P, surface, sigma, parts, reason, jac
+
+    def locate(self, pixels) -> list[Located]:
+        """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
+        point (``Located.error``), not raised."""
+        px = np.asarray(pixels, float).reshape(-1, 2)
+        P, surface, sigma, parts, reason, jacs = self._locate_all(px)
+        R = self.camera.R_level_from_cam
+        out = []
+        for i, (u, v) in enumerate(px):
+            if reason[i]:
+                out.append(Located((u, v), None, None, error=self._reason_text(reason[i], u, v)))
+                continue
+            jac = jacs[i] if np.any(self.gravity_cov) else None
+            out.append(Located((u, v), _SURFACES[surface[i]], R.T @ P[i], float(sigma[i]),
+                               {k: float(x[i]) for k, x in parts.items()}, gravity_jac=jac))
+        return out
+
+    def _reason_text(self, code: int, u: float, v: float) -> str:
+        if code == _OUTSIDE:
+            return f"pixel ({u:g}, {v:g}) is outside the {self.camera.width}x{self.camera.height} image"
+        if code == _NOT_FINITE:
+            return f"pixel ({u}, {v}) is not finite"
+        return REASONS[code]
+
+    def floor_point(self, pixel) -> np.ndarray:
+        """(3,) camera-frame floor point of a pixel (eq. 2), whatever the walls.
+
+        Raises:
+            GeometryError: the pixel is at or above the horizon.
+        """
+        ray = self.camera.rays_level([pixel])[0]
+        if ray[1] <= 1e-12:
+            raise GeometryError(f"pixel {tuple(np.round(pixel, 2))} is at or above the horizon: "
+                                "its ray never meets the floor")
+        return self.camera.R_level_from_cam.T @ (self.height / ray[1] * ray)

@@ -1,0 +1,172 @@
+"""``counters``: a boundary on a kitchen counter's front edge is seen through to the wall.
+
+The scenes are built in the level frame (x right, y down, z forward; floor y = h) and
+projected with the camera, so the answer is known exactly: a wall at z = 3.0 m, a counter
+0.9 m high and 0.6 m deep in front of it (front edge z = 2.4), cabinet door edges on its
+face, the counter's back edge where the top meets the wall.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from findme_core.single import counters
+from findme_core.geometry.camera import Camera
+from findme_core.single.hypotheses import Hypothesis, HypothesisSet
+from findme_core.single.lines import Lines
+from findme_core.geometry.manhattan import gravity_of
+from findme_core.single.scene import Scene
+from findme_core.single.search import SegKind
+
+H_CAM, WALL_Z, TOP, DEPTH = 1.45, 3.0, 0.9, 0.6
+FRONT_Z = WALL_Z - DEPTH
+XS = (-1.5, 1.5)
+
+
+def _camera(pitch=25.0, roll=0.0):
+    return Camera.from_hfov(70.0, 640, 480, gravity=gravity_of(pitch, roll))
+
+
+def _seg(cam, a, b):
+    """The image segment (4,) of the level-frame 3D segment a-b."""
+    uv, front = cam.project_level(np.array([a, b], float))
+    assert front.all()
+    return np.concatenate([uv[0], uv[1]])
+
+
+def _hline(cam, z, height, xs=XS):
+    """A horizontal 3D line along x at depth z, ``height`` above the floor."""
+    y = H_CAM - height
+    return _seg(cam, (xs[0], y, z), (xs[1], y, z))
+
+
+def _polyline(cam, seg):
+    """A one-segment WALL hypothesis on the image line of ``seg``, across the image."""
+    (u1, v1, u2, v2) = seg
+    at = lambda u: v1 + (u - u1) * (v2 - v1) / (u2 - u1)  # noqa: E731
+    return Hypothesis(np.array([[0.0, at(0.0)], [639.0, at(639.0)]]),
+                      np.array([SegKind.WALL]), 1.0, 1.0)
+
+
+def _kitchen(cam, doors=True, back=True, foot=True, back_z=WALL_Z):
+    """(hypothesis on the counter's front edge, lines of the scene)."""
+    lines = [_hline(cam, FRONT_Z, TOP),                      # the front edge itself
+             _hline(cam, FRONT_Z + 0.03, TOP)]               # the nosing's back line
+    if back:
+        lines.append(_hline(cam, back_z, TOP))               # where the top meets the wall
+    if doors:
+        for x in (-1.2, -0.7, -0.2, 0.3, 0.8, 1.3):          # door edges on the face
+            lines.append(_seg(cam, (x, H_CAM - TOP + 0.05, FRONT_Z),
+                              (x, H_CAM - 0.15, FRONT_Z)))
+    if foot:
+        lines.append(_hline(cam, FRONT_Z, 0.0))              # the cabinets' foot
+    return _polyline(cam, lines[0]), np.array(lines)
+
+
+@pytest.mark.parametrize("pitch,roll", [(25.0, 0.0), (35.0, 3.0), (15.0, -2.0)])
+def test_the_wall_behind_a_counter_is_found(pitch, roll):
+    cam = _camera(pitch, roll)
+    hyp, lines = _kitchen(cam)
+    found = counters.find(cam, H_CAM, hyp, lines)
+    assert len(found) == 1
+    c = found[0]
+    assert c.segment == 0 and c.doors >= 2
+    assert c.depth_m == pytest.approx(DEPTH, abs=0.01)
+    assert c.wall_m == pytest.approx(WALL_Z, abs=0.01)      # the wall faces the camera (+z)
+    # behind(): the WALL segment is now the image of the wall's base
+    new = counters.behind(cam, H_CAM, hyp, found)
+    assert list(new.kinds) == [SegKind.STEP, SegKind.WALL, SegKind.STEP]
+    base = _hline(cam, WALL_Z, 0.0)
+    at = lambda u: base[1] + (u - base[0]) * (base[3] - base[1]) / (base[2] - base[0])  # noqa: E731
+    for u, v in new.polyline[1:3]:
+        assert v == pytest.approx(at(u), abs=0.05)
+    # a point on the wall above the counter (the backsplash) lands on the wall, not ~3x too far
+    px = cam.project_level(np.array([[0.4, H_CAM - 0.95, WALL_Z]]))[0]
+    before = Scene(cam, H_CAM, hyp.polyline, hyp.kinds).locate_level(px)[0][0]
+    after = Scene(cam, H_CAM, new.polyline, new.kinds).locate_level(px)[0][0]
+    assert after[2] == pytest.approx(WALL_Z, abs=0.02)
+    assert before[2] > WALL_Z + 0.5
+
+
+def test_a_floor_line_with_a_sill_above_is_no_counter():
+    """A wall's base with a window sill at 0.6 m: the sill lies in the depth range once
+    lifted at counter height, but no door hangs from the floor line."""
+    cam = _camera()
+    base = _hline(cam, WALL_Z, 0.0)
+    lines = np.array([base, _hline(cam, WALL_Z, 0.6)])
+    assert counters.find(cam, H_CAM, _polyline(cam, base), lines) == []
+
+
+@pytest.mark.parametrize("what", ["doors", "back", "foot"])
+def test_each_part_of_the_counter_is_needed(what):
+    """No doors, no back edge, or (where the photo shows it) no foot: no counter."""
+    cam = _camera()
+    hyp, lines = _kitchen(cam, **{what: False})
+    assert counters.find(cam, H_CAM, hyp, lines) == []
+
+
+def test_a_back_edge_outside_a_counters_depth_is_not_taken():
+    cam = _camera()
+    hyp, lines = _kitchen(cam, back_z=FRONT_Z + 1.5)
+    assert counters.find(cam, H_CAM, hyp, lines) == []
+
+
+def test_a_level_photo_need_not_show_the_foot():
+    """Looking level, the cabinets' foot is below the image: the counter is found from
+    its doors and its back edge alone."""
+    cam = _camera(pitch=0.0)
+    hyp, lines = _kitchen(cam, foot=False)
+    assert cam.project_level(np.array([[0.0, H_CAM, FRONT_Z]]))[0][0, 1] > cam.height
+    found = counters.find(cam, H_CAM, hyp, lines)
+    assert len(found) == 1 and found[0].depth_m == pytest.approx(DEPTH, abs=0.01)
+
+
+def test_floor_lines_at_right_angles_to_the_boundary_are_not_doors():
+    """Floorboards running from the wall toward the camera's foot look vertical in the
+    image (near the nadir); they must not count as cabinet doors. A level-ish photo, so
+    that the foot check (below the image here) cannot be what rejects them."""
+    cam = _camera(pitch=10.0)
+    base = _hline(cam, WALL_Z, 0.0)
+    planks = [_seg(cam, (x, H_CAM, WALL_Z), (x, H_CAM, 2.0)) for x in (-0.03, 0.0, 0.03)]
+    lines = np.array([base, _hline(cam, WALL_Z, 0.55), *planks])
+    assert counters.find(cam, H_CAM, _polyline(cam, base), lines) == []
+
+
+def test_a_camera_below_the_counter_top_finds_none():
+    cam = _camera()
+    hyp, lines = _kitchen(cam)
+    assert counters.find(cam, 0.95, hyp, lines) == []
+    assert counters.find(cam, H_CAM, hyp, np.zeros((0, 4))) == []
+
+
+def test_apply_puts_the_wall_first_and_keeps_the_counters_edge():
+    cam = _camera()
+    hyp, lines = _kitchen(cam)
+    other = Hypothesis(hyp.polyline + [0.0, 20.0], hyp.kinds, 0.5, 0.5)
+    ls = Lines(lines, np.zeros((len(lines), 3)), np.ones(len(lines)))
+    hs = HypothesisSet(640, 480, [hyp, other], ls, np.zeros(len(lines), int))
+    assert counters.apply(hs, cam, None) is hs                 # no height: not metric
+    out = counters.apply(hs, cam, H_CAM)
+    assert len(out.hypotheses) == 2                            # as many as before
+    assert list(out.hypotheses[0].kinds) == [SegKind.STEP, SegKind.WALL, SegKind.STEP]
+    assert out.hypotheses[1] is hyp
+    assert len(counters.apply(hs, cam, H_CAM, max_n=3).hypotheses) == 3
+    plain = HypothesisSet(640, 480, [other], ls, np.zeros(len(lines), int))
+    assert counters.apply(plain, cam, H_CAM, lines=lines[:1]) is plain   # nothing found
+
+
+def test_segments_that_cannot_be_a_counter_are_not_tested():
+    """Not a WALL (an occluding step), narrower than ``min_segment_px``, or above the
+    horizon (no floor line): none is a counter, whatever the lines say."""
+    cam = _camera()
+    hyp, lines = _kitchen(cam)
+    step = Hypothesis(hyp.polyline, np.array([SegKind.STEP]), 1.0, 1.0)
+    assert counters.find(cam, H_CAM, step, lines) == []
+    narrow = Hypothesis(np.array([[0.0, 300.0], [10.0, 300.0], [639.0, 300.0]]),
+                        np.array([SegKind.WALL, SegKind.NONE]), 1.0, 1.0)
+    assert counters.find(cam, H_CAM, narrow, lines) == []
+    sky = Hypothesis(np.array([[0.0, 5.0], [639.0, 5.0]]), np.array([SegKind.WALL]), 1.0, 1.0)
+    assert cam.rays_level(sky.polyline)[:, 1].max() < 0          # above the horizon
+    assert counters.find(cam, H_CAM, sky, lines) == []
+    assert counters.behind(cam, H_CAM, hyp, []) is hyp

@@ -1,0 +1,39 @@
+import numpy as np
+import pytest
+
+from findme_core.single.appearance import to_lab
+from findme_core.geometry.camera import Camera
+from findme_core.single.refine import snap_polyline
+from findme_core.single.search import SegKind
+
+
+def _scene(band_bgr, floor_bgr=(120, 130, 140)):
+    """Wall above row 400, a 14 px band (a 12 cm baseboard seen from 1.4 m), then floor; a
+    level camera (horizon at row 239.5)."""
+    img = np.zeros((480, 640, 3), np.uint8)
+    img[:400] = (235, 235, 235)
+    img[400:414] = band_bgr
+    img[414:] = floor_bgr
+    rng = np.random.default_rng(0)
+    img = np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+    return to_lab(img), Camera.from_hfov(70, 640, 480)
+
+
+def test_snaps_to_the_bottom_of_a_baseboard():
+    lab, cam = _scene((40, 60, 110))  # brown wood
+    out = snap_polyline(lab, cam, np.array([[0, 400.0], [639, 400.0]]), np.array([SegKind.WALL]))
+    assert out[:, 1] == pytest.approx([414.0, 414.0], abs=1.5)
+
+
+def test_leaves_a_contact_shadow_alone():
+    lab, cam = _scene((70, 78, 85))   # the floor's colour, darker
+    poly = np.array([[0, 400.0], [639, 400.0]])
+    assert np.array_equal(snap_polyline(lab, cam, poly, np.array([SegKind.WALL])), poly)
+
+
+def test_leaves_a_clean_boundary_and_other_segments_alone():
+    lab, cam = _scene((120, 130, 140))  # no band: the floor starts at row 300
+    poly = np.array([[0, 400.0], [639, 400.0]])
+    assert np.array_equal(snap_polyline(lab, cam, poly, np.array([SegKind.WALL])), poly)
+    lab2, _ = _scene((40, 60, 110))
+    assert np.array_equal(snap_polyline(lab2, cam, poly, np.array([SegKind.OPEN])), poly)

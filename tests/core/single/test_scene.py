@@ -1,0 +1,238 @@
+import cv2
+import numpy as np
+import pytest
+
+from findme_core.geometry.camera import Camera
+from findme_core.errors import GeometryError, HypothesisError
+from findme_core.single.scene import REASONS, Scene, boundary_sigma_px, distances
+from findme_core.single.search import SegKind
+from findme_core.synth.render import FLOOR, WALL_BASE
+
+
+def _pixels(view, label_test, n=60, seed=0, margin=6):
+    """Random pixels whose label passes ``label_test``, away from label changes."""
+    lab = view.labels.astype(int)
+    ok = label_test(lab)
+    # stay clear of boundaries (the polyline is piecewise linear between columns)
+    for dv in range(-margin, margin + 1):
+        ok &= np.roll(lab, dv, axis=0) == lab
+    for du in (-2, 2):
+        ok &= np.roll(lab, du, axis=1) == lab
+    vs, us = np.nonzero(ok)
+    i = np.random.default_rng(seed).choice(len(us), size=min(n, len(us)), replace=False)
+    return np.column_stack([us[i], vs[i]]).astype(float)
+
+
+@pytest.mark.parametrize("fixture", ["level_view", "tilted_view"])
+def test_floor_points_exact(fixture, request):
+    view = request.getfixturevalue(fixture)
+    scene = Scene(view.camera, view.camera_height, view.ground_truth_boundary_polyline())
+    px = _pixels(view, lambda l: l == FLOOR)
+    for p, q in zip(scene.locate(px), px):
+        assert p.surface == "floor" and p.error is None
+        truth = view.points_cam[int(q[1]), int(q[0])]
+        assert np.allclose(p.xyz, truth, atol=1e-4)              # eq. 2, generalised
+        assert p.sigma_parts["boundary"] == 0.0                   # the boundary does not move it
+        assert p.sigma_parts["height"] == pytest.approx(np.linalg.norm(truth) * 0.03 /
+                                                        view.camera_height, rel=1e-3)
+
+
+@pytest.mark.parametrize("fixture", ["level_view", "tilted_view"])
+def test_wall_points_on_the_wall(fixture, request):
+    view = request.getfixturevalue(fixture)
+    scene = Scene(view.camera, view.camera_height, view.ground_truth_boundary_polyline())
+    px = _pixels(view, lambda l: (l >= WALL_BASE) & (l < 50))
+    rel = []
+    for p, q in zip(scene.locate(px), px):
+        assert p.surface == "wall", (q, p.error)
+        truth = view.points_cam[int(q[1]), int(q[0])]
+        rel.append(np.linalg.norm(p.xyz - truth) / np.linalg.norm(truth))
+        assert p.sigma_parts["boundary"] > 0
+    assert np.max(rel) < 0.005  # eqs. 3-4: only the boundary's per-column sampling differs
+
+
+def test_floor_point_above_horizon_is_an_error():
+    cam = Camera.from_hfov(70, 640, 480)
+    scene = Scene(cam, 1.5, [[0, 400], [639, 400]])
+    with pytest.raises(GeometryError, match="horizon"):
+        scene.floor_point((320, 200))
+    assert scene.floor_point((320, 400))[1] == pytest.approx(1.5)
+    p = scene.locate([(320, 100)])[0]            # above the horizon: on the front wall
+    assert p.surface == "wall" and p.xyz[2] == pytest.approx(1.5 * cam.fy / (400 - cam.cy))
+
+
+def _right_wall_scene(cam, h=1.5):
+    """A single wall along the camera's forward axis, 1 m to the right (x = 1)."""
+    pts = []
+    for z in (2.0, 10.0):
+        uv, _ = cam.project_cam([[1.0, h, z]])
+        pts.append(uv[0])
+    return Scene(cam, h, np.array(pts))
+
+
+def test_ray_parallel_to_the_wall():
+    cam = Camera.from_hfov(70, 640, 480)
+    p = _right_wall_scene(cam).locate([(cam.cx, 100.0)])[0]   # straight ahead, above horizon
+    assert p.xyz is None and "parallel" in p.error
+
+
+def test_wall_behind_the_camera():
+    cam = Camera.from_hfov(70, 640, 480)
+    p = _right_wall_scene(cam).locate([(50.0, 100.0)])[0]     # looking left, above horizon
+    assert p.xyz is None and "behind the camera" in p.error
+
+
+def test_outside_image_and_nan():
+    cam = Camera.from_hfov(70, 640, 480)
+    scene = Scene(cam, 1.5, [[0, 400], [639, 400]])
+    out = scene.locate([(-5, 10), (700, 10), (float("nan"), 3)])
+    assert [p.xyz for p in out] == [None] * 3
+    assert "outside the 640x480 image" in out[0].error and "not finite" in out[2].error
+
+
+def test_open_and_none_segments():
+    cam = Camera.from_hfov(70, 640, 480, (0, np.cos(0.6), np.sin(0.6)))  # looking down
+    poly = [[0, -0.5], [300, -0.5], [300.5, 300], [639, 300]]
+    kinds = [SegKind.OPEN, SegKind.STEP, SegKind.WALL]
+    scene = Scene(cam, 1.2, poly, kinds)
+    left, right_wall = scene.locate([(100, 50), (500, 100)])
+    assert left.surface == "floor"                     # the floor continues past the top
+    assert right_wall.surface == "wall"
+    none = Scene(cam, 1.2, [[0, 479.5], [639, 479.5]], [SegKind.NONE])
+    p = none.locate([(320, 200)])[0]
+    assert p.xyz is None and "no floor is visible" in p.error
+
+
+@pytest.mark.parametrize("args,exc,msg", [
+    ((0.0, [[0, 400], [639, 400]]), GeometryError, "camera height"),
+    ((float("nan"), [[0, 400], [639, 400]]), GeometryError, "camera height"),
+    ((1.5, [[0, 400]]), HypothesisError, "at least 2"),
+    ((1.5, [[0, 100], [639, 100]]), HypothesisError, "horizon"),
+])
+def test_degenerate_scenes(args, exc, msg):
+    cam = Camera.from_hfov(70, 640, 480)
+    with pytest.raises(exc, match=msg):
+        Scene(cam, *args)
+    with pytest.raises(HypothesisError, match="segment kinds"):
+        Scene(cam, 1.5, [[0, 400], [639, 400]], [SegKind.WALL, SegKind.WALL])
+
+
+def test_distances_and_sigmas(level_view):
+    scene = Scene(level_view.camera, level_view.camera_height,
+                  level_view.ground_truth_boundary_polyline())
+    a, b, c = scene.locate([(320, 470), (200, 440), (-9, 0)])
+    d = distances([a, b, c], scene.height, scene.height_sigma)
+    assert d[0][0] == pytest.approx(np.linalg.norm(a.xyz - b.xyz))
+    assert d[0][1] >= d[0][0] * scene.height_sigma / scene.height
+    assert d[1] == (None, None, "an end point has no 3D position")
+    # a point further away is less certain (one pixel covers more floor)
+    near, far = scene.locate([(320, 470), (320, 420)])
+    assert far.sigma_m > near.sigma_m
+
+
+def _tilted(cam, d_pitch):
+    """The camera with gravity pitched down by ``d_pitch`` radians more (about level x)."""
+    R = cam.R_level_from_cam
+    w = d_pitch * R[0]
+    Rw, _ = cv2.Rodrigues(w.reshape(3, 1))
+    return cam.with_gravity(Rw @ cam.gravity)
+
+
+def test_gravity_sigma_part(tilted_view):
+    """The 'gravity' part is the point's displacement under a 1-sigma tilt (checked against
+    the scene rebuilt with the tilted gravity); exact gravity gives 0 and no jacobian."""
+    view = tilted_view
+    poly = view.ground_truth_boundary_polyline()
+    px = _pixels(view, lambda l: l == FLOOR, n=8) + 0.0
+    exact = Scene(view.camera, view.camera_height, poly)
+    assert all(p.sigma_parts["gravity"] == 0 and p.gravity_jac is None for p in exact.locate(px))
+    s = np.radians(0.5)
+    scene = Scene(view.camera, view.camera_height, poly, gravity_cov=np.diag([s * s, 0.0]))
+    moved = Scene(_tilted(view.camera, s), view.camera_height, poly)
+    for p, q in zip(scene.locate(px), moved.locate(px)):
+        d = np.linalg.norm(q.xyz - p.xyz)
+        assert p.sigma_parts["gravity"] == pytest.approx(d, rel=0.05)
+        assert p.sigma_m ** 2 == pytest.approx(sum(v * v for v in p.sigma_parts.values()))
+    iso = Scene(view.camera, view.camera_height, poly, gravity_cov=np.eye(2) * s * s)
+    assert all(a.sigma_parts["gravity"] > b.sigma_parts["gravity"]
+               for a, b in zip(iso.locate(px), scene.locate(px)))   # roll adds to it
+
+
+def test_gravity_part_of_a_distance_is_correlated(tilted_view):
+    """Both ends move together under a tilt: the distance's gravity part is the change of
+    the distance itself, not the two points' parts added up."""
+    view = tilted_view
+    poly = view.ground_truth_boundary_polyline()
+    a, b = _pixels(view, lambda l: l == FLOOR, n=2, seed=5)
+    s = np.radians(1.0)
+    kw = dict(height_sigma=0.0, gravity_cov=np.diag([s * s, 0.0]))
+    pa, pb = Scene(view.camera, view.camera_height, poly, **kw).locate([a, b])
+    (d, sd, err), = distances([pa, pb], view.camera_height, 0.0)
+    qa, qb = Scene(_tilted(view.camera, s), view.camera_height, poly).locate([a, b])
+    change = abs(np.linalg.norm(qb.xyz - qa.xyz) - d)
+    rest = np.sqrt(sum(p.sigma_parts[k] ** 2 for p in (pa, pb) for k in ("boundary", "pixel")))
+    assert err is None and sd == pytest.approx(np.hypot(change, rest), rel=0.05)
+    assert change < pa.sigma_parts["gravity"] + pb.sigma_parts["gravity"]
+
+
+def test_nonfinite_gravity_cov_is_refused(tilted_view):
+    with pytest.raises(GeometryError, match="gravity_cov"):
+        Scene(tilted_view.camera, 1.4, [[0, 300], [639, 300]], gravity_cov=[[np.nan, 0], [0, 1]])
+
+
+def test_boundary_near_the_horizon_places_no_wall_point(level_view):
+    """A wrong boundary just below the horizon (a counter's edge taken for the floor line):
+    a pixel there is worth metres, so the wall points above it are not placed (None with
+    the reason) rather than put tens of metres away; the true boundary places them."""
+    view = level_view
+    cam = view.camera
+    sigma_px = boundary_sigma_px(cam.width, cam.height)
+    px = _pixels(view, lambda l: (l >= WALL_BASE) & (l < 50), n=40, seed=3)
+    px = px[px[:, 1] < cam.cy - 10]              # above the wrong boundary
+    wrong = Scene(cam, view.camera_height, [[0, cam.cy + 4], [cam.width - 1, cam.cy + 4]],
+                  boundary_sigma_px=sigma_px)
+    located = wrong.locate(px)
+    assert all(p.xyz is None and "too loosely" in p.error for p in located)
+    # without the limit the same points get a position (far off) with their large sigma
+    free = Scene(cam, view.camera_height, [[0, cam.cy + 4], [cam.width - 1, cam.cy + 4]],
+                 boundary_sigma_px=sigma_px, max_rel_sigma=None).locate(px)
+    truth = view.points_cam[px[:, 1].astype(int), px[:, 0].astype(int)]
+    assert all(p.surface == "wall" and p.sigma_m > 0.5 * np.linalg.norm(p.xyz) for p in free)
+    assert all(np.linalg.norm(p.xyz - t) > np.linalg.norm(t) for p, t in zip(free, truth))
+    right = Scene(cam, view.camera_height, view.ground_truth_boundary_polyline(),
+                  boundary_sigma_px=sigma_px).locate(px)
+    for p, t in zip(right, truth):
+        assert p.surface == "wall" and p.sigma_m <= 0.5 * np.linalg.norm(p.xyz)
+        assert np.linalg.norm(p.xyz - t) < 0.005 * np.linalg.norm(t)
+    P, surface, sigma, _, reason = wrong.locate_level(px)   # the vectorised form agrees
+    assert np.all(np.isnan(P)) and np.all(surface == 0) and np.all(np.isinf(sigma))
+    assert np.all(reason == list(REASONS)[-1])
+
+
+def test_steep_boundary_has_its_sideways_sigma():
+    """The base of a wall running away from the camera is steep in the image: moved down it
+    slides along itself, so the boundary part is the sideways move's displacement (it was
+    near 0 before); the point itself is exact."""
+    cam = Camera.from_hfov(70, 640, 480)
+    h, x = 1.5, 0.4                                  # a wall 0.4 m to the right, along z
+    poly, _ = cam.project_cam([[x, h, 1.6], [x, h, 12.0]])
+    scene = Scene(cam, h, poly)
+    assert abs(np.diff(poly[:, 1])[0]) > 2 * abs(np.diff(poly[:, 0])[0])   # steep
+    z = 4.0
+    uv, _ = cam.project_cam([[x, 0.5, z]])           # a wall pixel 1 m above the floor
+    p = scene.locate(uv)[0]
+    assert p.surface == "wall" and np.allclose(p.xyz, [x, 0.5, z], atol=1e-6)
+
+    def moved(shift):
+        q = Scene(cam, h, poly + shift, max_rel_sigma=None).locate(uv)[0]
+        return np.linalg.norm(q.xyz - p.xyz)
+    down, side = moved([0.0, 1.0]), moved([1.0, 0.0])
+    assert side > 3 * down
+    assert p.sigma_parts["boundary"] == pytest.approx(side, rel=0.02)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+def test_max_rel_sigma_must_be_positive(bad):
+    cam = Camera.from_hfov(70, 640, 480)
+    with pytest.raises(GeometryError, match="max_rel_sigma"):
+        Scene(cam, 1.5, [[0, 400], [639, 400]], max_rel_sigma=bad)
