@@ -29,7 +29,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import schemas  # noqa: E402
 from bench.common import EVAL_DIR, dev_views  # noqa: E402
-from findme.evaluate import view_inputs  # noqa: E402
+from findme.evaluation.views import view_inputs  # noqa: E402
 from findme_io.imageio import decode_image  # noqa: E402
 from findme_core.single.methods import hypothesize  # noqa: E402
 from services.runtime.bus import BusConfig, open_session, wait_alive  # noqa: E402

@@ -168,8 +168,8 @@ RESULT_LINES = ("motion ", "measure ", "distance ", "photo ")
 
 def session_lines(*argv):
     """The result lines ``findme ARGV`` prints (motion, measurement, distance, each photo's
-    hypotheses count, selection and scene; timings left out, and pose lines: both commands
-    print photo n's results once its motion is in, with its pose only if that came first)."""
+    hypotheses count, selection and scene; timings and file names left out, and pose lines,
+    which a disturbed bus may leave out when the motion fails)."""
     out = subprocess.run([sys.executable, "-m", "findme.cli", *argv], capture_output=True,
                          text=True, timeout=600, check=True).stdout
     return [re.sub(r" in \d+ ms", "", ln) for ln in out.splitlines()

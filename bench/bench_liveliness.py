@@ -10,7 +10,7 @@ long-lived client session asks, in a row:
   service, as a client waiting for the services does), then n times back to back later,
   n times 0.25 s apart, and once on each of 15 fresh sessions: what ``findme status`` and
   sharding used before;
-* ``findme.deploy.service_statuses`` n times back to back, also right after
+* ``findme.cli.status.service_statuses`` n times back to back, also right after
   ``bus.wait_alive`` (now: every instance answers a status query sent to all, plus a
   liveliness subscriber with history).
 
@@ -26,7 +26,7 @@ import threading
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.bench_load import Deployment  # noqa: E402
-from findme.deploy import service_statuses  # noqa: E402
+from findme.cli.status import service_statuses  # noqa: E402
 from services.runtime import bus  # noqa: E402
 
 

@@ -29,11 +29,12 @@ from dataclasses import replace
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.common import EVAL_DIR, fmt, pin_one_core, stats  # noqa: E402
-from findme.evaluate import pair_inputs  # noqa: E402
+from findme.evaluation.pairs import pair_inputs  # noqa: E402
 from findme_core.motion.features import FeatureParams  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
 from findme_core.motion.pair import motion_photos, prepare  # noqa: E402
 from findme_core.single.methods import hypothesize  # noqa: E402
+from findme.evaluation.pairs import pair_inputs  # noqa: E402
 
 DETECTORS = {
     "orb 3000 grid, lsh matching (chosen)": FeatureParams(),

@@ -71,7 +71,7 @@ def dev_photos():
     """(id, BGR image, Camera) of every 640x480 dev view (the dataset's gravity), or of 12
     rendered rooms when the dataset is absent."""
     import cv2
-    from findme.evaluate import view_inputs
+    from findme.evaluation.views import view_inputs
     views = dev_views()
     if views:
         for vid, meta in views:

@@ -68,7 +68,7 @@ def tum_walk(size: tuple[int, int] | None = None, quality: int = 92, noise: floa
     camera scaled to match: pixel centres kept) with ``noise`` grey levels of sensor noise
     and encoded at ``quality``, as a phone's 12 MP photo; else the dataset's own JPEG bytes."""
     from bench.common import EVAL_DIR
-    from findme.evaluate import view_inputs
+    from findme.evaluation.views import view_inputs
     idx = EVAL_DIR / "index.json"
     if not idx.exists():
         return None

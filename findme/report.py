@@ -6,6 +6,7 @@ and, for the bundled example, its truth. Shared by ``findme run`` and ``findme s
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -16,10 +17,8 @@ import zenoh
 import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
-from findme_io.convert import motion_text
+from findme_io.convert import motion_text, msg_room_view
 from services.runtime import bus
-
-from .options import floats
 
 
 class Printer:
@@ -77,45 +76,60 @@ class Printer:
             return self.cv.wait_for(lambda: done(self.seen, self.errors), timeout)
 
     def photo_done(self, n: int, odometry: bool):
-        """Photo n's results are all in: its scene (or an error about it), and its pose or
-        motion when odometry runs."""
+        """Photo n's results are all in: its scene (or an error about it), and, when
+        odometry runs, its pose (odometry publishes it with the motion that places it) or
+        the motion's failure (then there is no pose)."""
         def done(seen, errors):
             p = f"findme/{self.session}/"
             failed = any(self._about(e, n, ("frame", "hypotheses", "selection")) for e in errors)
             scene = (p + f"scene/{n}" in seen and p + f"hypotheses/{n}" in seen) or failed
-            if not odometry or not scene:
+            if not odometry or not scene or failed:
                 return scene
-            return p + f"pose/{n}" in seen or any(k.startswith(p + "motion/") and
-                                                   k.endswith(f"/{n}") for k in seen)
+            return p + f"pose/{n}" in seen or any(
+                k.startswith(p + "motion/") and k.endswith(f"/{n}") and m.error
+                for k, m in seen.items()) or any(self._about(e, n, ("motion", "pose"))
+                                                 for e in errors)
         return done
 
-    @staticmethod
-    def describe(k: str, m) -> str | None:
+    def unit(self, n: int) -> str:
+        """The length unit of photo n's results: "m" when its scene is metric, else "h"
+        (camera heights: no camera height was given)."""
+        scene = self.seen.get(f"findme/{self.session}/scene/{n}")
+        return "m" if scene is None or scene.metric else "h"
+
+    def describe(self, k: str, m) -> str | None:
         name = type(m).__name__
         if name == "Frame":
             return f"photo {m.index}: {m.device or 'frame'} ({len(m.image.data) // 1024} kB)"
         if name == "HypothesisSet":
             t = sum(m.timing_ms.values())
+            frame = self.seen.get(f"findme/{self.session}/frame/{m.index}")
+            h = (frame.camera_height_m if frame is not None and frame.HasField("camera_height_m")
+                 else None)
+            view = msg_room_view(m, h)
             return (f"photo {m.index}: {len(m.hypotheses)} hypotheses in {t:.0f} ms"
-                    + (f" ({m.reason})" if m.reason else ""))
+                    + (f" ({m.reason})" if m.reason else "")
+                    + (f"; NOT A ROOM VIEW: {view.reason}" if view and not view.ok else ""))
         if name == "Selection":
             return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
         if name == "Scene":
-            return f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m" \
-                   f"{'' if m.metric else ', up to scale'})"
+            return (f"photo {m.index}: scene ready (camera {m.camera_height_m:.2f} m above the "
+                    "floor)" if m.metric else f"photo {m.index}: scene ready (no camera "
+                    "height: lengths in camera heights, h)")
         if name == "Motion":
-            return motion_text(m)
+            return motion_text(m, self.unit(m.index_b))
         if name == "Pose":
-            return (f"photo {m.index}: at x {m.x_m:+.3f} m, z {m.z_m:+.3f} m, heading "
-                    f"{__import__('math').degrees(m.yaw_rad):+.1f} deg from photo 0")
+            u = self.unit(m.index)
+            return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "
+                    f"{math.degrees(m.yaw_rad):+.1f} deg from photo 0")
         if name == "Plan":
             if m.reason:
                 return f"floor plan: none yet ({m.reason})"
             placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
-            unit = "m" if m.metric else "camera heights"
+            unit, area = ("m", "m²") if m.metric else ("h", "h²")
             return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
                 f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING else "")
-                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f}, "
+                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f} {area}, "
                 f"{placed} of {len(m.poses)} photos placed")
         if name == "Error":
             return f"error on {m.key}: {m.message}"
@@ -130,7 +144,7 @@ class Printer:
         return done
 
 
-def _example_paths() -> list[str]:
+def example_paths() -> list[str]:
     base = resources.files("findme") / "examples"
     return [str(base / "room_a.jpg"), str(base / "room_b.jpg")]
 
@@ -155,16 +169,17 @@ def read_photos(photos, out=None) -> list:
 
 
 def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: Lens,
-                   odometry: bool, timeout: float, mapper: bool = False) -> int:
+                   odometry: bool, timeout: float, mapper: bool = False, on_first=None) -> int:
     """Publish the photos through ``publisher`` (a running capture-like Service), then print
     each photo's results in order as they arrive, and the floor plan once it has taken in
-    every photo (when a mapper runs); returns the number of photos.
+    every photo (when a mapper runs); returns the number of photos. ``on_first()`` runs
+    once the first photo is out (``publish_frames``).
 
     Raises:
         BusError: a photo's results did not all arrive within ``timeout`` seconds.
     """
     t0 = time.perf_counter()
-    n = publish_frames(publisher, session_id, srcs, lens)
+    n = publish_frames(publisher, session_id, srcs, lens, on_first=on_first)
     for i in range(n):
         if not printer.wait(printer.photo_done(i, odometry), timeout):
             printer.report(i)
@@ -179,9 +194,10 @@ def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: L
     return n
 
 
-def _measure(session, session_id, args, photos) -> None:
-    pixels = [floats(p, 2, "--measure") for p in args.measure or []]
-    if not pixels and not args.photos:  # the example: its ground-truth floor points
+def measure(session, session_id: str, pixels, example: bool) -> None:
+    """Ask the measurement service for ``pixels`` (u, v) of photo 0 and print its answer;
+    for the bundled ``example`` (no pixels given: its ground-truth floor points), its truth."""
+    if not pixels and example:  # the example: its ground-truth floor points
         import json
         meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())
         pixels = [tuple(q["px"]) for q in meta["ground_truth"]["floor_points"][1:3]]
@@ -196,7 +212,7 @@ def _measure(session, session_id, args, photos) -> None:
             continue
         rep = schemas.decode(schemas.MeasureReply, reply.ok.payload.to_bytes())
         bus.put(session, bus.key(session_id, "measured", rep.index), reply.ok.payload.to_bytes())  # for the record
-        unit = "m" if rep.metric else "camera heights"
+        unit = "m" if rep.metric else "h (camera heights)"
         for p in rep.points:
             where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "
                      f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
@@ -205,7 +221,7 @@ def _measure(session, session_id, args, photos) -> None:
         for d in rep.distances:
             if not d.error:
                 print(f"distance {d.a + 1}-{d.b + 1}: {d.distance_m:.3f} {unit} ± {d.sigma_m:.3f}")
-        if not args.photos:
+        if example:
             _example_truth(pixels)
         return
 

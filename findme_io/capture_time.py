@@ -11,8 +11,8 @@
   frame's position in the video.
 
 ``None`` whenever the file does not say (no EXIF, no date, a malformed or zero value): the
-caller decides what to use instead (services/pipeline/capture.py takes the file's
-modification time).
+caller decides what to use instead (services/pipeline/capture.py stamps the frame when it
+takes the photo in, in capture order).
 """
 
 from __future__ import annotations

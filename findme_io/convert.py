@@ -248,6 +248,21 @@ def msg_hypotheses(msg) -> list[Hypothesis]:
     return out
 
 
+def msg_room_view(msg, camera_height: float | None = None):
+    """Whether the photo of a HypothesisSet message looks like a room view
+    (``room_view.judge`` on what the message carries: its hypotheses, size and camera;
+    ``camera_height`` metres, when known, only for the wording), or None when the message
+    has no hypotheses (its ``reason`` says why) or no camera."""
+    from findme_core.single.lines import Lines
+    from findme_core.single.room_view import judge
+    if not msg.hypotheses or not msg.HasField("camera"):
+        return None
+    hs = HypothesisSet(msg.width, msg.height, msg_hypotheses(msg),
+                       Lines(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)),
+                       np.zeros(0, int), msg.reason or None)
+    return judge(hs, msg_camera(msg.camera), camera_height)
+
+
 _SURFACE = {"floor": schemas.SURFACE_FLOOR, "wall": schemas.SURFACE_WALL, None: schemas.SURFACE_NONE}
 
 
@@ -301,9 +316,10 @@ def set_motion_estimate(msg, mo, max_alternatives: int = schemas.MAX_ALTERNATIVE
     return msg
 
 
-def motion_text(msg) -> str:
+def motion_text(msg, unit: str = "m") -> str:
     """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
-    this edge), its evidence, and 'ambiguous' when the evidence allows other motions."""
+    this edge; lengths in ``unit``: "m", or "h" when the scenes are in camera heights), its
+    evidence, and 'ambiguous' when the evidence allows other motions."""
     if msg.error:
         return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
     why = [f"{msg.inliers}/{msg.matches} inliers"]
@@ -313,5 +329,6 @@ def motion_text(msg) -> str:
     na = len(msg.alternatives)
     if na:
         why.append(f"ambiguous: {na} other motion{'s fit' if na > 1 else ' fits'} almost as well")
-    return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} m, z {msg.z_m:+.3f} m, "
-            f"yaw {math.degrees(msg.yaw_rad):+.2f} deg ({'; '.join(why)})")
+    return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} {unit}, "
+            f"z {msg.z_m:+.3f} {unit}, yaw {math.degrees(msg.yaw_rad):+.2f} deg "
+            f"({'; '.join(why)})")

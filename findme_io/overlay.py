@@ -33,8 +33,9 @@ def draw_hypotheses(image: np.ndarray, polylines, selected: int | None = None,
 
     Args:
         image: (H, W, 3) uint8 BGR (or (H, W) grey); not modified.
-        polylines: ranked sequence of (M, 2) pixel polylines; number i + 1 is drawn for item i.
-        selected: optional 0-based index drawn thicker and last (on top).
+        polylines: ranked sequence of (M, 2) pixel polylines, best first; number i + 1 is
+            drawn for item i. They are drawn worst first, so that the best lies on top.
+        selected: optional 0-based index drawn thicker and last (on top of all).
         thickness: line width in pixels (default scales with the image).
     Returns:
         (H, W, 3) uint8 BGR.
@@ -43,7 +44,7 @@ def draw_hypotheses(image: np.ndarray, polylines, selected: int | None = None,
     h, w = img.shape[:2]
     t = thickness or max(2, round(w / 320))
     cols = palette(len(polylines))
-    order = [i for i in range(len(polylines)) if i != selected]
+    order = [i for i in reversed(range(len(polylines))) if i != selected]
     if selected is not None and 0 <= selected < len(polylines):
         order.append(selected)
     font_scale = max(0.5, w / 1100)

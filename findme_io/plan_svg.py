@@ -14,6 +14,12 @@ import numpy as np
 from findme_core.plan.floorplan import Plan
 
 FT_PER_M = 3.280839895
+FONT_PX = 12
+#: a label's box, estimated (no font metrics here): width per character and height, px;
+#: generous for sans-serif at FONT_PX
+CHAR_W_PX, TEXT_H_PX = 0.62 * FONT_PX, FONT_PX
+#: clearance between a wall's line (its stroke included) and its label's box, px
+LABEL_GAP_PX = 5.0
 
 
 def length_text(m: float, feet: bool = False) -> str:
@@ -24,6 +30,18 @@ def length_text(m: float, feet: bool = False) -> str:
     return f"{inches // 12}' {inches % 12}\""
 
 
+def label_box(mid_px, outward, text: str) -> tuple[float, float, float, float]:
+    """(x, y baseline, width, height) of a wall label in page pixels: horizontal text whose
+    estimated box lies ``LABEL_GAP_PX`` beyond the wall's line on the ``outward`` side (a
+    unit page-pixel direction), so that it never covers the line whatever the wall's slope.
+    The text is centred on x (``text-anchor="middle"``); its baseline is y."""
+    w, h = CHAR_W_PX * len(text), TEXT_H_PX
+    nx, ny = outward
+    reach = LABEL_GAP_PX + abs(nx) * w / 2 + abs(ny) * h / 2   # box centre's distance
+    cx, cy = mid_px[0] + nx * reach, mid_px[1] + ny * reach
+    return cx, cy + 0.35 * h, w, h
+
+
 def plan_svg(plan: Plan, names=None, truth=None, feet: bool = False, px_per_m: float = 80.0,
              title: str | None = None) -> str:
     """SVG text of the plan. ``truth``: (T, 2) outline drawn in grey underneath."""
@@ -32,14 +50,17 @@ def plan_svg(plan: Plan, names=None, truth=None, feet: bool = False, px_per_m: f
     if len(fin):
         pts.append(fin[:, :2])
     allp = np.concatenate(pts)
-    lo, hi = allp.min(0) - 0.8, allp.max(0) + 0.8
+    longest = max((len(length_text(w.length_m, feet)) + 11 for w in plan.walls), default=0)
+    margin = max(0.8, (LABEL_GAP_PX + CHAR_W_PX * longest + 4) / px_per_m)   # room for labels
+    lo, hi = allp.min(0) - margin, allp.max(0) + margin
     W, H = (hi - lo) * px_per_m
 
     def P(p):
         return f"{(p[0] - lo[0]) * px_per_m:.1f},{(hi[1] - p[1]) * px_per_m:.1f}"
 
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W:.0f}" height="{H + 24:.0f}" '
-           f'viewBox="0 0 {W:.0f} {H + 24:.0f}" font-family="sans-serif" font-size="12">',
+           f'viewBox="0 0 {W:.0f} {H + 24:.0f}" font-family="sans-serif" '
+           f'font-size="{FONT_PX}">',
            '<rect width="100%" height="100%" fill="white"/>']
     if title:
         out.append(f'<text x="6" y="{H + 18:.0f}" fill="#333">{escape(title)}</text>')
@@ -59,11 +80,12 @@ def plan_svg(plan: Plan, names=None, truth=None, feet: bool = False, px_per_m: f
             out.append(f'<line x1="{P(a).split(",")[0]}" y1="{P(a).split(",")[1]}" '
                        f'x2="{P(b).split(",")[0]}" y2="{P(b).split(",")[1]}" stroke="#f5a623" '
                        'stroke-width="5"/>')
-        m = (w.a + w.b) / 2 + 0.22 * np.array([u[1], -u[0]])   # outside a CCW outline
         label = length_text(w.length_m, feet) + ("" if w.seen else " (not seen)")
-        x, y = P(m).split(",")
-        out.append(f'<text x="{x}" y="{y}" text-anchor="middle" fill="#222">{escape(label)}'
-                   '</text>')
+        mid = [float(c) for c in P((w.a + w.b) / 2).split(",")]
+        # outside a CCW outline: right of a -> b seen from above; the page's y runs down
+        x, y, _, _ = label_box(mid, (u[1], u[0]), label)
+        out.append(f'<text x="{x:.1f}" y="{y:.1f}" text-anchor="middle" fill="#222" '
+                   f'class="wall-label">{escape(label)}</text>')
     for k, p in enumerate(plan.poses):
         if not np.isfinite(p[0]):
             continue

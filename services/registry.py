@@ -14,19 +14,25 @@ from .runtime.handler import Handler
 log = logging.getLogger("findme.services")
 
 
-def add_service_args(p) -> None:
-    """Options of every service (unused ones are ignored by the others)."""
-    p.add_argument("--method", default="findme", help="hypotheses: findme or paper")
-    p.add_argument("--max", type=int, default=10, help="hypotheses: at most N per photo")
+def add_service_args(p, selection: bool = True, out_help: str | None = None) -> None:
+    """Options of every service (unused ones are ignored by the others); without
+    ``selection`` no ``--auto``/``--interactive`` (a command that runs no selection service);
+    ``out_help``: what ``--out`` is for in that command."""
+    p.add_argument("--method", default="findme", choices=("findme", "paper"),
+                   help="hypotheses: findme (default) or paper (the paper's method)")
+    p.add_argument("--max", type=int, default=10, metavar="N",
+                   help="hypotheses: at most N per photo (default 10)")
     p.add_argument("--latest", type=int, metavar="N",
                    help="hypotheses: keep only the newest N frames (live video); every skipped "
                         "frame is counted as dropped. Default: never drop a frame")
-    sel = p.add_mutually_exclusive_group()
-    sel.add_argument("--auto", action="store_true", help="selection: take rank 1 (default)")
-    sel.add_argument("--interactive", action="store_true",
-                     help="selection: show the numbered image and ask in the terminal")
+    if selection:
+        sel = p.add_mutually_exclusive_group()
+        sel.add_argument("--auto", action="store_true", help="selection: take rank 1 (default)")
+        sel.add_argument("--interactive", action="store_true",
+                         help="selection: write the numbered image and ask which hypothesis "
+                              "in the terminal")
     p.add_argument("--out", default=".", metavar="DIR",
-                   help="where selection images (and recordings) are written")
+                   help=out_help or "where selection images (and recordings) are written")
     d = p.add_argument_group("delivery (every service)")
     d.add_argument("--queue-depth", type=int, metavar="N",
                    help="messages a session may have waiting; more are answered OVERLOADED "
@@ -73,7 +79,8 @@ def make_handler(name: str, args) -> Handler:
                                  "latest" if args.latest else "all", args.latest or 64)
     if name == "selection":
         from .pipeline.selection import SelectionHandler, TerminalChooser
-        return SelectionHandler(TerminalChooser(args.out) if args.interactive else None)
+        interactive = getattr(args, "interactive", False)
+        return SelectionHandler(TerminalChooser(args.out) if interactive else None)
     if name == "measurement":
         from .pipeline.measurement import MeasurementHandler
         return MeasurementHandler(idle_s=getattr(args, "idle", 600.0))

@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from findme.evaluate import pair_inputs  # noqa: E402
+from findme.evaluation.pairs import pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
 from findme_core.motion.methods import METHODS  # noqa: E402

@@ -36,8 +36,8 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(__file__))
 import sigma_coverage as sc  # noqa: E402
-from findme.evaluate import GravityInput  # noqa: E402
-from findme.plan_cli import room_photos, room_spots  # noqa: E402
+from findme.evaluation.views import GravityInput  # noqa: E402
+from findme.evaluation.rooms import room_photos, room_spots  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.plan import session  # noqa: E402
 

@@ -100,14 +100,14 @@ def _diff(a, b, path=""):
 def _target(kind: str, ident: str):
     sys.path.insert(0, str(ROOT))
     if kind == "view":
-        from findme.evaluate import predict_view
+        from findme.evaluation.views import predict_view
         return lambda: predict_view((str(DATA / "views"), ident, "findme", 10, True))
     if kind == "pair":
-        from findme.evaluate import predict_pair
+        from findme.evaluation.pairs import predict_pair
         return lambda: predict_pair((str(DATA / "pairs"), str(DATA / "views"), ident, "findme",
                                      ["findme"], True))
     if kind == "room":
-        from findme.plan_cli import room_job
+        from findme.evaluation.rooms import room_job
         return lambda: room_job((str(DATA / "rooms"), str(DATA / "views"), ident, "ids"))
     if kind == "golden":
         import schemas

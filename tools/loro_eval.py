@@ -28,8 +28,9 @@ from dataclasses import replace
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(__file__))
 from fit_ranker import group_of  # noqa: E402
-from findme.evaluate import predict_pair, predict_view  # noqa: E402
-from findme.plan_cli import room_job  # noqa: E402
+from findme.evaluation.pairs import predict_pair  # noqa: E402
+from findme.evaluation.views import predict_view  # noqa: E402
+from findme.evaluation.rooms import room_job  # noqa: E402
 from findme_core.single import hypotheses  # noqa: E402
 from findme_core.single.ranking import FEATURES, RankWeights  # noqa: E402
 

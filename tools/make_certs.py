@@ -1,6 +1,6 @@
 """Make a private CA and the TLS certificates of the phone + server deployment.
 
-    python tools/make_certs.py OUT_DIR [--host findme.example.org] [--host 192.168.1.20]
+    python tools/make_certs.py OUT_DIR [--host findme.example.org] [--host 192.168.1.20] [--local]
 
 Writes into OUT_DIR (git-ignored when it is certs/; never put it in an image):
 
@@ -16,7 +16,14 @@ addresses as IP subjectAltNames): the names clients use to reach the server. Zen
 browsers check the name they connected to against these. Valid 825 days with the
 serverAuth extended key usage (iOS refuses server certificates without it or valid longer).
 The CA's private key is not kept: to add a host, make a new set (and install the new CA).
-Uses the ``cryptography`` package; equivalent openssl commands are in compose/README.md.
+Uses the ``cryptography`` package (installed with Find Me); equivalent openssl commands are
+in compose/README.md.
+
+``--local`` also writes ``router-local.json5`` and ``service-local.json5`` into OUT_DIR:
+compose's Zenoh configurations (router-tls.json5, service-tls.json5) with this folder's
+absolute paths instead of the container's ``/certs`` and the router at
+``tls/localhost:7447`` instead of the compose host ``router``, to run the same deployment
+on one machine without Docker (compose/Procfile.tls, compose/README.md).
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+COMPOSE = Path(__file__).resolve().parents[1] / "compose"
 #: The services of compose/docker-compose.yml that serve TLS, by their compose host names.
 COMPOSE_TLS_HOSTS = ("router", "gateway")
 LOCAL = ("localhost", "127.0.0.1")
@@ -105,13 +113,41 @@ def make_certs(out: Path, hosts=(), leaves: dict | None = None, days: int = 825)
     return paths
 
 
+def local_configs(out: Path, connect: str = "tls/localhost:7447",
+                  listen: str = "tls/0.0.0.0:7447") -> dict:
+    """Write ``out/router-local.json5`` and ``out/service-local.json5``: compose's TLS
+    configurations with ``out``'s absolute paths, the router listening on ``listen`` and the
+    services connecting to ``connect``; returns {"router": path, "service": path}."""
+    out = Path(out).resolve()
+    certs = f"{out}/"
+    router = (COMPOSE / "router-tls.json5").read_text()
+    service = (COMPOSE / "service-tls.json5").read_text()
+    for text, what in ((router, '"/certs/'), (router, '"tls/0.0.0.0:7447"'),
+                       (service, '"/certs/'), (service, '"tls/router:7447"')):
+        if what not in text:     # compose's files changed: say so rather than write a wrong one
+            raise SystemExit(f"compose's Zenoh configuration no longer has {what}")
+    header = ("// Made by tools/make_certs.py --local from compose/{} for this machine: edit "
+              "that one, then make it again.\n")
+    paths = {"router": out / "router-local.json5", "service": out / "service-local.json5"}
+    paths["router"].write_text(header.format("router-tls.json5") + router.replace(
+        '"/certs/', f'"{certs}').replace('"tls/0.0.0.0:7447"', f'"{listen}"'))
+    paths["service"].write_text(header.format("service-tls.json5") + service.replace(
+        '"/certs/', f'"{certs}').replace('"tls/router:7447"', f'"{connect}"'))
+    return paths
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out", help="folder to write the files into (e.g. certs)")
     ap.add_argument("--host", action="append", default=[],
                     help="a name or IP address clients use to reach the server (repeatable)")
+    ap.add_argument("--local", action="store_true",
+                    help="also write router-local.json5 and service-local.json5, the TLS "
+                         "deployment's Zenoh configurations for this machine (no Docker)")
     a = ap.parse_args(argv)
     paths = make_certs(Path(a.out), tuple(a.host))
+    if a.local:
+        paths.update({f"{k}_config": v for k, v in local_configs(Path(a.out)).items()})
     names = [*COMPOSE_TLS_HOSTS, *LOCAL, *a.host]
     print("\n".join(f"{k}: {v}" for k, v in paths.items()))
     print(f"certificates name: {', '.join(dict.fromkeys(names))}")

@@ -140,8 +140,8 @@ def _with_height(handler, choices):
 
 def run_session(spec: Spec, out_dir: Path) -> Path:
     """Run the embedded pipeline on a spec with the recorder; the raw recording's path."""
-    from findme.regress import wait_result
-    from findme.replay import Watch, ask_measure
+    from findme.regression.regress import wait_result
+    from findme.regression.replay import Watch, ask_measure
     from services.pipeline.capture import CaptureHandler
     from services.pipeline.hypotheses import HypothesesHandler
     from services.pipeline.measurement import MeasurementHandler
@@ -277,7 +277,7 @@ def check(target: Path, fresh: Path) -> tuple[bool, str]:
     Returns (same, what to print)."""
     from collections import defaultdict
 
-    from findme.regress import Regression, compare_results
+    from findme.regression.regress import Regression, compare_results
     if not target.exists():
         return False, "MISSING"
     if target.read_bytes() == fresh.read_bytes():

@@ -48,7 +48,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from findme.evaluate import GravityInput, add_gravity_args, pair_inputs  # noqa: E402
+from findme.cli.evaluate import add_gravity_args  # noqa: E402
+from findme.evaluation.pairs import pair_inputs  # noqa: E402
+from findme.evaluation.views import GravityInput  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.geometry.planar import _epipolar_terms, bearings  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402

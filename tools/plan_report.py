@@ -3,7 +3,7 @@
     python tools/plan_report.py DATASET_DIR [--spots ids|auto] [--figures docs/plans]
                                 [--cache DIR]
 
-For every room set (zind-rooms): our plan (``findme.plan_cli.room_job``: only the inputs
+For every room set (zind-rooms): our plan (``findme.evaluation.rooms.room_job``: only the inputs
 the dataset README allows), scored by ``shared/eval/score.py``; next to it the plan built
 from the same per-photo layouts placed at the TRUE poses (ground truth used on purpose: it
 shows what the walls alone allow, i.e. how much of the error comes from the poses). With
@@ -27,9 +27,10 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.plan_cli import room_photos, room_prediction  # noqa: E402
-from findme_core.errors import FindmeError  # noqa: E402
+from findme.evaluation.rooms import room_photos, room_prediction  # noqa: E402
+from findme.evaluation.rooms import room_photos, room_prediction  # noqa: E402
 from findme_core.plan import floorplan  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
 from findme_io.plan_svg import plan_svg  # noqa: E402
 
 

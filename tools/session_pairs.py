@@ -25,11 +25,13 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.plan_cli import room_spots  # noqa: E402
+from findme.evaluation.rooms import room_spots  # noqa: E402
+from findme.evaluation.rooms import room_spots  # noqa: E402
+from findme_core.motion import features, methods as motion, photometric as motion_photometric  # noqa: E402
+from findme_core.plan import fuse, session
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion import features, lifting, methods as motion  # noqa: E402
 from findme_core.motion import photometric as motion_photometric  # noqa: E402
-from findme_core.plan import fuse, session
 from findme_io.imageio import read_image  # noqa: E402
 from tools.plan_report import cached_photos  # noqa: E402
 

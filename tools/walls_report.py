@@ -36,8 +36,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from findme.evaluate import (GravityInput, add_gravity_args, view_camera,  # noqa: E402
-                             view_inputs)
+from findme.cli.evaluate import add_gravity_args  # noqa: E402
+from findme.evaluation.views import GravityInput, view_camera, view_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.single.scene import MAX_REL_SIGMA, Scene, boundary_sigma_px  # noqa: E402
 from findme_core.single.search import SegKind  # noqa: E402

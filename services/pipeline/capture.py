@@ -10,10 +10,12 @@ evaluation set's format; nothing else in it is read). Frames stay in the service
 a service that starts later can fetch them.
 
 A frame's ``capture_time_ns`` is when the photo was taken (findme_io/capture_time.py): the
-EXIF ``DateTimeOriginal`` of a photo, else the file's modification time (what a camera or a
-copy that keeps times leaves; never the time the file was read); a video's creation time
-(MP4/QuickTime ``mvhd``, else its modification time minus its duration) plus the frame's
-position; a camera's frame the clock when it was grabbed.
+EXIF ``DateTimeOriginal`` of a photo; else the frame's capture stamp, the clock when this
+service takes the photo in, strictly increasing in capture order (a file's modification
+time would not do: a copy or a clone gives every file the same one, and a trajectory needs
+its photos in order); a video's creation time (MP4/QuickTime ``mvhd``, else its
+modification time minus its duration) plus the frame's position; a camera's frame the
+clock when it was grabbed.
 
 A file that cannot be read (missing, not an image, too large, a broken sidecar) does not
 stop the others: with an ``errors`` list, ``sources`` reports it there and goes on.
@@ -83,7 +85,9 @@ def _photo(path: Path, name: str) -> tuple[str, bytes, dict]:
     original = _encoded(path)
     data, lens = for_bus(original, str(path))   # HEIC/AVIF/BMP/TIFF: upright JPEG + EXIF lens
     side = {**lens, **_sidecar(path)}
-    side["capture_time_ns"] = exif_time_ns(original) or path.stat().st_mtime_ns
+    t = exif_time_ns(original)
+    if t:                      # else: the frame's capture stamp (``frames``)
+        side["capture_time_ns"] = t
     return name, data, side
 
 
@@ -155,9 +159,20 @@ def _video(name: str, source, every: int):
         cap.release()
 
 
+#: Capture stamps of successive photos without a time of their own are at least this far
+#: apart (ns), so that they stay in capture order in every format (TUM, CSV milliseconds).
+MIN_STAMP_STEP_NS = 1_000_000
+
+
 def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
-    """Frame messages, n from ``start``; flags fill in what a sidecar does not say."""
+    """Frame messages, n from ``start``; flags fill in what a sidecar does not say. A photo
+    without a capture time of its own gets the frame's capture stamp: now, and always
+    after the previous stamp."""
+    stamp = 0
     for n, (name, data, side) in enumerate(srcs, start):
+        t = side.get("capture_time_ns")
+        if not t:
+            t = stamp = max(time.time_ns(), stamp + MIN_STAMP_STEP_NS)
         k = side.get("intrinsics")
         intr = ((k["fx"], k["fy"], k["cx"], k["cy"], k["width"], k["height"]) if k else None)
         if intr is None and lens.intrinsics is not None:
@@ -169,13 +184,14 @@ def frames(session: str, srcs, lens: Lens = Lens(), start: int = 0):
                          gravity=side.get("gravity_cam", lens.gravity),
                          gravity_sigma_rad=lens.gravity_sigma_rad,
                          camera_height_m=side.get("camera_height_m", lens.camera_height_m),
-                         device=f"file:{name}",
-                         time_ns=side.get("capture_time_ns") or time.time_ns())
+                         device=f"file:{name}", time_ns=t)
 
 
-def publish_frames(service, session: str, srcs, lens: Lens = Lens(), window: int = 8) -> int:
+def publish_frames(service, session: str, srcs, lens: Lens = Lens(), window: int = 8,
+                   on_first=None) -> int:
     """Publish every frame through a running capture ``service``, at most ``window`` of them
-    unanswered at once (``runtime.pacer``); returns the count."""
+    unanswered at once (``runtime.pacer``); returns the count. ``on_first()`` runs once the
+    first frame is out (it may raise to stop before the others)."""
     from ..runtime.handler import Output
     from ..runtime.pacer import Pacer
     pacer = Pacer(service.session, session, window)
@@ -186,6 +202,8 @@ def publish_frames(service, session: str, srcs, lens: Lens = Lens(), window: int
             service.publish(Output(bus.key(session, "frame", f.index), f))
             pacer.sent(f.index)
             n += 1
+            if n == 1 and on_first is not None:
+                on_first()
     finally:
         pacer.close()
     return n

@@ -1,11 +1,16 @@
 """A recording, read back: every bus message of it (``read_recording``: ``Recorded``, in
-file = arrival order) and the session it is of (``recording_session``).
+file = arrival order), as much of it as is complete while its recorder still writes it
+(``read_available``: the messages and ``Extent``, how far it got), and the session it is
+of (``recording_session``).
 
 A bus channel's message gets its key back from its payload (``mcap_layout.key_of``), a
 ``bus-exact`` channel's from the topic; a channel of a foreign MCAP counts as bus-exact when
 its topic is a bus key, and is skipped otherwise. View channels only on request. Log time:
-when the recorder received the message (ns since the epoch). A file that is not MCAP, or
-unfinished, raises ``findme_core.errors.RecordingError``.
+when the recorder received the message (ns since the epoch). A file that is not MCAP
+raises ``findme_core.errors.RecordingError``; so does an unfinished one, except for
+``read_available``. The recorder closes a chunk every half second, so a file being written
+is whole chunks followed by at most one being written: what is complete is every message
+of the whole chunks.
 """
 
 from __future__ import annotations
@@ -56,12 +61,44 @@ def open_mcap(path):
     return f
 
 
-def read_recording(path, views: bool = False) -> list[Recorded]:
-    """Every bus message of a finished recording in file (= arrival) order; view channels
-    too with ``views``.
+@dataclass(frozen=True)
+class Extent:
+    """How much of a recording was read.
+
+    complete: it has its end (its recorder finished it); reason: why reading stopped
+    before the end ("" when complete); bytes_read: the bytes of whole records read;
+    size: the file's size when it was read; messages: bus messages read; last_time: the
+    log time of the last one (ns since the epoch, 0 if none).
+    """
+
+    complete: bool
+    reason: str
+    bytes_read: int
+    size: int
+    messages: int
+    last_time: int
+
+    def describe(self, path) -> str:
+        """One line for the user: how far an unfinished recording got (or that it is
+        complete)."""
+        if self.complete:
+            return f"{path}: complete, {self.messages} messages"
+        import datetime as dt
+        last = (dt.datetime.fromtimestamp(self.last_time / 1e9).strftime("%H:%M:%S")
+                if self.last_time else "none yet")
+        return (f"{path} is not finished (still being written, or its recorder stopped "
+                f"without finishing it): read the {self.messages} messages complete so far "
+                f"(the last at {last}), {self.bytes_read / 1e3:.0f} of "
+                f"{self.size / 1e3:.0f} kB")
+
+
+def read_available(path, views: bool = False) -> tuple[list[Recorded], Extent]:
+    """Every bus message of a recording that is complete (all of a finished one; of one
+    still being written, or cut short, the messages of its whole chunks), in file order,
+    and how far that is. View channels too with ``views``.
 
     Raises:
-        RecordingError: not MCAP, or unfinished (its recorder died: ``findme recover``).
+        RecordingError: not an MCAP file.
     """
     from mcap.exceptions import McapError
     from mcap.stream_reader import StreamReader
@@ -69,10 +106,11 @@ def read_recording(path, views: bool = False) -> list[Recorded]:
     out: list[Recorded] = []
     schema_names: dict[int, str] = {0: ""}
     channels: dict[int, Channel] = {}
-    ended = False
+    ended, reason, good = False, "", 8
     with open_mcap(path) as f:
+        size = Path(path).stat().st_size
         try:
-            for r in StreamReader(f, validate_crcs=True).records:
+            for r in StreamReader(f, validate_crcs=True, record_size_limit=size).records:
                 if isinstance(r, Schema):
                     schema_names[r.id] = r.name
                 elif isinstance(r, Channel):
@@ -83,13 +121,40 @@ def read_recording(path, views: bool = False) -> list[Recorded]:
                         out.append(rec)
                 elif isinstance(r, Footer):
                     ended = True
+                good = f.tell()
         except (McapError, struct.error, ValueError, KeyError, OSError) as e:
-            raise RecordingError(
-                f"{path}: the recording is unfinished or damaged ({type(e).__name__}: {e}); "
-                f"salvage it with: findme recover {path} -o FIXED.mcap") from None
-    if not ended:
-        raise RecordingError(f"{path}: the recording has no end (its recorder died?); "
-                             f"salvage it with: findme recover {path} -o FIXED.mcap")
+            reason = _why(e, good, size)
+    if not ended and not reason:
+        reason = "it has no end yet"
+    n = sum(r.channel != "view" for r in out)
+    return out, Extent(ended, "" if ended else reason, good, size, n,
+                       out[-1].log_time if out else 0)
+
+
+def _why(e: Exception, at: int, size: int) -> str:
+    """Why reading stopped, for the user (an MCAP reader's EndOfFile has no message)."""
+    text = str(e).strip()
+    if type(e).__name__ == "EndOfFile" and at >= size:
+        return "it has no end yet"
+    if type(e).__name__ == "EndOfFile" or not text:
+        return f"the file ends inside a record, after byte {at} of {size}"
+    return f"{type(e).__name__}: {text} (after byte {at} of {size})"
+
+
+def read_recording(path, views: bool = False) -> list[Recorded]:
+    """Every bus message of a finished recording in file (= arrival) order; view channels
+    too with ``views``.
+
+    Raises:
+        RecordingError: not MCAP, or unfinished (its recorder is still writing it, or died:
+            ``findme recover``), with the reason.
+    """
+    out, extent = read_available(path, views)
+    if not extent.complete:
+        raise RecordingError(
+            f"{path}: the recording is not finished ({extent.reason}): it is still being "
+            f"written (wait until its recorder closes it) or its recorder died (salvage it "
+            f"with: findme recover {path} -o FIXED.mcap)")
     return out
 
 

@@ -1,6 +1,7 @@
 """The gateway: serves the phone client (a web page) and bridges each page to the bus.
 
-    GET /            the page (findme/web/index.html), /app.js, /style.css; nothing else
+    GET /            the page (findme/web/index.html), its scripts (``WEB_FILES``) and
+                     /style.css; nothing else
     GET /ws          a WebSocket: ONE new session per connection (= per page load)
 
 The browser never names a key. The gateway makes the session id (``web-<random>``) and a
@@ -73,6 +74,9 @@ HEADER_TIMEOUT_S = 15.0
 WEB_FILES = {"/": ("index.html", "text/html"), "/app.js": ("app.js", "text/javascript"),
              "/style.css": ("style.css", "text/css")}
 WEB_FILES["/plan.js"] = ("plan.js", "text/javascript")   # the floor plan drawing
+#: the page's parts (ES modules app.js imports; findme/web/common.js says what each does)
+WEB_FILES.update({f"/{name}.js": (f"{name}.js", "text/javascript")
+                  for name in ("common", "settings", "capture", "results", "motion")})
 
 
 class GatewayHandler(Handler):

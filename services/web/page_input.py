@@ -16,7 +16,7 @@ degrees), ``focal35`` (35 mm-equivalent focal length, mm, relative to the film d
 diagonal) or ``intrinsics`` (fx, fy, cx, cy in pixels of this photo). ``gravity`` is three
 numbers of any length above 1e-3, pointing down, in OpenCV camera axes (x right, y down,
 z forward) of the upright photo; the page has already turned the phone's device-frame
-reading into camera axes (findme/web/app.js) and nothing here rotates it.
+reading into camera axes (findme/web/settings.js) and nothing here rotates it.
 ``gravity_sigma_deg`` (optional, (0, 20]) is its 1-sigma per axis: the page sends 1.5 for a
 reading of the phone's motion sensors in the hand (the hypotheses service refines it by the
 photo's lines, weighing it so), nothing for a typed one (the frame's default, 0.5).

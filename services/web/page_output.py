@@ -10,7 +10,9 @@ relative to photo 0 and motions of photo B relative to photo A as in ``schemas``
 points in camera coordinates, gravity in camera axes. Enums become lower-case names (error
 codes upper-case, without their prefix), unset optional fields ``None``, and an error's key
 is given relative to the session (``frame/3``). A scene also carries its boundary's walls on
-the floor (``walls_m``, the photo's level frame) for the page's floor map.
+the floor (``walls_m``, the photo's level frame) for the page's floor map, and a hypothesis
+set says why its photo does not look like a room view (``not_room_view``,
+``findme_core.single.room_view``; "" when it does).
 
 Pure: no bus, no server; the message is only read.
 """
@@ -21,6 +23,7 @@ import schemas
 from findme_core.errors import FindmeError
 from findme_core.single import layout
 from findme_io.convert import msg_camera
+from findme_io.convert import msg_camera, msg_room_view
 
 from ..runtime import bus
 
@@ -64,13 +67,20 @@ def _sources(camera) -> dict:
             "gravity_sigma_deg": math.degrees(camera.gravity_sigma_rad)}
 
 
+def _not_room_view(msg) -> str:
+    """Why the photo does not look like a room view ("" when it does, or has no hypotheses:
+    then its reason says why)."""
+    view = msg_room_view(msg)
+    return view.reason if view is not None and not view.ok else ""
+
+
 def to_page(session: str, msg) -> dict | None:
     """A bus message of ``session`` as the JSON the page reads (None: not for the page)."""
     name = type(msg).__name__
     if name == "HypothesisSet":
         return {"type": "hypotheses", "index": msg.index, "width": msg.width,
                 "height": msg.height, "reason": msg.reason, "method": msg.method,
-                "timing_ms": dict(msg.timing_ms),
+                "not_room_view": _not_room_view(msg), "timing_ms": dict(msg.timing_ms),
                 "hypotheses": [{"rank": h.rank, "score": h.score, "support": h.support,
                                 "points": [[p.u, p.v] for p in h.polyline.points],
                                 "kinds": [_kind_name(k) for k in h.polyline.kinds]}

@@ -21,7 +21,8 @@ PAIRS = ("tum_cab_0002_0003", "zpt_r17_p7_p8_t1")
 
 _SCRIPT = """
 import json
-from findme.evaluate import GravityInput, predict_pair, predict_view
+from findme.evaluation.views import GravityInput, predict_view
+from findme.evaluation.pairs import predict_pair
 d = {data!r}
 views = {{v: predict_view((d + "/views", v, "findme", 10, True))[1] for v in {views!r}}}
 views.update({{v + "/refined": predict_view((d + "/views", v, "findme", 10,

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from findme.evaluate import GravityInput, view_camera
+from findme.evaluation.views import GravityInput, view_camera
 from findme_core.errors import InputError
 
 

@@ -260,7 +260,7 @@ def test_two_photo_session_across_hosts(lan, deployment, browser, tmp_path):
     page.context.close()
 
     # the work was shared by both hypotheses hosts, each photo handled once
-    from findme.deploy import service_statuses
+    from findme.cli.status import service_statuses
     fresh = open_session(BusConfig(mode="client", connect=(f"unixsock-stream/{d['sock']}",),
                                    user=SERVER_USER[0], password=SERVER_USER[1]))
     try:

@@ -14,7 +14,7 @@ from .conftest import GOLDEN, PAIR, ROOT
 
 
 def _findme(*args):
-    """``findme ARGS`` as its own process (deploy.Printer binds sys.stdout at import, so
+    """``findme ARGS`` as its own process (report.Printer binds sys.stdout at import, so
     in-process runs after a captured test would print to a closed stream)."""
     r = subprocess.run([sys.executable, "-m", "findme.cli", *map(str, args)], cwd=ROOT,
                        capture_output=True, text=True, timeout=300,

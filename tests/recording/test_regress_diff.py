@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from findme.regress import TOL_M, TOL_PX, diff_messages, regress
+from findme.regression.regress import TOL_M, TOL_PX, diff_messages, regress
 from services.recording.mcap_reader import read_recording
 
 from .conftest import PAIR, rewrite

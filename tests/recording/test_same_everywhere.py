@@ -17,7 +17,7 @@ _SCRIPT = """
 import logging, sys
 sys.path.insert(0, "tools")
 from pathlib import Path
-from findme.regress import regress
+from findme.regression.regress import regress
 import make_golden
 logging.disable(logging.ERROR)
 bad = 0

@@ -188,16 +188,13 @@ def start_tls_router(tmp, users: dict[str, str]):
     endpoint, TLS settings for a client, path of a service config for the "server" user)."""
     pytest.importorskip("cryptography", reason="cryptography generates the test certificates")
     sys.path.insert(0, str(COMPOSE.parent / "tools"))
-    from make_certs import make_certs
+    from make_certs import local_configs, make_certs
     make_certs(tmp, ("localhost", "127.0.0.1"))
     (tmp / "users.txt").write_text("".join(f"{u}:{p}\n" for u, p in users.items()))
     endpoint = f"tls/127.0.0.1:{free_port()}"
-    cfg = (COMPOSE / "router-tls.json5").read_text()
-    cfg = cfg.replace("/certs/", f"{tmp}/").replace("tls/0.0.0.0:7447", endpoint)
-    (tmp / "router.json5").write_text(cfg)
-    svc = (COMPOSE / "service-tls.json5").read_text()
-    (tmp / "service.json5").write_text(svc.replace("/certs/", f"{tmp}/")
-                                       .replace("tls/router:7447", endpoint))
+    cfg = local_configs(tmp, connect=endpoint, listen=endpoint)   # as compose/README says
+    (tmp / "router.json5").write_text(cfg["router"].read_text())
+    (tmp / "service.json5").write_text(cfg["service"].read_text())
     proc = spawn_findme("router", "--config", tmp / "router.json5")
     wait_logged(proc, "listening on")
     return proc, endpoint, {"root_ca_certificate": str(tmp / "ca.pem")}, tmp / "service.json5"

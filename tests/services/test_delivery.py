@@ -8,7 +8,8 @@ import threading
 import pytest
 
 import schemas
-from findme.deploy import service_statuses
+from findme.cli.status import service_statuses
+from findme.cli.status import service_statuses
 from findme_core.synth.render import Pose, Room, render
 from services.runtime import bus
 from tests.cli.conftest import run_findme

@@ -7,6 +7,7 @@ import shlex
 import signal
 import sys
 import threading
+from importlib import resources
 from pathlib import Path
 
 import pytest
@@ -27,7 +28,7 @@ def test_procfile_is_what_findme_up_runs():
     ``findme up``, and each line is a valid findme command."""
     lines = [ln for ln in (COMPOSE / "Procfile").read_text().splitlines()
              if ln.strip() and not ln.startswith("#")]
-    from findme.up_cli import processes
+    from findme.cli.up import processes
     parser = build_parser()
     want = [f"{name}: {shlex.join(['findme', *argv])}"
             for name, argv in processes(parser.parse_args(["up"]))]
@@ -205,15 +206,98 @@ def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
 
 
 def test_up_without_the_mapper():
-    from findme.up_cli import processes
+    from findme.cli.up import processes
     names = [n for n, _ in processes(build_parser().parse_args(["up", "--no-mapper"]))]
     assert "mapper" not in names and {"odometry1", "measurement", "recorder"} <= set(names)
 
 
 def test_up_starts_the_odometry_instances_asked_for():
-    from findme.up_cli import processes
+    from findme.cli.up import processes
     procs = processes(build_parser().parse_args(["up", "--odometry", "3"]))
     odo = [argv for n, argv in procs if n.startswith("odometry")]
     assert [a[a.index("--instance") + 1] for a in odo] == ["o1", "o2", "o3"]
     with pytest.raises(InputError, match="--odometry must be at least 1, got 0"):
         processes(build_parser().parse_args(["up", "--odometry", "0"]))
+
+
+def _send_in_process(capsys, *argv):
+    """``findme send ARGV`` in this process: (exit status, stderr, seconds it took)."""
+    import logging
+    import time
+
+    from findme.cli import main
+    handlers = logging.root.handlers[:]
+    t0 = time.monotonic()
+    try:
+        rc = main([str(a) for a in argv])
+    finally:
+        logging.root.handlers[:] = handlers
+    took = time.monotonic() - t0
+    return rc, capsys.readouterr().err, took
+
+
+def test_a_refused_session_or_password_is_one_clear_line_within_5_s(tls_router, tmp_path,
+                                                                    capsys):
+    """As device alice: a session the router's access control does not give her
+    (``--session bob-123``), or a wrong password, is one line saying so (exit status 2)
+    within 5 s, not a 120 s wait that blames the services. Services: the server user's
+    liveliness tokens (``send`` checks that they are alive first)."""
+    from services.runtime import bus as rbus
+    endpoint, tls = tls_router
+    server = open_session(BusConfig(mode="client", connect=(endpoint,), tls=tls,
+                                    user="server", password="change-me-server"))
+    tokens = [server.liveliness().declare_token(f"{rbus.SERVICES}/{name}/t")
+              for name in ("hypotheses", "measurement")]
+    good, bad = tmp_path / "alice.pw", tmp_path / "wrong.pw"
+    good.write_text("change-me-alice\n")
+    bad.write_text("not-her-password\n")
+    photo = str(resources.files("findme") / "examples" / "room_a.jpg")
+    auth = ["--connect", endpoint, "--ca", tls["root_ca_certificate"], "--user", "alice"]
+    try:
+        rc, err, took = _send_in_process(capsys, "send", photo, *auth, "--password-file", good,
+                                         "--session", "bob-123")
+        assert rc == 2 and err.count("\n") == 1 and took < 5.0, (rc, took, err)
+        assert ("did not pass on photo 0 of session 'bob-123' within 2 s: its access control "
+                "does not let user 'alice' use that session (a device may only use sessions "
+                "that start with its user name, alice-...") in err
+        rc, err, took = _send_in_process(capsys, "send", photo, *auth, "--password-file", bad)
+        assert rc == 2 and err.count("\n") == 1 and took < 5.0, (rc, took, err)
+        assert (f"the router at {endpoint} answers but refused this client: as user 'alice' "
+                "the password is wrong") in err
+        # a device sees which services are alive, not their counters: said, not zeros
+        from findme.cli import main
+        assert main(["status", *auth, "--password-file", str(good)]) == 0
+        out = capsys.readouterr().out
+        assert "hypotheses   t             alive  no counters (this client may not read them" \
+            in out, out
+    finally:
+        for t in tokens:
+            t.undeclare()
+        server.close()
+
+
+def test_procfile_tls_runs_the_compose_services_with_local_configs(tmp_path):
+    """compose/Procfile.tls (the TLS deployment on one machine, no Docker) runs what the
+    compose file runs, each line a valid findme command on the configurations
+    ``make_certs.py --local`` writes: compose's, with this folder's paths and the router on
+    localhost, loadable by Zenoh."""
+    lines = [ln for ln in (COMPOSE / "Procfile.tls").read_text().splitlines()
+             if ln.strip() and not ln.startswith("#")]
+    parser = build_parser()
+    names = set()
+    for ln in lines:
+        name, cmd = ln.split(":", 1)
+        argv = shlex.split(cmd)
+        assert argv[0] == "findme" and parser.parse_args(argv[1:]).command in ("router", "serve")
+        names.add(argv[2] if argv[1] == "serve" else "router")
+        assert any(a.startswith("certs/") and a.endswith("-local.json5") for a in argv), ln
+    assert names == set(_compose_commands())
+    sys.path.insert(0, str(COMPOSE.parent / "tools"))
+    from make_certs import main
+    main([str(tmp_path / "certs"), "--local"])
+    for name in ("router-local.json5", "service-local.json5"):
+        text = (tmp_path / "certs" / name).read_text()
+        assert '"/certs/' not in text and f'"{(tmp_path / "certs").resolve()}/' in text
+        zenoh.Config.from_file(str(tmp_path / "certs" / name))
+    conf = zenoh.Config.from_file(str(tmp_path / "certs" / "service-local.json5"))
+    assert json.loads(conf.get_json("connect/endpoints")) == ["tls/localhost:7447"]

@@ -87,12 +87,14 @@ def test_send_prints_the_run_report_and_export_gives_capture_times(bus, photos, 
     assert p.returncode == 0, p.stderr
     out = p.stdout
     for line in ("photo 0: 10 hypotheses", "photo 1: hypothesis 1 selected (auto)",
-                 "photo 1: scene ready (camera 1.42 m)", "distance 1-2:"):
-        assert line in out, out
+                 "photo 1: scene ready (camera 1.42 m above the floor)", "distance 1-2:",
+                 "photo 0: at x +0.000 m, z +0.000 m", "photo 1: at x +0.3"):
+        assert line in out, out     # each photo's position line, as findme run prints it
     assert_example_motion(out)
     ref = run_findme("run", *map(str, photos), "--no-record", "--measure", "495,276",
                      "--measure", "247,378").stdout
-    same = [ln for ln in out.splitlines() if ln.startswith(("motion", "measure", "distance"))]
+    same = [ln for ln in out.splitlines()
+            if ln.startswith(("motion", "measure", "distance")) or ": at x " in ln]
     assert same and all(ln in ref.splitlines() for ln in same), (same, ref)
 
     # the recorder's file of that session, exported: timestamps are the EXIF times

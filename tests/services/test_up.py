@@ -40,6 +40,8 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
     ep, up = _up(tmp_path)
     try:
         _wait(up, "| ready: 9 services")
+        # the hint names the command as it was run (here: this Python -m findme.cli)
+        _wait(up, f"send photos with: {sys.executable} -m findme.cli send --connect {ep}\n")
         p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
         assert p.returncode == 0, p.stderr
         assert_example_motion(p.stdout)
@@ -73,3 +75,22 @@ def test_up_stops_all_when_one_dies_and_quiet_logs_no_message_lines(tmp_path):
     assert code == -signal.SIGKILL or code != 0, log
     assert "router stopped (rc=0)" in log and "measurement stopped (rc=0)" in log, log
     assert " INFO " not in log
+
+
+def test_up_refuses_a_port_in_use_before_it_starts_anything(tmp_path):
+    """Another router on the port: one line naming it (exit status 2), nothing started, no
+    "ready" (the services would have joined the other router)."""
+    import socket
+    import time
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        t0 = time.monotonic()
+        p = subprocess.run([sys.executable, "-m", "findme.cli", "up", "--listen",
+                            f"tcp/127.0.0.1:{port}"], cwd=tmp_path, capture_output=True,
+                           text=True, timeout=60)
+        took = time.monotonic() - t0
+    assert p.returncode == 2 and took < 10, (p.returncode, took, p.stderr)
+    assert p.stdout == "" and p.stderr.count("\n") == 1, p.stdout + p.stderr
+    assert f"cannot listen on tcp/127.0.0.1:{port}: Address already in use" in p.stderr

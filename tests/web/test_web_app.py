@@ -96,7 +96,7 @@ def locate(image, side, rank, pixels):
 
 # ------------------------------------------------------------------------------ tests
 def test_gravity_conversion_in_the_page(browser, app):
-    """The page's device-to-camera gravity conversion (documented in app.js)."""
+    """The page's device-to-camera gravity conversion (documented in settings.js)."""
     page = open_page(browser, app)
     r = page.evaluate("""() => {
         const F = FindMe, c = (g, t) => F.deviceToCamera(g, t).map(x => +x.toFixed(6));

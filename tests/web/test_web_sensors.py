@@ -29,7 +29,7 @@ def camera_gravity(pitch_deg: float, roll_deg: float) -> np.ndarray:
 
 
 def device_gravity(g_cam: np.ndarray, theta_deg: float) -> np.ndarray:
-    """Inverse of the page's deviceToCamera (app.js header): the device-frame gravity of a
+    """Inverse of the page's deviceToCamera (settings.js header): the device-frame gravity of a
     phone whose upright photo is the device turned counter-clockwise by theta."""
     t = math.radians(theta_deg)
     r, d = np.array([math.cos(t), -math.sin(t)]), np.array([-math.sin(t), -math.cos(t)])

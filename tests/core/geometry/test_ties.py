@@ -77,7 +77,7 @@ def test_products_without_blas_equal_the_blas_ones():
 
 _PROBE = """
 import hashlib, json, numpy as np
-from findme_core import ties
+from findme_core.geometry import ties
 rng = np.random.default_rng(7)
 M, v, B = rng.normal(size=(300, 13)), rng.normal(size=13), rng.normal(size=(13, 9))
 F = rng.normal(size=(7, 40, 641))

@@ -32,10 +32,22 @@ import sys
 from findme_core.errors import InputError
 
 
+UP_HELP = """\
+A router and one process per service on this machine, until Ctrl-C: store,
+hypotheses x N, selection, measurement, odometry, mapper and the recorder
+(sessions to OUT/<session>.mcap), and with --gateway the phone page. Their logs
+come here, one line per handled message, prefixed with the time and the
+process's name. It says "ready" once every service is on the bus, with the
+command that sends photos to them; Ctrl-C (or the death of any process) stops
+them all.
+
+Examples:  findme up
+           findme up --gateway --https      (the phone page too, over HTTPS)"""
+
+
 def register(sub) -> None:
-    import argparse
-    p = sub.add_parser("up", help="router + one process per service on this machine",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser("up", help="a router and every service as processes on this machine",
+                       description=UP_HELP)
     p.add_argument("--listen", default="tcp/127.0.0.1:7447", metavar="ENDPOINT",
                    help="the router's endpoint, which the services join "
                         "(default tcp/127.0.0.1:7447: this machine only)")
@@ -54,15 +66,17 @@ def register(sub) -> None:
     p.add_argument("--https", action="store_true",
                    help="gateway: HTTPS with certs/gateway.pem and certs/gateway.key "
                         "(python tools/make_certs.py certs --host THIS-MACHINE)")
-    p.add_argument("--tls-cert", "--cert", dest="tls_cert", metavar="CERT.pem")
-    p.add_argument("--tls-key", "--key", dest="tls_key", metavar="KEY.pem")
+    p.add_argument("--tls-cert", "--cert", dest="tls_cert", metavar="CERT.pem",
+                   help="gateway: serve HTTPS with this certificate")
+    p.add_argument("--tls-key", "--key", dest="tls_key", metavar="KEY.pem",
+                   help="gateway: the certificate's private key")
     p.add_argument("--no-mapper", action="store_true",
                    help="no floor plans (the mapper): on a small machine under many phones it "
                         "takes CPU the poses need")
     p.add_argument("--quiet", action="store_true",
                    help="services log warnings and errors only")
     p.add_argument("--procfile", action="store_true",
-                   help="print the processes as a Procfile (commands as `findme ...`) and exit")
+                   help="print the processes as a Procfile (for foreman or honcho) and exit")
     p.set_defaults(func=cmd_up)
 
 
@@ -88,7 +102,7 @@ def processes(args) -> list[tuple[str, list[str]]]:
         procs.append(("mapper", ["serve", "mapper", "--connect", ep, *quiet]))
     procs.append(("recorder", ["serve", "recorder", "--connect", ep, "--out", args.out, *quiet]))
     if args.gateway:
-        from .app_cli import https_files
+        from .web_options import https_files
         cert, key = https_files(args)
         http = args.http or ("0.0.0.0:8443" if cert else "127.0.0.1:8080")
         tls = ["--tls-cert", cert, "--tls-key", key] if cert else []
@@ -113,9 +127,52 @@ def _local(endpoint: str) -> str:
     return f"{proto}/127.0.0.1:{port}" if host in ("0.0.0.0", "[::]") else endpoint
 
 
-def announce_ready(endpoint: str, expected: set[str], say, timeout: float = 120.0) -> None:
+def invoked_as(argv0: str | None = None) -> str:
+    """The ``findme`` command as the user typed it, for hints: ``.venv/bin/findme`` as
+    given, ``findme`` when that is what PATH finds, ``python -m findme.cli`` as that."""
+    import shutil
+    argv0 = sys.argv[0] if argv0 is None else argv0
+    if argv0.endswith("__main__.py") or not argv0:
+        return shlex.join([sys.executable, "-m", "findme.cli"])
+    name = os.path.basename(argv0)
+    found = shutil.which(name)
+    if os.sep in argv0 and found and os.path.samefile(found, argv0):
+        return name
+    return shlex.quote(argv0)
+
+
+def check_free(endpoint: str) -> None:
+    """Refuse, before anything starts, an endpoint whose TCP port something already
+    listens on (another ``findme up`` or router): the services would join that one and
+    look ready while this router fails.
+
+    Raises:
+        BusError: the port is taken.
+    """
+    import socket
+
+    from findme_core.errors import BusError
+    proto, _, addr = endpoint.partition("/")
+    host, _, port = addr.rpartition(":")
+    if proto not in ("tcp", "tls") or not port.isdigit() or int(port) == 0:
+        return
+    host = host.strip("[]") or "0.0.0.0"
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)   # TIME_WAIT is no obstacle
+        try:
+            s.bind((host, int(port)))
+        except OSError as e:
+            raise BusError(f"cannot listen on {endpoint}: {e.strerror} (another findme up or "
+                           f"router? stop it, or give --listen {proto}/{host}:OTHER-PORT)") \
+                from None
+
+
+def announce_ready(endpoint: str, expected: set[str], say, timeout: float = 120.0,
+                   command: str = "findme") -> None:
     """Wait (on liveliness, no polling) until every expected service is on the bus, then
-    ``say`` the readiness line; or, after ``timeout``, which ones are missing."""
+    ``say`` the readiness line with the ``command`` that sends photos; or, after
+    ``timeout``, which ones are missing."""
     import threading
 
     import zenoh
@@ -146,7 +203,7 @@ def announce_ready(endpoint: str, expected: set[str], say, timeout: float = 120.
     finally:
         session.close()
     if ok:
-        say(f"ready: {len(expected)} services on {endpoint}; send photos with: findme send "
+        say(f"ready: {len(expected)} services on {endpoint}; send photos with: {command} send "
             f"--connect {endpoint}\n")
     else:
         say(f"not ready after {timeout:.0f} s: no {', '.join(gone)} on the bus (see above)\n")
@@ -163,11 +220,18 @@ def cmd_up(args) -> int:
     from honcho.manager import SIGNALS, Manager
     from honcho.printer import Message
 
+    check_free(args.listen)
+    gateway = [argv for name, argv in procs if name == "gateway"]
+    if gateway:                                   # the page's port, as processes() chose it
+        check_free("tcp/" + gateway[0][gateway[0].index("--http") + 1])
+    command = invoked_as()
+
     class _Manager(Manager):
         def _start(self):
             super()._start()      # forks the children first: no Zenoh session in them
             threading.Thread(target=announce_ready, daemon=True, args=(
-                _local(args.listen), _expected(procs), self._say)).start()
+                _local(args.listen), _expected(procs), self._say),
+                kwargs={"command": command}).start()
 
         def _say(self, text):
             self.events.put(Message(type="line", data=text, time=self._clock.now(),

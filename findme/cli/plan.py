@@ -1,5 +1,5 @@
 """``findme plan`` (a room's floor plan from a session of photos) and ``findme locate-in``
-(where a new photo was taken on a plan); ``room_job`` plans a findme-eval room set.
+(where a new photo was taken on a plan).
 
 Photos are given in capture order: stand at a spot, turn right taking photos tilted down to
 see the floor, move to the next spot. Each photo's camera comes from its sidecar
@@ -16,32 +16,51 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 
-import cv2
 import numpy as np
 
 from findme_core.errors import FindmeError, InputError
 from findme_core.geometry.camera import Camera
-from findme_core.plan import relocalise, session, shared_gravity
+from findme_core.plan import relocalise, session
 from findme_core.plan.floorplan import Plan
 
-from findme_io.camera_source import hypothesize_photo, with_gravity
-from findme_io.imageio import read_image, read_photo
+from findme_io.camera_source import with_gravity
+from findme_io.imageio import read_photo
 from findme_io.plan_svg import plan_svg
+from findme_io.session_photos import final_gravity, session_photos
 from .options import add_camera_args, camera_height, photo_camera_from
 
-_SPOT = re.compile(r"_p(\d+)_")
+PLAN_HELP = """\
+The room's floor plan from a session of photos, in the order they were taken:
+stand at a spot, turn round taking photos tilted down so that they show the
+floor, move to the next spot. It prints the walls with their lengths and 1-sigma
+(walls not seen marked), openings, the floor area and where each photo was taken
+(x to the right, z forward of the first photo, yaw in degrees). A photo's camera
+comes from PHOTO.json beside it when there is one (intrinsics, gravity_cam,
+camera_height_m), else from the options and its EXIF.
+
+Example:  findme plan spot1_*.jpg spot2_*.jpg --camera-height 1.45 \\
+              --svg plan.svg"""
+
+LOCATE_IN_HELP = """\
+Where a new photo was taken on a floor plan made by findme plan --json: its
+position and heading in the plan, and the other places a symmetric room allows
+almost as well (a rectangular room looks alike turned half round). Several
+photos taken standing at one place (turning round) are found together; --photos
+with the plan's own photos adds their feature matches.
+
+Example:  findme plan a.jpg b.jpg c.jpg --json > plan.json
+          findme locate-in plan.json new.jpg --photos a.jpg b.jpg c.jpg"""
 
 
 def register(sub) -> None:
     p = sub.add_parser("plan", help="a room's floor plan from a session of photos",
-                       description=__doc__)
-    p.add_argument("photos", nargs="+", metavar="PHOTO")
+                       description=PLAN_HELP)
+    p.add_argument("photos", nargs="+", metavar="PHOTO", help="the photos, in capture order")
     add_camera_args(p)
     p.add_argument("--camera-height", type=float, metavar="M",
-                   help="camera height above the floor in metres (default: the sidecar's, "
-                        "else 1: the plan up to scale)")
+                   help="camera height above the floor in metres (default: PHOTO.json's, "
+                        "else unknown: lengths in camera heights)")
     p.add_argument("--spots", metavar="N,N,...",
                    help="spot label of each photo (photos with one label were taken standing "
                         "at one place); default: found from the photos")
@@ -49,22 +68,20 @@ def register(sub) -> None:
     p.add_argument("--svg", metavar="OUT.svg", help="also draw the plan")
     p.add_argument("--feet", action="store_true", help="wall lengths in feet in the drawing")
     p.set_defaults(func=cmd_plan)
-    q = sub.add_parser("locate-in", help="where a photo was taken on a floor plan",
-                       description="Register the photo's walls to the plan's walls: its pose "
-                                   "in the plan's frame, and the other poses a symmetric room "
-                                   "allows. Several photos taken standing at one place "
-                                   "(turning round) are found together: more walls and "
-                                   "matches than one photo has.")
-    q.add_argument("plan", metavar="PLAN.json")
+    q = sub.add_parser("locate-in", help="where a new photo was taken on a floor plan",
+                       description=LOCATE_IN_HELP)
+    q.add_argument("plan", metavar="PLAN.json", help="a plan from findme plan --json")
     q.add_argument("photo", nargs="+", metavar="PHOTO",
                    help="one photo, or several taken at one place")
     add_camera_args(q)
-    q.add_argument("--camera-height", type=float, metavar="M")
+    q.add_argument("--camera-height", type=float, metavar="M",
+                   help="camera height above the floor in metres, as the plan was made with "
+                        "(default: PHOTO.json's, else unknown: camera heights)")
     q.add_argument("--photos", nargs="+", metavar="SESSION_PHOTO",
                    help="the photos the plan was made from, as given to findme plan: the new "
                         "photo's feature matches and motions with them count too (the plan's "
                         "walls alone leave a rectangular room's quarter turns open)")
-    q.add_argument("--json", action="store_true")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_locate_in)
 
 
@@ -95,30 +112,7 @@ def photo_inputs(path: str, args) -> tuple:
         h, metric = float(height), True
     else:
         h, metric = camera_height(args.camera_height)
-    return (img, *_final(img, cam, prov, h, metric))
-
-
-def _final(img, cam, prov, h, metric) -> tuple:
-    """(camera, height, metric, estimate) with the gravity the photo's hypotheses end with
-    (``hypothesize_photo``); estimate: the image's when gravity came from the photo alone."""
-    est = None
-    if prov.estimate is not None:
-        _, cam, prov = hypothesize_photo(img, cam, prov, max_n=1,
-                                         camera_height=h if metric else None)
-        if prov.gravity in ("image", "level"):
-            est = prov.estimate
-    return cam, h, metric, est
-
-
-def session_photos(images, inputs) -> tuple[list, dict]:
-    """``session.Photo`` of each photo from its ``_final`` inputs: photos whose gravity came
-    from their own lines agree on it spot by spot (``shared_gravity.analyse_plain``);
-    {index: why} of those left out."""
-    photos, sg = shared_gravity.analyse_plain(images, [i[0] for i in inputs],
-                                              [i[1] for i in inputs], [i[3] for i in inputs])
-    return photos, ({} if sg is None else {i: p.reason for i, p in enumerate(photos)
-                                             if p.layout is None and p.reason
-                                             and p.reason.startswith("gravity unknown")})
+    return (img, *final_gravity(img, cam, prov, h, metric))
 
 
 def cmd_plan(args) -> int:
@@ -147,7 +141,7 @@ def cmd_plan(args) -> int:
         return 0
     unit = "m" if metric else "camera heights"
     print(f"floor plan: {len(plan.walls)} walls, area {plan.area_m2:.2f} "
-          f"{'m2' if metric else '(camera heights)^2'}"
+          f"{'m²' if metric else 'h² (h: the camera height)'}"
           + ("" if plan.closed else f"; missing walls (not seen): {plan.missing}"))
     for k, w in enumerate(plan.walls):
         print(f"  wall {k}: {w.length_m:.2f} "
@@ -236,48 +230,3 @@ def _find_with_photos(plan: Plan, plan_names: list, args, photos):
                          "files in the same order as given to findme plan)")
     plan_photos = _photos(args.photos, args)
     return session.find(plan_photos, plan.poses, photos)
-
-
-def room_photos(room_dir: str, view_dir: str, rid: str, gravity=True) -> tuple[list, list]:
-    """(view ids, analysed photos) of one findme-eval room set: only its ordered view ids
-    and their camera inputs are read; each view's gravity as ``gravity`` (an
-    ``evaluate.GravityInput``, or True/False) gives it (``session_photos``)."""
-    from findme.evaluate import view_camera
-    with open(os.path.join(room_dir, rid + ".json")) as f:
-        views = json.load(f)["views"]
-    images, inputs = [], []
-    for v in views:
-        with open(os.path.join(view_dir, v + ".json")) as f:
-            meta = json.load(f)
-        img = read_image(os.path.join(view_dir, meta["image"]))
-        cam, prov = view_camera(meta, img, gravity)
-        images.append(img)
-        inputs.append(_final(img, cam, prov, float(meta["camera_height_m"]), True))
-    return views, session_photos(images, inputs)[0]
-
-
-def room_spots(views, spots_mode: str):
-    """Spot labels from the ids' ``_p<N>_`` token ('ids'), or None ('auto': from the photos)."""
-    if spots_mode != "ids":
-        return None
-    return [(_SPOT.search(v).group(1) if _SPOT.search(v) else v) for v in views]
-
-
-def room_prediction(views, photos, spots_mode: str) -> dict:
-    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON."""
-    plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
-    d = plan.to_dict(views)
-    d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
-    return d
-
-
-def room_job(args) -> tuple[str, dict | None, str | None]:
-    """Plan of one findme-eval room set (``room_photos``); spots from the ids' ``_p<N>_``
-    token ('ids') or from the photos ('auto')."""
-    room_dir, view_dir, rid, spots_mode, *gravity = args
-    cv2.setNumThreads(1)
-    try:
-        views, photos = room_photos(room_dir, view_dir, rid, *gravity)
-        return rid, room_prediction(views, photos, spots_mode), None
-    except (FindmeError, OSError, KeyError, ValueError) as e:
-        return rid, None, str(e)

@@ -14,6 +14,7 @@ from findme_core.errors import HypothesisError, InputError
 from findme_core.single.methods import METHODS
 from findme_io.camera_source import hypothesize_photo
 from findme_io.overlay import draw_hypotheses
+from findme_core.single.room_view import judge
 from findme_core.single.scene import Scene, boundary_sigma_px, distances
 from findme_core.single.search import SegKind
 
@@ -27,41 +28,63 @@ OVERLAY_EXT = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
 KIND_NAMES = {int(k): k.name.lower() for k in SegKind}
 
 
+HYPOTHESES_HELP = """\
+The photo's floor-wall boundary hypotheses, best first: each a line across the
+photo with the floor below it, made of segments where a wall or an object stands
+on the floor, occluding steps, floor running past the top of the photo, and
+columns with no floor in view. The camera comes from --hfov / --intrinsics, else
+the photo's EXIF focal length, else a typical phone; gravity from --gravity
+(refined by the photo's lines), else from the photo's lines, else level (and
+then it says so). A photo that does not look like a room (no floor-wall
+boundary, taken from above, an object filling the view) is said to be one, with
+the reason.
+
+Example:  findme hypotheses room.jpg --overlay numbered.png"""
+
+LOCATE_HELP = """\
+The 3D position of pixels of one photo (camera frame: x right, y down, z
+forward) on the floor or a wall, under a boundary hypothesis (the best one
+unless --hypothesis says), with the 1-sigma of each and the distances between
+consecutive points. Without --camera-height lengths are in camera heights.
+
+Example:  findme locate room.jpg --camera-height 1.45 --point 320,400 \\
+              --point 500,410"""
+
+
 def register(sub) -> None:
-    p = sub.add_parser("hypotheses", help="ground-wall boundary hypotheses of one photo",
-                       description="Ranked ground-wall boundary hypotheses of one photo.")
-    p.add_argument("image")
+    p = sub.add_parser("hypotheses", help="a photo's floor-wall boundary hypotheses, best first",
+                       description=HYPOTHESES_HELP)
+    p.add_argument("image", metavar="PHOTO", help="the photo (JPEG, PNG, WebP, HEIC, ...)")
     add_camera_args(p)
     p.add_argument("--max", type=int, default=10, metavar="N", help="at most N hypotheses (10)")
     p.add_argument("--method", default="findme", choices=METHODS,
                    help="findme (default) or paper (the paper's method, for comparison)")
-    p.add_argument("--overlay", metavar="OUT.png", help="write the numbered selection image")
+    p.add_argument("--overlay", metavar="OUT.png",
+                   help="write the photo with the hypotheses drawn and numbered (best on top)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_hypotheses)
 
-    q = sub.add_parser("locate", help="3D position of tapped pixels of one photo",
-                       description="3D position (camera frame, metres) of pixels on the floor "
-                                   "or a wall, under a chosen boundary hypothesis.")
-    q.add_argument("image")
+    q = sub.add_parser("locate", help="3D position of pixels of a photo, and their distances",
+                       description=LOCATE_HELP)
+    q.add_argument("image", metavar="PHOTO", help="the photo")
     add_camera_args(q)
     q.add_argument("--camera-height", type=finite_float, metavar="M",
-                   help="camera height above the floor in metres (default: 1, results up to scale)")
+                   help="camera height above the floor in metres (default: unknown; lengths "
+                        "are then in camera heights)")
     q.add_argument("--hypothesis", type=int, default=1, metavar="RANK",
                    help="which hypothesis (1 = best ranked)")
-    q.add_argument("--max", type=int, default=10, metavar="N", help=argparse_suppress())
-    q.add_argument("--method", default="findme", choices=METHODS)
+    q.add_argument("--max", type=int, default=10, metavar="N",
+                   help="hypotheses to make before picking --hypothesis (default 10)")
+    q.add_argument("--method", default="findme", choices=METHODS,
+                   help="hypothesis method: findme (default) or paper")
     pts = q.add_mutually_exclusive_group(required=True)
     pts.add_argument("--point", action="append", metavar="U,V",
-                     help="a pixel; repeat for more (negative values: --point=-4,2)")
+                     help="a pixel (column, row from the top-left pixel's centre); repeat for "
+                          "more (a negative value: --point=-4,2)")
     pts.add_argument("--points", metavar="FILE.json",
                      help='pixels as JSON: [[u, v], ...] or {"points": [[u, v], ...]}')
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_locate)
-
-
-def argparse_suppress():
-    import argparse
-    return argparse.SUPPRESS
 
 
 def _load(args):
@@ -78,10 +101,13 @@ def _check_overlay(path: str | None) -> None:
                          + ", ".join(OVERLAY_EXT))
 
 
-def hypotheses_json(hs, camera=None, provenance=None) -> dict:
+def hypotheses_json(hs, camera=None, provenance=None, view=None) -> dict:
     """The JSON contract of ``findme hypotheses --json`` (best first, rank from 1), with the
-    camera and gravity used and where they came from when given."""
+    camera and gravity used and where they came from when given, and whether the photo
+    looks like a room view (``view``: ``room_view.judge``) when given."""
     out = camera_json(camera, provenance) if camera is not None else {}
+    if view is not None:
+        out["room_view"] = {"ok": view.ok, "reason": view.reason}
     return {**out,
         "width": hs.width, "height": hs.height,
         "hypotheses": [{"rank": i + 1, "score": round(float(h.score), 6),
@@ -102,7 +128,8 @@ def cmd_hypotheses(args) -> int:
     hs, cam, prov = hypothesize_photo(image, cam, prov, args.method, args.max,
                                       clock=time.perf_counter,
                                       camera_height=getattr(args, "camera_height", None))
-    out = hypotheses_json(hs, cam, prov)
+    view = judge(hs, cam, getattr(args, "camera_height", None))
+    out = hypotheses_json(hs, cam, prov, view)
     out["timing_ms"]["decode_and_camera"] = round(1e3 * (t1 - t0), 3)
     out["timing_ms"]["total"] = round(1e3 * (time.perf_counter() - t0), 3)
     if args.overlay:
@@ -120,7 +147,10 @@ def cmd_hypotheses(args) -> int:
         print(f"no hypotheses: {hs.reason}")
         return 0
     _say_sources(out)
-    print(f"{len(hs.hypotheses)} hypotheses for {args.image} ({hs.width}x{hs.height}), best first:")
+    if not view.ok:
+        print(f"not a room view: {view.reason}")
+    print(f"{len(hs.hypotheses)} hypotheses for {args.image} ({hs.width}x{hs.height}), best first"
+          + (" (guesses: this photo does not look like a room):" if not view.ok else ":"))
     for h in out["hypotheses"]:
         corners = " ".join(f"({u:.0f},{v:.0f})" for u, v in h["polyline"])
         print(f"  {h['rank']:2d}  score {h['score']:7.3f}  edge support {h['support']:.2f}  {corners}")
@@ -212,9 +242,14 @@ def cmd_locate(args) -> int:
             f"hypothesis {args.hypothesis} does not exist: this photo has "
             f"{len(hs.hypotheses)} hypotheses" + (f" ({hs.reason})" if hs.reason else ""))
     hyp = hs.hypotheses[args.hypothesis - 1]
+    view = judge(hs, cam, h if metric else None)
+    if not view.ok:
+        print(f"findme locate: warning: not a room view: {view.reason}; the points below "
+              "rest on a guessed boundary", file=sys.stderr)
     scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov,
                   boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
     out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov)
+    out["room_view"] = {"ok": view.ok, "reason": view.reason}
     if args.json:
         print(json.dumps(out))
         return 0

@@ -24,28 +24,42 @@ from pathlib import Path
 
 from findme_core.errors import RecordingError
 from findme_core.motion.trajectory import PlanarPose, to_tum
-from services.recording.mcap_reader import read_recording
+from services.recording.mcap_reader import read_available
+
+
+EXPORT_HELP = """\
+A recorded session's camera path, for other tools: where each photo was taken,
+in the first photo's level frame (x right, z ahead, metres; yaw > 0 turned
+right), at its capture time (the photo's EXIF time, else when it was captured).
+A recording still being written is read as far as it is complete (it says how
+far).
+
+  --tum  the TUM RGB-D format, "timestamp tx ty tz qx qy qz qw" (seconds,
+         metres), which evo reads: evo_traj tum OUT.txt
+  --csv  index, time_ns, time_utc, x_m, z_m, yaw_deg, their 1-sigma and the
+         photo's name, with a header line
+
+Example:  findme export recordings/s.mcap --tum trajectory.txt"""
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="a recorded session's trajectory as TUM (evo) or CSV",
-                       description=__doc__,
-                       formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
-    p.add_argument("recording", metavar="SESSION.mcap")
+    p = sub.add_parser("export", help="a recorded session's camera path as TUM (evo) or CSV",
+                       description=EXPORT_HELP)
+    p.add_argument("recording", metavar="SESSION.mcap", help="the recording")
     p.add_argument("--tum", metavar="OUT.txt", help="write the TUM trajectory (evo reads it)")
     p.add_argument("--csv", metavar="OUT.csv", help="write the poses as CSV")
     p.set_defaults(func=cmd_export)
 
 
-def session_poses(path) -> list[tuple[int, int, object, str]]:
-    """(index, capture time ns, Pose message, photo name) of every pose of a recording,
-    by index.
+def session_poses(path, recs=None) -> list[tuple[int, int, object, str]]:
+    """(index, capture time ns, Pose message, photo name) of every pose of a recording
+    (``recs``: its messages, already read), by index.
 
     Raises:
         RecordingError: the recording has no pose, or a pose has no capture time.
     """
     frames, poses, trajectory = {}, {}, None
-    for r in read_recording(path):
+    for r in (read_available(path)[0] if recs is None else recs):
         kind = r.key.split("/")[2] if r.key.count("/") >= 2 else ""
         if kind not in ("frame", "pose", "trajectory"):
             continue
@@ -100,7 +114,10 @@ def cmd_export(args) -> int:
     from findme_core.errors import InputError
     if not args.tum and not args.csv:
         raise InputError("export needs --tum OUT.txt and/or --csv OUT.csv")
-    rows = session_poses(args.recording)
+    recs, extent = read_available(args.recording)
+    if not extent.complete:
+        print(extent.describe(args.recording))
+    rows = session_poses(args.recording, recs)
     for path, text in ((args.tum, tum_text), (args.csv, csv_text)):
         if path:
             Path(path).write_text(text(rows))

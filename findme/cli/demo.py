@@ -25,12 +25,19 @@ from findme_core.single.scene import Scene, boundary_sigma_px, distances
 
 from findme_io.imageio import read_image
 
+DEMO_HELP = """\
+The single-photo steps on the bundled example photo (a rendered room with a
+cabinet, taken by a tilted phone): its floor-wall boundary hypotheses, best
+first; the numbered selection image (DIR/selection.png); then, under the best
+hypothesis, the 3D position of the example's known floor points next to their
+true values, the distance between two of them and a point on a wall."""
+
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="run the single-image pipeline on the bundled example",
-                       description=__doc__)
+    p = sub.add_parser("demo", help="the single-photo steps on the bundled example photo",
+                       description=DEMO_HELP)
     p.add_argument("--out", default="findme-demo", metavar="DIR",
-                   help="where to write the selection image (default ./findme-demo)")
+                   help="folder for the numbered selection image (default findme-demo)")
     p.set_defaults(func=cmd_demo)
 
 

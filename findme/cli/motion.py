@@ -60,12 +60,22 @@ def motion_json(r: PairResult, metric: bool) -> dict:
     return out
 
 
+MOTION_HELP = """\
+Where photo B was taken relative to photo A, on the floor: x (to the right) and
+z (forward) of photo A's level view, and the turn (yaw, > 0: B turned right),
+each with its 1-sigma. It registers the two photos' floor-wall boundaries with
+their feature matches; when the room allows other motions nearly as well (a
+symmetric room), they are listed. Without --camera-height lengths are in camera
+heights.
+
+Example:  findme motion a.jpg b.jpg --camera-height 1.45"""
+
+
 def register(sub) -> None:
-    p = sub.add_parser("motion", help="planar motion between two photos",
-                       description="Pose of photo B's camera in photo A's level frame: x (right), "
-                                   "z (forward) in metres and yaw in degrees (> 0: B turned right).")
-    p.add_argument("image_a", metavar="IMAGE_A")
-    p.add_argument("image_b", metavar="IMAGE_B")
+    p = sub.add_parser("motion", help="how the camera moved between two photos",
+                       description=MOTION_HELP)
+    p.add_argument("image_a", metavar="PHOTO_A", help="the first photo")
+    p.add_argument("image_b", metavar="PHOTO_B", help="the second photo, of the same room")
     add_camera_args(p, gravity_flags=("--gravity-a", "--gravity-b"))
     p.add_argument("--camera-height", type=finite_float, metavar="M",
                    help="camera height above the floor in metres, both photos (default: 1, "
@@ -79,7 +89,7 @@ def register(sub) -> None:
                         "feature matches), features (the matches alone), lifted, or paper "
                         "(eqs. 5-8)")
     p.add_argument("--hypothesis-method", default="findme", choices=HYPOTHESIS_METHODS,
-                   help="boundary hypothesis method of both photos")
+                   help="boundary hypothesis method of both photos: findme (default) or paper")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_motion)
 

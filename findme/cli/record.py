@@ -17,23 +17,61 @@ from pathlib import Path
 import schemas
 from findme_core.errors import InputError, RecordingError
 from services.runtime import bus
-from services.recording.mcap_reader import Recorded, read_recording
+from services.recording.mcap_reader import Recorded, read_available
 from services.recording.mcap_recover import recover
 
-from .regress import COMPARES, TOLERANCES, regress
-from .replay import rename_session, replay
+from ..regression.regress import COMPARES, TOLERANCES, regress
+from ..regression.replay import rename_session, replay
+from .bus_options import add_bus_args, open_bus, setup_logging
+
+
+RECOVER_HELP = """\
+Salvage a recording whose recorder was killed (it has no end): every whole part
+of it is copied into a new, finished file, and what was kept or dropped is said.
+
+Example:  findme recover recordings/s.mcap -o s-fixed.mcap"""
+
+VIEW_HELP = """\
+A recorded session in Rerun: the photos with their hypotheses, scenes and
+points, the camera path and the floor plan. With a display it opens a viewer;
+without one it writes SESSION.rrd beside the recording (open it with rerun). A
+recording still being written is shown as far as it is complete. --live shows
+every session on a bus as it happens.
+
+Examples:  findme view recordings/s.mcap
+           findme view --live --connect tcp/127.0.0.1:7447 --web"""
+
+REPLAY_HELP = """\
+Put a recorded session back on the bus so that the running services work on it
+again: its photos, and the user's choices and measurements (a choice waits for
+its photo's hypotheses, a measurement is asked again once its scene is there),
+paced as recorded (--rate) or as fast as the bus takes them (--max). A
+recording still being written is replayed as far as it is complete.
+
+Example:  findme replay recordings/s.mcap --connect tcp/127.0.0.1:7447 --max"""
+
+REGRESS_HELP = """\
+Run a recorded session's photos and choices through the current services (in
+this process) and compare every result with the recorded one, within stated
+tolerances; exit status 1 on a difference, listing each. The golden recordings
+in recordings/golden/ are the regression suite. A recording that is not finished
+is refused with the reason.
+
+Example:  findme regress recordings/golden/examples-pair.mcap"""
 
 
 def register(sub) -> None:
-    from .deploy import _bus_args
-
-    r = sub.add_parser("recover", help="salvage a recording whose recorder died (no summary)")
-    r.add_argument("recording", metavar="FILE.mcap")
-    r.add_argument("-o", "--output", required=True, metavar="OUT.mcap")
+    r = sub.add_parser("recover", help="salvage a recording whose recorder was killed",
+                       description=RECOVER_HELP)
+    r.add_argument("recording", metavar="FILE.mcap", help="the unfinished recording (only read)")
+    r.add_argument("-o", "--output", required=True, metavar="OUT.mcap",
+                   help="the new, finished recording to write")
     r.set_defaults(func=cmd_recover)
 
-    v = sub.add_parser("view", help="show a recorded session (or the live bus) in Rerun")
-    v.add_argument("recording", nargs="?", metavar="SESSION.mcap")
+    v = sub.add_parser("view", help="show a recorded session (or the live bus) in Rerun",
+                       description=VIEW_HELP)
+    v.add_argument("recording", nargs="?", metavar="SESSION.mcap",
+                   help="the recording (not with --live)")
     where = v.add_mutually_exclusive_group()
     where.add_argument("--rrd", nargs="?", const="", metavar="OUT.rrd",
                        help="write a Rerun file (default: SESSION.rrd beside the MCAP; the "
@@ -42,43 +80,47 @@ def register(sub) -> None:
     where.add_argument("--web", action="store_true", help="start the Rerun web viewer")
     where.add_argument("--connect-viewer", metavar="URL",
                        help="send to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy")
-    v.add_argument("--bind", default="127.0.0.1",
+    v.add_argument("--bind", default="127.0.0.1", metavar="ADDRESS",
                    help="address of the viewer servers this starts (default 127.0.0.1: this "
                         "machine only)")
     v.add_argument("--port", type=int, help="gRPC port of the viewer this starts")
     v.add_argument("--live", action="store_true",
                    help="show every session on the bus as it happens (joins like serve)")
-    v.add_argument("--out", default="recordings", help="--live without a viewer: .rrd folder")
-    _bus_args(v)
+    v.add_argument("--out", default="recordings", metavar="DIR",
+                   help="--live without a viewer: where the .rrd files go (default recordings)")
+    add_bus_args(v)
     v.set_defaults(func=cmd_view)
 
-    p = sub.add_parser("replay", help="republish a recording onto the bus")
-    p.add_argument("recording", metavar="SESSION.mcap")
+    p = sub.add_parser("replay", help="put a recorded session back on the bus",
+                       description=REPLAY_HELP)
+    p.add_argument("recording", metavar="SESSION.mcap", help="the recording")
     speed = p.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=1.0,
                        help="speed relative to the recording (default 1.0 = real time)")
     speed.add_argument("--max", action="store_true", help="as fast as the bus takes it")
     p.add_argument("--keys", choices=("inputs", "frames", "all"), default="inputs",
-                   help="inputs (default): frames, the recorded selections (the user's "
-                        "choices: run no selection service beside) and measurements, so the "
-                        "running services compute the rest (a selection waits for its "
-                        "hypotheses, a measurement for its scene); frames: frames only; "
-                        "all: every recorded key as it was (e.g. for a viewer or recorder)")
+                   help="inputs (default): photos, the recorded choices (run no selection "
+                        "service beside) and measurements, so the running services compute "
+                        "the rest; frames: photos only; all: every recorded message as it was "
+                        "(e.g. for a viewer or recorder)")
     p.add_argument("--session", help="publish under this session id instead")
     p.add_argument("--wait-for", action="append", default=[], metavar="SERVICE",
                    help="start once these services are alive")
-    p.add_argument("--timeout", type=float, default=60.0,
-                   help="seconds to wait for hypotheses / scenes before going on")
-    _bus_args(p)
+    p.add_argument("--timeout", type=float, default=60.0, metavar="S",
+                   help="seconds to wait for hypotheses / scenes before going on (default 60)")
+    add_bus_args(p)
     p.set_defaults(func=cmd_replay)
 
-    g = sub.add_parser("regress", help="re-run a recording through the current services and "
-                                       "compare every result (exit 1 on a difference)",
-                       description=COMPARES, formatter_class=argparse.RawDescriptionHelpFormatter)
-    g.add_argument("recording", metavar="SESSION.mcap")
-    g.add_argument("--method", help="hypotheses method (default: the recording's)")
-    g.add_argument("--max", type=int, default=10, help="hypotheses per photo (default 10)")
-    g.add_argument("--timeout", type=float, default=120.0,
+    g = sub.add_parser("regress", help="a recording through the current services, every "
+                                       "result compared",
+                       description=REGRESS_HELP + "\n\n" + COMPARES,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    g.add_argument("recording", metavar="SESSION.mcap", help="a finished recording")
+    g.add_argument("--method", choices=("findme", "paper"),
+                   help="hypotheses method (default: the recording's)")
+    g.add_argument("--max", type=int, default=10, metavar="N",
+                   help="hypotheses per photo (default 10)")
+    g.add_argument("--timeout", type=float, default=120.0, metavar="S",
                    help="seconds to wait for each result (default 120)")
     g.add_argument("--json", action="store_true", help="the differences as JSON")
     g.set_defaults(func=cmd_regress)
@@ -106,7 +148,9 @@ def cmd_view(args) -> int:
     if not args.recording:
         raise InputError("view needs a recording (SESSION.mcap) or --live")
     src = Path(args.recording)
-    recs = read_recording(src)
+    recs, extent = read_available(src)
+    if not extent.complete:
+        print(extent.describe(src))
     if args.connect_viewer:
         sink = Sink("connect", url=args.connect_viewer)
     elif args.spawn or args.web:
@@ -162,15 +206,14 @@ def _view_live(args) -> int:
     from services.runtime.service import Service
     from services.recording.viewer import Sink, ViewerHandler, has_display
 
-    from .deploy import _logging, _open
-    _logging()
+    setup_logging()
     if args.connect_viewer:
         sink = Sink("connect", url=args.connect_viewer)
     elif args.spawn or args.web or (has_display() and args.rrd is None):
         sink = Sink("web" if args.web else "spawn", bind=args.bind, port=args.port)
     else:
         sink = Sink("rrd", path=args.rrd or args.out)
-    session = _open(args)
+    session = open_bus(args)
     svc = Service(ViewerHandler(sink), session).start()
     try:
         wait_for_signal()
@@ -185,11 +228,12 @@ def _view_live(args) -> int:
 def cmd_replay(args) -> int:
     from services.runtime.bus import wait_alive
 
-    from .deploy import _logging, _open
-    _logging()
+    setup_logging()
     if args.rate <= 0 or not math.isfinite(args.rate):
         raise InputError(f"--rate must be a positive number, got {args.rate}")
-    recs = read_recording(args.recording)
+    recs, extent = read_available(args.recording)
+    if not extent.complete:
+        print(extent.describe(args.recording))
     if not recs:
         raise RecordingError(f"{args.recording}: no Find Me messages to replay")
     if args.session:
@@ -197,7 +241,7 @@ def cmd_replay(args) -> int:
             raise InputError(f"--session {args.session!r} is not a valid session id")
         recs = [rename_session(r, args.session) for r in recs]
     session_id = bus.parse_key(recs[0].key).session
-    session = _open(args)
+    session = open_bus(args)
     try:
         for name in args.wait_for:
             wait_alive(session, name)
@@ -213,8 +257,7 @@ def cmd_replay(args) -> int:
 def cmd_regress(args) -> int:
     import logging
 
-    from .deploy import _logging
-    _logging(logging.ERROR)
+    setup_logging(logging.ERROR)
     r = regress(args.recording, method=args.method, max_n=args.max, timeout=args.timeout)
     if args.json:
         import json
