@@ -67,7 +67,8 @@ class Stream:
     def __init__(self, fps: int):
         import schemas
         from findme_core.single.methods import hypothesize
-        from findme_io.convert import camera_msg, frame_inputs, hypothesis_set_msg, make_frame
+        from findme_io.convert import camera_msg, hypothesis_set_msg, make_frame
+        from findme_io.frame_photo import frame_inputs
         self.S, self.fps = schemas, fps
         self.jpegs = jpeg_frames()
         meta = json.loads((ROOT / "findme" / "examples" / "room_a.json").read_text())

@@ -62,7 +62,8 @@ def photo_path(n: int) -> str:
 
 def camera_of(frame_or_scene):
     """findme_core Camera of a Frame (from its image size) or of a Scene message."""
-    from .convert import frame_camera, msg_camera
+    from .convert import msg_camera
+    from .frame_photo import frame_camera
     if frame_or_scene.DESCRIPTOR.full_name == "findme.v1.Scene":
         return msg_camera(frame_or_scene.camera)
     from .imageio import image_size

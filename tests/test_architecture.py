@@ -43,3 +43,27 @@ def test_an_upward_import_breaks_the_stage_layers(tmp_path):
     # the same copy without the upward import keeps the contract: the failure is that import
     cam.write_text((ROOT / "findme_core" / "geometry" / "camera.py").read_text())
     assert _lint(tmp_path, config, tmp_path).returncode == 0
+
+
+#: modules allowed past ~300 lines, and why (a test holds the rest under LIMIT)
+LIMIT = 330
+EXCEPTIONS = {
+    # one class each, the service runtime (bus callbacks, the queue worker, recovery sweeps,
+    # status counters) and the odometry handler (sessions, gaps, chaining); their methods
+    # share the instance's state and locks: split across modules they would not read better
+    "services/runtime/service.py": 420,
+    "services/pipeline/odometry.py": 360,
+}
+
+
+def test_every_module_has_about_300_lines_or_a_stated_reason():
+    long = {}
+    for pkg in ("findme_core", "findme_io", "services", "findme", "schemas"):
+        for p in (ROOT / pkg).rglob("*.py"):
+            rel = p.relative_to(ROOT).as_posix()
+            if rel.startswith("schemas/v1/"):          # generated protobuf bindings
+                continue
+            n = len(p.read_text().splitlines())
+            if n > EXCEPTIONS.get(rel, LIMIT):
+                long[rel] = n
+    assert not long, f"modules over {LIMIT} lines without a stated reason: {long}"

@@ -20,7 +20,8 @@ from services.runtime import bus
 from services.recording.mcap_reader import Recorded, read_available
 from services.recording.mcap_recover import recover
 
-from ..regression.regress import COMPARES, TOLERANCES, regress
+from ..regression.diff import COMPARES, TOLERANCES
+from ..regression.regress import regress
 from ..regression.replay import rename_session, replay
 from .bus_options import add_bus_args, open_bus, setup_logging
 

@@ -10,7 +10,7 @@ known than either, and a photo the lines cannot tell keeps the sensor's gravity.
    (at least ``min_window_deg``): the sensor is the prior, and a Manhattan frame 40 deg away
    (a rug's stripes) cannot be taken.
 2. The image's estimate and the sensor's are combined (``combine``).
-3. Once the photo has a boundary, ``vanishing.with_floor`` may re-estimate gravity without the
+3. Once the photo has a boundary, ``floor_gravity.with_floor`` may re-estimate gravity without the
    floor lines' pull; ``photo.hypothesize_estimated`` combines that with the sensor again
    (``GravityEstimate.prior``).
 

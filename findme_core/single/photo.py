@@ -11,7 +11,7 @@ with it):
 3. the hypotheses take the segments' part below that gravity's horizon (no second
    detection);
 4. knowing the best boundary, gravity is estimated again without the pull of the lines
-   lying on the floor (``vanishing.with_floor``); when it moved by more than
+   lying on the floor (``floor_gravity.with_floor``); when it moved by more than
    ``rehypothesize_deg`` the hypotheses are made again under it (the same segments).
 
 Frames and units as ``methods``: pixels of the photo, gravity in camera coordinates.
@@ -29,8 +29,9 @@ from findme_core.single.gravity_fusion import FUSED, fused
 from findme_core.single.hypotheses import HypothesisSet
 from findme_core.single.methods import hypothesize
 from findme_core.single.segments import WORK_SIZE
+from findme_core.single.floor_gravity import with_floor
 from findme_core.single.vanishing import (GravityEstimate, GravityParams, estimate_gravity,
-                                          with_alternatives, with_floor)
+                                          with_alternatives)
 
 #: a joint estimate that moves gravity less than this keeps the first hypotheses, degrees
 REHYPOTHESIZE_DEG = 0.25

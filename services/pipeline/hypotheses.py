@@ -18,7 +18,8 @@ from ..runtime import authority, bus
 from findme_core.motion.pair import photo_lines, segment_lines
 from findme_core.single.methods import to_photo
 from findme_io.camera_source import hypothesize_photo
-from findme_io.convert import frame_work_photo, hypothesis_set_msg
+from findme_io.convert import hypothesis_set_msg
+from findme_io.frame_photo import frame_work_photo
 from ..runtime.handler import Handler, Input, Output
 
 

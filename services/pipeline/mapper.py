@@ -46,7 +46,8 @@ from findme_core.motion import features
 from findme_core.plan import fuse, pose as plan_pose, session as plan_session
 from findme_core.single import layout
 from findme_core.single.scene import Scene
-from findme_io.convert import frame_camera, msg_camera, msg_hypotheses
+from findme_io.convert import msg_camera, msg_hypotheses
+from findme_io.frame_photo import frame_camera
 from findme_core.single.segments import WORK_SIZE
 from findme_io.imageio import decode_photo
 

@@ -24,8 +24,9 @@ from findme_core.geometry.provenance import Provenance
 from findme_core.single.scene import Scene, boundary_sigma_px
 
 from ..runtime import bus
-from findme_io.convert import (camera_msg, frame_camera, measure_reply_msg, msg_camera,
-                               msg_hypotheses, msg_provenance)
+from findme_io.convert import (camera_msg, measure_reply_msg, msg_camera, msg_hypotheses,
+                               msg_provenance)
+from findme_io.frame_photo import frame_camera
 from ..runtime.handler import Handler, Input, Output, UnknownSession
 from ..runtime.sessions import SessionTable
 

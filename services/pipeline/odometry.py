@@ -35,8 +35,8 @@ from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
 from findme_core.single.segments import WORK_SIZE
-from findme_io.convert import (frame_camera, msg_camera, msg_hypotheses, msg_lines,
-                               scaled_camera, set_motion_estimate)
+from findme_io.convert import msg_camera, msg_hypotheses, msg_lines, set_motion_estimate
+from findme_io.frame_photo import frame_camera, scaled_camera
 from findme_io.imageio import decode_photo
 
 from ..runtime import bus

@@ -43,7 +43,7 @@ class TerminalChooser:
     def __call__(self, hset, frame=None) -> int:
         n = len(hset.hypotheses)
         if frame is not None:
-            from findme_io.convert import frame_inputs
+            from findme_io.frame_photo import frame_inputs
             image, _ = frame_inputs(frame)
             path = self.out / f"{hset.session}_{hset.index}_selection.png"
             cv2.imwrite(str(path), draw_hypotheses(image, [h.polyline for h in msg_hypotheses(hset)]))

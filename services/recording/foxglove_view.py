@@ -134,7 +134,7 @@ class FoxgloveView:
         the image or the lens is invalid."""
         from findme_io.imageio import image_size
 
-        from findme_io.convert import frame_camera
+        from findme_io.frame_photo import frame_camera
         try:
             w, h = image_size(f.image.data, f"frame {f.index}")
         except FindmeError:

@@ -43,7 +43,8 @@ import schemas
 from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, decode_photo, encode_jpeg
 from findme_core.errors import CameraError, FindmeError, ImageError, InputError
 
-from findme_io.convert import frame_camera, image_format, make_frame
+from findme_io.convert import image_format, make_frame
+from findme_io.frame_photo import frame_camera
 
 #: Largest photo a page may upload (bytes). Below the bus's 16 MB message limit, with room
 #: for the rest of the Frame.

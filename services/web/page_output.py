@@ -22,7 +22,6 @@ from __future__ import annotations
 import schemas
 from findme_core.errors import FindmeError
 from findme_core.single import layout
-from findme_io.convert import msg_camera
 from findme_io.convert import msg_camera, msg_room_view
 
 from ..runtime import bus

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 
-from findme.regression.regress import TOL_M, TOL_PX, diff_messages, regress
+from findme.regression.diff import TOL_M, TOL_PX, diff_messages
+from findme.regression.regress import regress
 from services.recording.mcap_reader import read_recording
 
 from .conftest import PAIR, rewrite

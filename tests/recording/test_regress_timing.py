@@ -6,7 +6,8 @@ published, OVERLOADED errors are timing; a moved boundary or a changed plan stil
 from __future__ import annotations
 
 import schemas
-from findme.regression.regress import TOL_SCORE, match_hypotheses, regress
+from findme.regression.diff import TOL_SCORE, match_hypotheses
+from findme.regression.regress import regress
 from services.pipeline import hypotheses as hyp_mod
 from services.recording.mcap_reader import read_recording
 from services.runtime import bus

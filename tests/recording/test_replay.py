@@ -10,7 +10,7 @@ from services.recording.mcap_reader import read_recording
 from services.recording.recorder import RecorderHandler
 from services.runtime.service import Group
 
-from findme.regression.regress import diff_messages
+from findme.regression.diff import diff_messages
 
 from .conftest import GOLDEN, PAIR, Arrivals, free_port
 

@@ -113,7 +113,8 @@ def _floor_case():
 
 def test_with_floor_reestimates_without_the_floor_lines():
     from tests.core.geometry.test_manhattan import line_set, project
-    from findme_core.single.vanishing import GravityEstimate, with_floor
+    from findme_core.single.floor_gravity import with_floor
+    from findme_core.single.vanishing import GravityEstimate
     R, segs, cam = _floor_case()
     off, _ = cv2.Rodrigues(np.radians([2.0, 0.0, 1.5]).reshape(3, 1))
     g0 = off @ R[:, 1]

@@ -1,0 +1,137 @@
+"""A Frame's photo and its camera: the lens the frame gives (else the photo's EXIF, else the
+default), its gravity (given, refined by the image, or estimated from it), decoded whole
+(``frame_photo_camera``) or once at its working size with the camera scaled to match
+(``frame_work_photo``: a 12 MP JPEG at a quarter, by DCT scaling).
+
+Frames and units: pixels with the pixel-centre origin (a scaled camera keeps it:
+c' = (c + 0.5) s - 0.5); gravity in camera coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import schemas
+from findme_core.errors import CameraError, InputError
+from findme_core.geometry.camera import Camera
+from findme_core.geometry.provenance import Provenance
+from findme_core.single.segments import WORK_SIZE
+
+from .camera_source import lens_camera, with_gravity
+from .imageio import decode_photo, probe
+
+
+def _frame_lens(frame, width: int, height: int, exif=None) -> tuple[Camera, str, tuple]:
+    """(level Camera, lens source, notes): the frame's lens, else the photo's EXIF focal
+    length, else the default (``camera_source.lens_camera``)."""
+    try:
+        lens = frame.WhichOneof("lens")
+        if lens == "intrinsics":
+            k = frame.intrinsics
+            if (k.width, k.height) != (width, height):
+                raise InputError(f"frame {frame.index}: intrinsics are for {k.width}x{k.height} "
+                                 f"but the image is {width}x{height}")
+            return lens_camera(width, height, (k.fx, k.fy, k.cx, k.cy))
+        if lens == "hfov_deg":
+            return lens_camera(width, height, hfov_deg=frame.hfov_deg)
+        if exif is None:
+            exif = probe(frame.image.data)[2]
+        return lens_camera(width, height, exif=exif)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+
+
+def _frame_gravity_sigma(frame) -> float | None:
+    return frame.gravity_sigma_rad if frame.HasField("gravity_sigma_rad") else None
+
+
+def frame_camera(frame, width: int, height: int) -> Camera:
+    """The Camera of a Frame whose image is ``width`` x ``height``: its lens (else EXIF,
+    else the default) and its gravity (level when it gives none; the hypotheses service
+    estimates it from the image then, see ``frame_photo_camera``)."""
+    cam, _, _ = _frame_lens(frame, width, height)
+    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+    try:
+        return cam.with_gravity(g)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+
+
+def frame_photo_camera(frame, estimate: bool = True) -> tuple[np.ndarray, Camera, Provenance]:
+    """(BGR image, Camera, Provenance) of a Frame: the lens as ``frame_camera``; gravity the
+    frame's, else estimated from the image (``estimate``), else level."""
+    photo = decode_photo(frame.image.data, f"frame {frame.index}")
+    image = photo.image
+    cam, source, notes = _frame_lens(frame, image.shape[1], image.shape[0], photo.exif)
+    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+    try:
+        cam, prov = with_gravity(cam, image, g, _frame_gravity_sigma(frame), estimate, source,
+                                 notes)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+    return image, cam, prov
+
+
+@dataclass(frozen=True)
+class WorkPhoto:
+    """A Frame's photo decoded at its working size (``frame_work_photo``).
+
+    Attributes:
+        image: (h, w, 3) uint8 BGR, ``scale`` times the photo's size.
+        camera: the camera of ``image`` (intrinsics scaled with the pixel-centre convention
+            kept), with gravity as ``frame_photo_camera`` gives it.
+        provenance: where lens and gravity came from.
+        scale: ``image`` pixels per photo pixel (1, 1/2, 1/4, 1/8).
+        full: the camera of the photo itself (its own size; the same gravity).
+    """
+
+    image: np.ndarray
+    camera: Camera
+    provenance: Provenance
+    scale: float
+    full: Camera
+
+    def to_photo(self, camera: Camera) -> Camera:
+        """``camera`` (of ``image``, e.g. with a refined gravity) as the photo's camera."""
+        return self.full.with_gravity(camera.gravity) if self.scale != 1.0 else camera
+
+    def points_to_photo(self, px) -> np.ndarray:
+        """(..., 2k) pixels of ``image`` -> pixels of the photo."""
+        a = np.asarray(px, float)
+        return a if self.scale == 1.0 else (a + 0.5) / self.scale - 0.5
+
+
+def scaled_camera(camera: Camera, s: float, width: int, height: int) -> Camera:
+    """The camera of its photo decoded ``s`` times its size into ``width`` x ``height``
+    pixels (pixel-centre convention: c' = (c + 0.5) * s - 0.5)."""
+    if s == 1.0:
+        return camera
+    return Camera(camera.fx * s, camera.fy * s, (camera.cx + 0.5) * s - 0.5,
+                  (camera.cy + 0.5) * s - 0.5, width, height, camera.gravity)
+
+
+def frame_work_photo(frame, work_size: int = WORK_SIZE, estimate: bool = True) -> WorkPhoto:
+    """A Frame's photo decoded once at the smallest JPEG reduction that keeps its long side
+    at least ``work_size`` (``imageio.reduction``: a 12 MP photo at a quarter, a photo
+    under twice the working size whole), with its camera scaled to match: the lens as
+    ``frame_camera`` reads it for the photo's own size, gravity the frame's (refined by
+    the image), else estimated from the image (``estimate``), else level."""
+    photo = decode_photo(frame.image.data, f"frame {frame.index}", reduce_to=work_size)
+    image = photo.image
+    full, source, notes = _frame_lens(frame, photo.width, photo.height, photo.exif)
+    cam = scaled_camera(full, photo.scale, image.shape[1], image.shape[0])
+    g = schemas.msg_to_vec3(frame.gravity) if frame.HasField("gravity") else None
+    try:
+        cam, prov = with_gravity(cam, image, g, _frame_gravity_sigma(frame), estimate, source,
+                                 notes)
+    except CameraError as e:
+        raise CameraError(f"frame {frame.index}: {e}") from None
+    return WorkPhoto(image, cam, prov, photo.scale, full.with_gravity(cam.gravity))
+
+
+def frame_inputs(frame) -> tuple[np.ndarray, Camera]:
+    """(BGR image, Camera) of a Frame, gravity estimated when the frame gives none."""
+    image, cam, _ = frame_photo_camera(frame)
+    return image, cam
