@@ -28,9 +28,9 @@ TOLERANCES = (f"polyline vertices and pixels within {TOL_PX:g} px; 3D points and
 TIMING_ERRORS = ("ERROR_CODE_OVERLOADED",)
 #: What ``findme regress`` compares (its ``--help`` and the README say this).
 COMPARES = f"""\
-Every result the recording holds (hypotheses, scenes, measurements, motions, poses,
-trajectory, plan, errors) is compared with the current services' answer to the same
-frames and selections, field by field:
+Every result the recording holds (hypotheses, scenes, measurements, motions,
+poses, trajectory, plan, errors) is compared with the current services' answer
+to the same frames and selections, field by field:
   polyline vertices and pixels   within {TOL_PX:g} px (Euclidean)
   3D points, lengths (_m)        within {TOL_M * 1e3:g} mm
   angles (_rad)                  within {math.degrees(TOL_RAD):g} deg
@@ -38,13 +38,14 @@ frames and selections, field by field:
   other numbers                  within {TOL_FLOAT:g} relative
   integers, enums, text          exactly
   clocks, timings, instance ids  not compared
-Not failures, because they are timing, not the answer (each is named in a note):
-  hypotheses whose scores tie (within {TOL_SCORE:g}) trading ranks: matched as a set;
-    a recorded selection of one is replayed as the same hypothesis at its new rank
-  latest-state messages ({", ".join(bus.LATEST_STATE_KINDS)}): the last one of each is
+Not failures, because they are timing, not the answer (each named in a note):
+  hypotheses whose scores tie (within {TOL_SCORE:g}) trading ranks: matched as a
+    set; a recorded selection of one is replayed as that hypothesis at its rank
+  latest-state messages ({", ".join(bus.LATEST_STATE_KINDS)}): the last of each is
     compared, however often it was published
   {", ".join(c.replace("ERROR_CODE_", "") for c in TIMING_ERRORS)} errors (how busy a service was)
-Errors compare as a multiset of (key, code, message). Exit status 1 on any difference."""
+Errors compare as a multiset of (key, code, message). Exit status 1 on any
+difference."""
 
 
 def _f(x: float) -> str:
