@@ -154,22 +154,26 @@ def put(session: zenoh.Session, k: str, payload: bytes,
                 encoding=zenoh.Encoding.APPLICATION_PROTOBUF)
 
 
-def fetch(session: zenoh.Session, key: str, timeout: float = 2.0) -> bytes | None:
-    """The payload of the first reply to a ``get`` of ``key``, or None."""
-    for reply in session.get(key, timeout=timeout):
+def fetch(session: zenoh.Session, key: str, timeout: float = 2.0,
+          cancel: zenoh.CancellationToken | None = None) -> bytes | None:
+    """The payload of the first reply to a ``get`` of ``key``, or None. ``cancel``: a
+    token whose ``cancel()`` ends the wait at once (raises ``zenoh.ZError``)."""
+    for reply in session.get(key, timeout=timeout, cancellation_token=cancel):
         if reply.ok is not None:
             return reply.ok.payload.to_bytes()
     return None
 
 
 def get_all(session: zenoh.Session, selector: str, timeout: float = 5.0,
-            payload: bytes | None = None) -> list[tuple[str, bytes]]:
+            payload: bytes | None = None,
+            cancel: zenoh.CancellationToken | None = None) -> list[tuple[str, bytes]]:
     """Every reply (key, payload) to ``selector`` from every matching queryable: target ALL
     and no consolidation (Zenoh would otherwise keep one reply per key, e.g. one Error of
-    many on ``findme/<s>/error``). Error replies are left out."""
+    many on ``findme/<s>/error``). Error replies are left out. ``cancel``: as ``fetch``."""
     out = []
     for r in session.get(selector, target=zenoh.QueryTarget.ALL, timeout=timeout,
-                         consolidation=zenoh.ConsolidationMode.NONE, payload=payload):
+                         consolidation=zenoh.ConsolidationMode.NONE, payload=payload,
+                         cancellation_token=cancel):
         if r.ok is not None:
             out.append((str(r.ok.key_expr), r.ok.payload.to_bytes()))
     return out

@@ -31,12 +31,12 @@ def _selector(template: str) -> str:
 
 
 def listing(session: zenoh.Session, key_expr: str, timeout: float = 5.0,
-            since_ns: int = 0) -> dict[str, int]:
+            since_ns: int = 0, cancel: zenoh.CancellationToken | None = None) -> dict[str, int]:
     """key -> receive time (ns) of what the store(s) hold on ``key_expr`` (received at or
     after ``since_ns``)."""
     out: dict[str, int] = {}
     params = f"meta;since={since_ns}" if since_ns else "meta"
-    for k, meta in bus.get_all(session, f"{key_expr}?{params}", timeout):
+    for k, meta in bus.get_all(session, f"{key_expr}?{params}", timeout, cancel=cancel):
         try:
             t = int(meta.split(b" ", 1)[0])
         except ValueError:
@@ -56,13 +56,14 @@ def _identity(key: str) -> tuple[str, str] | None:
 
 def answered(session: zenoh.Session, handler: Handler, inp: Input,
              errors: list[tuple[str, bytes]], timeout: float = 5.0,
-             since_ns: int = 0) -> set[tuple[str, str]]:
+             since_ns: int = 0, cancel: zenoh.CancellationToken | None = None
+             ) -> set[tuple[str, str]]:
     """(session, n) of every input on ``inp`` that has an answer (or an Error of ours)."""
     done: set[tuple[str, str]] = set()
     for template in inp.answers:
         if not template.endswith("/{n}"):
             raise ValueError(f"answer template {template!r} must end with /{{n}}")
-        for k in listing(session, _selector(template), timeout, since_ns):
+        for k in listing(session, _selector(template), timeout, since_ns, cancel):
             ident = _identity(k)
             if ident is not None:
                 done.add(ident)
@@ -86,24 +87,25 @@ def answered(session: zenoh.Session, handler: Handler, inp: Input,
 
 
 def unanswered(session: zenoh.Session, handler: Handler, grace_ns: int, now_ns: int,
-               timeout: float = 5.0, since_ns: int = 0) -> list[tuple[int, str, int]]:
+               timeout: float = 5.0, since_ns: int = 0,
+               cancel: zenoh.CancellationToken | None = None) -> list[tuple[int, str, int]]:
     """(input index, key, receive time) of every input the store holds for ``handler``
     without an answer, received at least ``grace_ns`` before ``now_ns`` (and at or after
     ``since_ns``: answers come after their inputs, so both are asked from then); by session,
     then photo number (the order a session's photos were taken, which the bus does not
-    keep)."""
+    keep). ``cancel``: ends every wait on the bus at once (``Service.stop``)."""
     todo = []
     if not any(inp.answers for inp in handler.inputs):
         return todo
     errors = bus.get_all(session, f"findme/*/error?since={since_ns}" if since_ns else
-                         "findme/*/error", timeout)
+                         "findme/*/error", timeout, cancel=cancel)
     for i, inp in enumerate(handler.inputs):
         if not inp.answers:
             continue
-        held = listing(session, inp.key, timeout, since_ns)
+        held = listing(session, inp.key, timeout, since_ns, cancel)
         if not held:
             continue
-        done = answered(session, handler, inp, errors, timeout, since_ns)
+        done = answered(session, handler, inp, errors, timeout, since_ns, cancel)
         for k, t in held.items():
             if now_ns - t >= grace_ns and _identity(k) not in done:
                 todo.append((i, k, t))
@@ -139,6 +141,8 @@ class Sweeper:
                 self.sweep(grace, since)
                 done_to = now - int(grace * 1e9)
             except (zenoh.ZError, FindmeError) as e:
+                if svc._stop.is_set():
+                    return   # the stop cancelled the sweep's queries
                 log.warning("%s: recovery sweep failed: %s", svc.ident, e)
             grace = svc.grace_s
 
@@ -148,7 +152,7 @@ class Sweeper:
         returns how many."""
         svc = self.svc
         todo = unanswered(svc.session, svc.handler, int(grace_s * 1e9), time.time_ns(),
-                          since_ns=since_ns)
+                          since_ns=since_ns, cancel=svc._cancel)
         n = 0
         for i, key, _ in todo:
             if svc._stop.is_set():

@@ -83,6 +83,7 @@ class Service:
         self.max_message_bytes = max_message_bytes
         self.sweep_s, self.grace_s = sweep_s, grace_s
         self._stop = threading.Event()
+        self._cancel = zenoh.CancellationToken()   # ends this service's queries of the bus
         self._sweep_now = threading.Event()
         self._cache = OutputCache(cache_bytes, cache_age_s)
         self._cache_server = CacheServer(self._cache, handler, self.ident)
@@ -142,9 +143,14 @@ class Service:
         with self._cv:
             self._cv.notify_all()
         self._cache_server.wake()
-        deadline = time.monotonic() + timeout   # all threads within ``timeout`` (a sweep
-        for t in self._threads:                  # waiting on a reply is let go: a daemon)
+        deadline = time.monotonic() + timeout   # all threads within ``timeout``; then what
+        for t in self._threads:                  # still waits on the bus (a sweep's query)
             t.join(max(0.05, deadline - time.monotonic()))
+        self._cancel.cancel()                    # is let go, and joined: no thread of ours
+        for t in self._threads:                  # may be inside Zenoh when the process exits
+            t.join(1.0)                          # (an abort: "exception not rethrown")
+            if t.is_alive():
+                log.error("%s: thread %s did not stop", self.ident, t.name)
         for d in reversed(self._decls):
             try:
                 d.undeclare()
@@ -231,7 +237,7 @@ class Service:
             return local
         t0 = time.perf_counter()
         try:
-            return bus.fetch(self.session, key, timeout)
+            return bus.fetch(self.session, key, timeout, self._cancel)
         finally:
             self._fetched(t0)
 
@@ -239,7 +245,8 @@ class Service:
         """Every message the bus holds on ``key_expr`` (store and caches), each once."""
         t0 = time.perf_counter()
         try:
-            return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout)))
+            return list(dict.fromkeys(bus.get_all(self.session, key_expr, timeout,
+                                                  cancel=self._cancel)))
         finally:
             self._fetched(t0)
 

@@ -172,3 +172,27 @@ def test_sharded_instances_split_the_work(zsession):
     assert sorted(a.handled + b.handled) == sorted(f"t/in/{i}" for i in range(30))
     assert a.handled and b.handled
     sa.stop(), sb.stop()
+
+
+def test_stop_lets_go_of_a_sweep_waiting_on_a_silent_store(zsession):
+    """A store that holds a query and never answers (a router going down with the rest):
+    stop() cancels the sweep's query and joins every thread of the service, so none is
+    inside Zenoh when the process exits (a C++/Rust abort at exit, seen in CI)."""
+    held, asked = [], threading.Event()
+
+    def silent(q):
+        held.append(q)      # never replied to, never finalised until the test ends
+        asked.set()
+
+    store = zsession.declare_queryable("findme/*/error", silent)
+    g = Gate()
+    g.inputs = (Input("findme/*/selection/*", schemas.Selection,
+                      answers=("findme/{session}/pose/{n}",)),)
+    svc = Service(g, zsession, sweep_s=60.0).start()
+    try:
+        assert asked.wait(10), "the first sweep never asked the store"
+        svc.stop(timeout=0.2)
+        assert [t.name for t in svc._threads if t.is_alive()] == []
+    finally:
+        store.undeclare()
+        held.clear()
