@@ -145,6 +145,30 @@ def _room_rows(results):
     return rows
 
 
+def _room_answer_rows(runs) -> list[str]:
+    """Per room: each run's plan IoU, or its refusal with the reason (``runs``: (name,
+    scored results, predictions)). A room with IoU < 0.5 published is a wrong room."""
+    out = ["| room | " + " | ".join(name for name, _, _ in runs) + " |",
+           "|---|" + "---|" * len(runs)]
+    per = [(res.get("zind-rooms", {}).get("rooms") or {}).get("per_room", {})
+           for _, res, _ in runs]
+    for rid in sorted(set().union(*per)):
+        cells = []
+        for (_, _, preds), p in zip(runs, per):
+            why = (preds.get("rooms_refused") or {}).get(rid)
+            if why:
+                cells.append(f"refused: {why}")
+            elif rid in p and not p[rid].get("predicted_polygon", True):
+                cells.append("no plan")
+            elif rid in p:
+                iou = p[rid]["iou"]
+                cells.append(f"IoU {iou:.2f}" + (" (**wrong room published**)" if iou < 0.5 else ""))
+            else:
+                cells.append("–")
+        out.append(f"| {rid} | " + " | ".join(cells) + " |")
+    return out
+
+
 def _locate_rows(rows) -> list[str]:
     """"Find me" rows from ``tools/locate_report.py --json``: per room and pooled, each way."""
     out = ["| room | photos | from | localised | a right pose among the candidates | "
@@ -259,7 +283,13 @@ def main(argv=None):
         "view ids' `_p<N>_` token, as a capture app's \"new spot\" button would mark it "
         "(`--room-spots ids`, the default); \"spots found\": from the photos alone "
         "(`--room-spots auto`). Goal: localisation success (<= 0.25 m and <= 5°) >= 0.90.", "",
-        *_room_rows([("spots by id", ours), ("spots found", auto_spots)]), "",
+        *_room_rows([("spots by id", ours), ("spots found", auto_spots),
+                     ("gravity withheld", nograv)]), "",
+        "Each room's plan, or why it was refused (\"gravity withheld\": `--no-gravity`, "
+        "the photos agree on gravity spot by spot; a refused room counts as a failure "
+        "above):", "",
+        *_room_answer_rows([("spots by id", ours, ours_preds),
+                            ("gravity withheld", nograv, nograv_preds)]), "",
         "\"Find me\" on a plan (`tools/locate_report.py`): each spot's photos left out of their "
         "room's plan and found, one by one, on the plan of the other spots, as new photos from "
         "a new place: \"walls\" from the plan's walls alone (`findme locate-in PLAN.json "

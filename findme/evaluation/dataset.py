@@ -77,7 +77,9 @@ def evaluate(dataset: str, out: str, method: str, max_n: int, motion_methods: li
         for job in jobs:
             collect(*predict_pair(job))
     bar.close()
-    preds["rooms"] = predict_rooms(dataset, index, view_dir, room_spots, workers, gravity)
+    preds["rooms_refused"] = {}   # room id -> why its plan was refused (not scored)
+    preds["rooms"] = predict_rooms(dataset, index, view_dir, room_spots, workers, gravity,
+                                   preds["rooms_refused"])
     stem, ext = os.path.splitext(out)
     for i, m in enumerate(motion_methods):
         path = out if i == 0 else f"{stem}.{m}{ext or '.json'}"

@@ -72,9 +72,12 @@ def room_job(args) -> tuple[str, dict | None, str | None]:
         return rid, None, str(e)
 
 
-def predict_rooms(dataset, index, view_dir, spots: str, jobs: int, gravity=True) -> dict:
+def predict_rooms(dataset, index, view_dir, spots: str, jobs: int, gravity=True,
+                  refused: dict | None = None) -> dict:
     """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame; each view's
-    gravity as ``gravity`` gives it (withheld: from the photos, agreed spot by spot)."""
+    gravity as ``gravity`` gives it (withheld: from the photos, agreed spot by spot). A room
+    whose plan is refused has no entry (the scorer counts it a failure); its reason goes
+    into ``refused`` (room id -> the message), when given."""
     room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
     rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
     out = {}
@@ -84,6 +87,8 @@ def predict_rooms(dataset, index, view_dir, spots: str, jobs: int, gravity=True)
                                    unit="room", file=sys.stderr):
             if err:
                 print(f"  {rid}: {err}", file=sys.stderr)
+                if refused is not None:
+                    refused[rid] = err
             else:
                 out[rid] = pred
     return out
