@@ -36,6 +36,13 @@ def _cpu_flags() -> set[str]:
     return set(line.partition(":")[2].split())
 
 
+def runnable() -> dict[str, dict]:
+    """name -> environment of every numeric environment this CPU can run."""
+    flags = _cpu_flags()
+    return {name: env for name, (env, need) in ENVIRONMENTS.items()
+            if all(f in flags for f in need)}
+
+
 def env_params():
     """``pytest.param`` per environment, skipped (with the reason) where the CPU lacks what
     the kernel needs."""

@@ -2,18 +2,13 @@
 deciding its ties by them."""
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from findme_core.geometry import ties
 from findme_core.single.search import Events, best_paths
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests import numeric_envs
 
 
 def _noisy(v, seed):
@@ -87,20 +82,16 @@ print(json.dumps({"ties": [h(ties.matvec(M, v)), h(ties.matmul(M, B)),
                   "blas": [h(M @ v), h(M @ B), h(np.tensordot(v[:7], F, axes=1))]}))
 """
 
-#: The numeric environments the suite checks (OpenBLAS kernels; numpy without AVX-512).
-ENVIRONMENTS = ({"OPENBLAS_CORETYPE": "Haswell"}, {"OPENBLAS_CORETYPE": "SkylakeX"},
-                {"OPENBLAS_CORETYPE": "Sandybridge"},
-                {"NPY_DISABLE_CPU_FEATURES":
-                 "AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL X86_V4"})
-
-
 def test_products_without_blas_have_the_same_bits_under_every_kernel():
     """The point of ``ties.dot``: BLAS's own products differ between OpenBLAS kernels (shown
-    here, so the test notices if that stops being so), ours do not."""
+    here, so the test notices if that stops being so), ours do not. Every environment of
+    ``tests/numeric_envs`` this CPU can run (SkylakeX needs AVX-512)."""
+    envs = numeric_envs.runnable()
+    assert len(envs) >= 3, envs   # Haswell, Sandybridge and numpy without AVX-512 at least
     runs = []
-    for env in ENVIRONMENTS:
-        r = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                           env={**os.environ, "PYTHONPATH": str(ROOT), **env}, check=True)
+    for name, env in envs.items():
+        r = numeric_envs.run_python(_PROBE, env)
+        assert r.returncode == 0, f"{name}: {r.stderr[-2000:]}"
         runs.append(json.loads(r.stdout))
     assert all(r["ties"] == runs[0]["ties"] for r in runs)
     assert any(r["blas"] != runs[0]["blas"] for r in runs)
