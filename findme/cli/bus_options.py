@@ -185,3 +185,19 @@ def stop_on_signal() -> threading.Event:
     for s in (signal.SIGTERM, signal.SIGINT):
         signal.signal(s, lambda *_: stop.set())
     return stop
+
+
+def end_service_process(code: int) -> None:
+    """End a service process (``findme serve``) once its service has stopped and its bus
+    session is closed: flush the logs and standard streams, then ``os._exit(code)``. The
+    interpreter's own exit is skipped: a native thread still in Zenoh then (a callback in
+    flight, a query not yet let go) would be caught in the interpreter's finalisation and
+    abort the process ("FATAL: exception not rethrown", rc -6, seen once in CI) after all
+    its work was done."""
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass  # a closed or broken stream: nothing more can be said on it
+    os._exit(code)

@@ -19,7 +19,8 @@ from services.registry import (add_service_args, make_handler, service_names,
 from services.runtime.service import Service
 
 from ..report import Printer
-from .bus_options import add_bus_args, lens_from_args, open_bus, setup_logging, stop_on_signal
+from .bus_options import (add_bus_args, end_service_process, lens_from_args, open_bus,
+                          setup_logging, stop_on_signal)
 from .options import add_camera_args, finite_float
 from .status import alive_services
 from .web_options import add_web_args, cmd_serve_gateway
@@ -92,14 +93,16 @@ def cmd_serve(args) -> int:
     if handler.nice and hasattr(os, "nice"):
         os.nice(handler.nice)
     svc = Service(handler, session, instance=args.instance, **service_options(args)).start()
+    code = 0
     try:
         if args.service == "capture":
-            return _serve_capture(args, session, svc)
-        wait_for_signal(stop)
+            code = _serve_capture(args, session, svc)
+        else:
+            wait_for_signal(stop)
     finally:
         svc.stop()
         session.close()
-    return 0
+    end_service_process(code)
 
 
 def _serve_capture(args, session, svc) -> int:

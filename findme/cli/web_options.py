@@ -12,7 +12,7 @@ from pathlib import Path
 from findme_core.errors import InputError
 from services.registry import wait_for_signal
 
-from .bus_options import open_bus, setup_logging
+from .bus_options import end_service_process, open_bus, setup_logging
 
 log = logging.getLogger("findme.app")
 
@@ -106,4 +106,4 @@ def cmd_serve_gateway(args) -> int:
         if gw is not None:
             gw.stop()
         session.close()
-    return 0
+    end_service_process(0)
