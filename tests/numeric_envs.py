@@ -16,24 +16,21 @@ from pathlib import Path
 
 import pytest
 
+from findme import blas_env
+
 ROOT = Path(__file__).resolve().parents[1]
 
-#: name -> (environment, CPU flags it needs)
+#: name -> (environment, CPU flags it needs: ``findme.blas_env``'s for OpenBLAS kernels)
 ENVIRONMENTS = {
-    "Haswell": ({"OPENBLAS_CORETYPE": "Haswell"}, ("avx2", "fma")),
-    "SkylakeX": ({"OPENBLAS_CORETYPE": "SkylakeX"}, ("avx512f", "avx512bw", "avx512vl")),
-    "Sandybridge": ({"OPENBLAS_CORETYPE": "Sandybridge"}, ("avx",)),
+    "Haswell": ({"OPENBLAS_CORETYPE": "Haswell"}, blas_env.KERNEL_NEEDS["haswell"]),
+    "SkylakeX": ({"OPENBLAS_CORETYPE": "SkylakeX"}, blas_env.KERNEL_NEEDS["skylakex"]),
+    "Sandybridge": ({"OPENBLAS_CORETYPE": "Sandybridge"}, blas_env.KERNEL_NEEDS["sandybridge"]),
     "no-AVX512-numpy": ({"NPY_DISABLE_CPU_FEATURES": "X86_V4"}, ()),
 }
 
 
 def _cpu_flags() -> set[str]:
-    try:
-        text = Path("/proc/cpuinfo").read_text()
-    except OSError:
-        return set()
-    line = next((x for x in text.splitlines() if x.startswith("flags")), "")
-    return set(line.partition(":")[2].split())
+    return blas_env.cpu_flags() or set()
 
 
 def runnable() -> dict[str, dict]:

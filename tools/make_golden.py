@@ -34,6 +34,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+import findme  # noqa: E402,F401 - first: drops an OPENBLAS_CORETYPE this CPU cannot run
 import schemas  # noqa: E402
 from findme_io.imageio import encode_jpeg  # noqa: E402
 from services.runtime import bus  # noqa: E402
