@@ -3,8 +3,8 @@ kernels (``OPENBLAS_CORETYPE``; OpenBLAS inside numpy picks one per CPU, and eac
 matrix products differently) and numpy's newest SIMD dispatch switched off
 (``NPY_DISABLE_CPU_FEATURES=X86_V4``: AVX-512 versions of exp, log, arctan2, ...).
 
-A kernel the CPU cannot run (SkylakeX without AVX-512) is skipped with that reason: forcing
-it would stop the process on an illegal instruction, which says nothing about our code.
+A kernel the CPU cannot run (SkylakeX without AVX-512) is skipped with that reason: there
+``findme`` drops it (``findme.blas_env``) and the run would prove nothing about that kernel.
 """
 
 from __future__ import annotations
@@ -29,24 +29,23 @@ ENVIRONMENTS = {
 }
 
 
-def _cpu_flags() -> set[str]:
-    return blas_env.cpu_flags() or set()
+def _lacking() -> dict[str, list[str]]:
+    """name -> the CPU flags this machine lacks for that environment ([]: it can run it)."""
+    flags = blas_env.cpu_flags() or set()
+    return {name: [f for f in need if f not in flags] for name, (_, need) in ENVIRONMENTS.items()}
 
 
 def runnable() -> dict[str, dict]:
     """name -> environment of every numeric environment this CPU can run."""
-    flags = _cpu_flags()
-    return {name: env for name, (env, need) in ENVIRONMENTS.items()
-            if all(f in flags for f in need)}
+    return {name: ENVIRONMENTS[name][0] for name, lack in _lacking().items() if not lack}
 
 
 def env_params():
     """``pytest.param`` per environment, skipped (with the reason) where the CPU lacks what
     the kernel needs."""
-    flags = _cpu_flags()
     out = []
-    for name, (env, need) in ENVIRONMENTS.items():
-        missing = [f for f in need if f not in flags]
+    for name, missing in _lacking().items():
+        env = ENVIRONMENTS[name][0]
         marks = [pytest.mark.skip(reason=f"this CPU lacks {', '.join(missing)}: the {name} "
                                          "kernel cannot run here")] if missing else []
         out.append(pytest.param(env, id=name, marks=marks))

@@ -12,6 +12,7 @@ import os
 import sys
 import threading
 from pathlib import Path
+from typing import NoReturn
 
 import zenoh
 
@@ -187,7 +188,7 @@ def stop_on_signal() -> threading.Event:
     return stop
 
 
-def end_service_process(code: int) -> None:
+def end_service_process(code: int) -> NoReturn:
     """End a service process (``findme serve``) once its service has stopped and its bus
     session is closed: flush the logs and standard streams, then ``os._exit(code)``. The
     interpreter's own exit is skipped: a native thread still in Zenoh then (a callback in
