@@ -84,12 +84,19 @@ def compute_bound(pool, repeat: int = 2) -> dict:
     """CPU ms per photo of the pool as one session through the pipeline's handlers
     (``bench_pipeline.run_session``), the cheapest of ``repeat`` runs; photos/s on this
     machine's cores."""
+    import cv2
+
     from bench.bench_pipeline import run_session
+    # one OpenCV thread, as the services run (findme's one_thread_per_process): thread CPU
+    # time then counts all the work (with OpenCV's pool it misses its workers' share)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(repeat):
             per, poses = run_session(f"bound{r}", pool, Path(tmp))
             runs.append([sum(p.values()) for p in per])
+    cv2.setNumThreads(threads)
     ms = min(runs, key=sum)
     cores = os.cpu_count() or 1
     return {"ms_per_photo_mean": float(np.mean(ms)), "ms_per_photo_median": float(np.median(ms)),

@@ -146,8 +146,8 @@ def test_run_into_a_closed_pipe_is_quiet(tmp_path):
 
 
 def test_one_blas_thread_per_process_set_before_numpy(monkeypatch):
-    """``findme`` sets one BLAS thread per process (its idle threads spin: twice the CPU
-    per photo, measured) unless the user chose; it can only do so before numpy is imported,
+    """``findme`` sets one BLAS and one OpenCV thread per process (idle pool threads spin:
+    up to twice the CPU per photo, measured) unless the user chose; it can only do so before numpy is imported,
     which importing the command does not do."""
     import subprocess
     import sys
@@ -156,7 +156,14 @@ def test_one_blas_thread_per_process_set_before_numpy(monkeypatch):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.delenv("OPENCV_FOR_THREADS_NUM", raising=False)
     monkeypatch.setenv("OMP_NUM_THREADS", "4")
     cli.one_thread_per_process()
     import os
     assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "4"
+    assert os.environ["OPENCV_FOR_THREADS_NUM"] == "1"
+    # and this OpenCV honours the variable (its default is one thread per core)
+    code = "import cv2; print(cv2.getNumThreads())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env={**os.environ, "OPENCV_FOR_THREADS_NUM": "1"})
+    assert out.stdout.strip() == "1"
