@@ -31,8 +31,12 @@ class HypothesesHandler(Handler):
     # served in its own process (``findme up``): the first stage yields the CPU to the
     # stages after it, so that on a saturated machine the photos already in the pipeline
     # are posed first and new ones wait (and are refused early, OVERLOADED, when they
-    # wait too long) instead of being half done and refused downstream
-    nice = 4
+    # wait too long) instead of being half done and refused downstream. At nice 4 (CPU
+    # weight 423 against 1024) it still took ~30 % of the CPU at saturation and odometry
+    # refused ~1 in 4 of the photos it had hypothesised; at 10 (weight 110) it runs on what
+    # the later stages leave (bench_load --scenario peak: 1,070 hypothesis sets for 807
+    # posed -> 908 for 880; posed 10.4 -> 12.1 photos/s)
+    nice = 10
 
     def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
                  depth: int = 64):
