@@ -36,10 +36,23 @@ def _wait(proc, text, timeout=90):
             "".join(proc.lines)[-3000:]
 
 
+def _niceness(pid: int) -> int:
+    """A process's nice value (/proc/<pid>/stat, field 19)."""
+    with open(f"/proc/{pid}/stat") as f:
+        return int(f.read().rsplit(")", 1)[1].split()[16])
+
+
 def test_up_serves_send_and_stops_on_sigterm(tmp_path):
     ep, up = _up(tmp_path)
     try:
         _wait(up, "| ready: 9 services")
+        # CPU priorities on a saturated machine: the stages after the first go first, the
+        # floor plans last (``Handler.nice``, applied by ``findme serve``)
+        nice = {x.split(" started (pid=")[0].split()[-1]: _niceness(
+            int(x.split("pid=")[1].split(")")[0])) for x in up.lines if " started (pid=" in x}
+        base = nice["router"]
+        assert nice["odometry1"] == nice["selection"] == nice["measurement"] == base, nice
+        assert base < nice["hypotheses1"] == nice["hypotheses2"] < nice["mapper"], nice
         # the hint names the command as it was run (here: this Python -m findme.cli)
         _wait(up, f"send photos with: {sys.executable} -m findme.cli send --connect {ep}\n")
         p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
