@@ -41,18 +41,21 @@ class RegionStats:
         H, W = lab.shape[:2]
         self.height, self.width, self.row_step = H, W, row_step
         self.cols = np.linspace(0, W - 1, n_cols).round().astype(int)
-        x = lab[::row_step, self.cols].astype(np.float64)  # (R, C, 3)
-        mom = np.empty(x.shape[:2] + (10,))  # 1, mean (3), upper second moments (6)
-        mom[..., 0] = 1.0
-        mom[..., 1:4] = x
+        x = np.moveaxis(lab[::row_step, self.cols], 2, 1).astype(np.float64)  # (R, 3, C)
+        # prefix moments over rows, (R + 1, 10, C): 1, mean (3), upper second moments (6).
+        # Row-major and built in place (one buffer, each row a contiguous block): numpy's
+        # cumsum over a leading axis and a second 1 MB buffer each cost more than the rest
+        P = np.empty((x.shape[0] + 1, 10, x.shape[2]))
+        P[0] = 0.0
+        P[1:, 0] = 1.0
+        P[1:, 1:4] = x
         for k, (a, b) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-            np.multiply(x[..., a], x[..., b], out=mom[..., 4 + k])   # (a gather on the last
-            # axis, x[..., [0, 0, ...]], costs ~5x more: the same products either way)
-        P = np.zeros((x.shape[0] + 1,) + mom.shape[1:])   # (R + 1, C, 10) prefix over rows
-        for i in range(len(mom)):   # = np.cumsum(axis=0), which numpy does ~7x slower here
-            np.add(P[i], mom[i], out=P[i + 1])
-        self.prefix = P
-        self.total = P[-1].sum(0)
+            np.multiply(x[:, a], x[:, b], out=P[1:, 4 + k])
+        for i in range(1, len(P)):   # = np.cumsum(axis=0), the same sums in the same order
+            np.add(P[i], P[i - 1], out=P[i])
+        self.prefix = np.moveaxis(P, 1, 2)    # (R + 1, C, 10), a view
+        # summed as a contiguous (C, 10) block: numpy sums a strided view in another order
+        self.total = np.ascontiguousarray(self.prefix[-1]).sum(0)
 
     def _logdet(self, m: np.ndarray) -> np.ndarray:
         """(K, 10) moments -> (K,) 1/2 log det of the covariance (regularised)."""
