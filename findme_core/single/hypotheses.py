@@ -95,29 +95,21 @@ def column_rows(polyline: np.ndarray, height: int, cols: np.ndarray) -> np.ndarr
 
 def suppress_duplicates(rows: np.ndarray, order: np.ndarray, nms_px: float, max_n: int) -> list[int]:
     """Greedy non-maximum suppression on (K, C) clipped boundary rows: skip a candidate whose
-    rows differ from a kept one by less than ``nms_px`` on average."""
+    rows differ from a kept one by less than ``nms_px`` on average. Each kept candidate is
+    compared with those after it, once (at most ``max_n`` comparisons of K rows)."""
     rows = rows[order]
-    head = min(len(rows), 4 * max_n + 8)  # the kept ones nearly always come from the head
-    near = (np.abs(rows[:head, None, :] - rows[None, :head, :]).mean(2) < nms_px).tolist()
+    free = np.ones(len(rows), bool)     # not near any kept one (the distance is symmetric)
     kept: list[int] = []
-    dup = [False] * head   # near a kept one (the distance is symmetric)
-    for i in range(head):
-        if dup[i]:
-            continue
+    i = 0
+    while i < len(rows):
         kept.append(i)
         if len(kept) >= max_n:
-            return [int(order[k]) for k in kept]
-        dup = [a or b for a, b in zip(dup, near[i])]
-    if head < len(rows):  # the tail, against every kept one (those of the head at once)
-        dup_t = (np.abs(rows[head:, None, :] - rows[kept][None, :, :]).mean(2) < nms_px).any(1)
-        tail: list[int] = []
-        for i in range(head, len(rows)):
-            if dup_t[i - head] or (tail and (np.abs(rows[tail] - rows[i]).mean(1) < nms_px).any()):
-                continue
-            kept.append(i)
-            tail.append(i)
-            if len(kept) >= max_n:
-                break
+            break
+        free[i + 1:] &= np.abs(rows[i + 1:] - rows[i]).mean(1) >= nms_px
+        nxt = np.flatnonzero(free[i + 1:])
+        if len(nxt) == 0:
+            break
+        i += 1 + int(nxt[0])
     return [int(order[k]) for k in kept]
 
 

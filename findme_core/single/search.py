@@ -233,6 +233,17 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
                   np.clip(np.round(u_all + 0.5), 1, W - 1).astype(int), u_all, cat(step))
 
 
+def _beats(new: float, old: float) -> bool:
+    """``new`` is larger than ``old`` by more than the rounding of sums of their size
+    (``TIE_ABS + TIE_REL * max(|new|, |old|)``): else a tie, and the first met stays."""
+    d = new - old
+    if d <= TIE_ABS:
+        return False
+    an = new if new >= 0.0 else -new
+    ao = old if old >= 0.0 else -old
+    return d > TIE_ABS + TIE_REL * (an if an >= ao else ao)
+
+
 def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
                step_cost: float, limit: int = 1 << 30) -> list[tuple[float, int, tuple[int, ...]]]:
     """Best path through every event, and every single track spanning the image.
@@ -265,7 +276,7 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
         val = fi + ai - c
         fval[e], pred[e] = val, ptr[i]
         new, old = val - aj, F[j]
-        if new - old > TIE_ABS + TIE_REL * max(-new, new, -old, old):   # a tie: the first met
+        if _beats(new, old):   # a tie: the first met
             F[j], ptr[j] = new, e
     # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
     B = np.where(valid[:, -1], A[:, W], NEG).tolist()
@@ -278,7 +289,7 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
         suf = bj - aj
         sval[e], succ[e] = suf, ptrb[j]
         new, old = suf - c + ai, B[i]
-        if new - old > TIE_ABS + TIE_REL * max(-new, new, -old, old):
+        if _beats(new, old):
             B[i], ptrb[i] = new, e
     # candidates: single tracks spanning the image, then the best path through each event
     single = np.nonzero(valid[:, 0] & valid[:, -1])[0]
