@@ -165,7 +165,10 @@ class Camera:
     def below_horizon(self, pixels, margin: float = 0.0) -> np.ndarray:
         """(N,) bool: the pixel's ray points down by more than ``margin`` (ray y / |ray|)."""
         r = self.rays_level(pixels)
-        return r[:, 1] > margin * np.linalg.norm(r, axis=1)
+        # |r| as np.linalg.norm(r, axis=1) sums it, (x^2 + y^2) + z^2, without its
+        # reduction over an axis of 3
+        r2 = r * r
+        return r[:, 1] > margin * np.sqrt(r2[:, 0] + r2[:, 1] + r2[:, 2])
 
     def vertical_vanishing_point(self) -> np.ndarray:
         """(3,) homogeneous image point where 3D vertical lines meet (K @ gravity)."""

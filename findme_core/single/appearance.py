@@ -53,6 +53,7 @@ class RegionStats:
             np.multiply(x[:, a], x[:, b], out=P[1:, 4 + k])
         for i in range(1, len(P)):   # = np.cumsum(axis=0), the same sums in the same order
             np.add(P[i], P[i - 1], out=P[i])
+        self._moments = P                      # (R + 1, 10, C)
         self.prefix = np.moveaxis(P, 1, 2)    # (R + 1, C, 10), a view
         # summed as a contiguous (C, 10) block: numpy sums a strided view in another order
         self.total = np.ascontiguousarray(self.prefix[-1]).sum(0)
@@ -74,8 +75,13 @@ class RegionStats:
         """(K, n_cols) boundary rows (floor = rows >= row) -> (K,) separability gain."""
         r = np.clip(np.ceil(np.asarray(rows, float) / self.row_step), 0,
                     self.prefix.shape[0] - 1).astype(int)
-        c = np.arange(len(self.cols))[None, :]
-        floor = (self.prefix[-1][c] - self.prefix[r, c]).sum(1)  # (K, 10)
+        P = self._moments
+        M, C = P.shape[1:]
+        # (10, C, K): moment m of column c at row r[k, c], one gather; summed over the
+        # columns in order (the sums of ``(prefix[-1][c] - prefix[r, c]).sum(1)``, bit for bit)
+        at = r.T * (M * C) + np.arange(C)[:, None]
+        below = P[-1][:, :, None] - P.reshape(-1)[at[None] + (np.arange(M) * C)[:, None, None]]
+        floor = below.sum(1).T   # (K, 10)
         rest = self.total[None, :] - floor
         n = self.total[0]
         g_all = self._logdet(self.total[None, :])[0]

@@ -64,8 +64,9 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     l = camera.horizon_line()
     down = l[:2] / max(np.hypot(l[0], l[1]), 1e-12)   # unit image direction away from horizon
     lines = {}
-    for s, kind in enumerate(kinds):
-        if kind != SegKind.WALL:
+    wall = int(SegKind.WALL)
+    for s, kind in enumerate(np.asarray(kinds).tolist()):   # Python ints: a numpy integer
+        if kind != wall:                                     # against an enum is slow
             continue
         a, b = poly[s], poly[s + 1]
         key = keys[s] if keys is not None else (round(a[0]), round(a[1]), round(b[0]), round(b[1]))
