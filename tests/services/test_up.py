@@ -50,9 +50,10 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
         # floor plans last (``Handler.nice``, applied by ``findme serve``)
         nice = {x.split(" started (pid=")[0].split()[-1]: _niceness(
             int(x.split("pid=")[1].split(")")[0])) for x in up.lines if " started (pid=" in x}
-        base = nice["router"]
-        assert nice["odometry1"] == nice["selection"] == nice["measurement"] == base, nice
-        assert base < nice["hypotheses1"] == nice["hypotheses2"] < nice["mapper"], nice
+        base = nice["router"]          # this test's own niceness (0 unless CI runs niced)
+        want = {"odometry1": 0, "odometry2": 0, "selection": 0, "measurement": 0,
+                "hypotheses1": 10, "hypotheses2": 10, "mapper": 19}
+        assert {k: nice[k] for k in want} == {k: min(base + v, 19) for k, v in want.items()}
         # the hint names the command as it was run (here: this Python -m findme.cli)
         _wait(up, f"send photos with: {sys.executable} -m findme.cli send --connect {ep}\n")
         p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
