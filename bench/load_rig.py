@@ -239,6 +239,11 @@ class Sampler:
 
 
 # ---------------------------------------------------------------------------------- ledger
+#: the pipeline's stages in order: a photo's error is told by the earliest that gave one
+STAGES = ("gateway", "hypotheses", "selection", "measurement", "odometry", "mapper",
+          "recorder", "store")
+
+
 class Ledger:
     """What happened to every frame sent: pose, failed motion, errors; latencies photo ->
     hypotheses and photo -> pose."""
@@ -249,8 +254,7 @@ class Ledger:
         self.hyp: dict[tuple[str, int], float] = {}
         self.pose: dict[tuple[str, int], float] = {}
         self.failed: set[tuple[str, int]] = set()
-        self.errors: dict[tuple[str, int], int] = {}
-        self.error_services: dict[str, int] = {}
+        self.errors: dict[tuple[str, int], list[tuple[int, str]]] = {}   # (code, service)
         self.dup_poses = 0
         self.plans: dict[str, list[int]] = {}   # session -> [plans, photos placed in the last]
         self.subs = [client.declare_subscriber("findme/*/pose/*", self._pose),
@@ -302,11 +306,14 @@ class Ledger:
         except Exception:  # noqa: BLE001 - an error about no photo (a query): not a frame's
             return
         with self.cv:
-            if ident not in self.errors:
-                svc = e.service.split("/")[0] or "?"
-                self.error_services[svc] = self.error_services.get(svc, 0) + 1
-            self.errors.setdefault(ident, e.code)
+            self.errors.setdefault(ident, []).append((e.code, e.service.split("/")[0] or "?"))
             self.cv.notify_all()
+
+    @staticmethod
+    def _cause(errs: list[tuple[int, str]]) -> tuple[int, str]:
+        """The error that ended a photo: the earliest stage's (hypotheses refusing a frame is
+        why odometry later reports it as a gap), else the first that came."""
+        return min(errs, key=lambda ce: STAGES.index(ce[1]) if ce[1] in STAGES else len(STAGES))
 
     def accounted(self) -> int:
         return sum(1 for f in self.sent if f in self.pose or f in self.failed or f in self.errors)
@@ -329,10 +336,13 @@ class Ledger:
             hlat = [1e3 * (self.hyp[f] - t) for f, t in sent.items() if f in self.hyp]
             failed = [f for f in sent if f not in self.pose and f in self.failed]
             errs: dict[str, int] = {}
+            by_service: dict[str, int] = {}
             for f in sent:
                 if f not in self.pose and f not in self.failed and f in self.errors:
-                    name = schemas.ErrorCode.Name(self.errors[f]).removeprefix("ERROR_CODE_")
+                    code, svc = self._cause(self.errors[f])
+                    name = schemas.ErrorCode.Name(code).removeprefix("ERROR_CODE_")
                     errs[name] = errs.get(name, 0) + 1
+                    by_service[svc] = by_service.get(svc, 0) + 1
             done = len(lat) + len(failed) + sum(errs.values())
             plans = {"sessions": len(self.plans),
                      "plans": sum(v[0] for v in self.plans.values()),
@@ -342,7 +352,7 @@ class Ledger:
             pct = (lambda a, q: float(np.percentile(a, q)) if a else None)
             return {"offered": len(sent), "delivered": len(lat), "failed": len(failed),
                     "hypotheses": len(hlat), "mapper": plans,
-                    "errors": errs, "error_services": dict(self.error_services),
+                    "errors": errs, "error_services": by_service,
                     "unaccounted": len(sent) - done, "dup_poses": self.dup_poses,
                     "p50_ms": pct(lat, 50), "p99_ms": pct(lat, 99), "max_ms": pct(lat, 100),
                     "hyp_p50_ms": pct(hlat, 50), "hyp_p99_ms": pct(hlat, 99)}
