@@ -27,7 +27,7 @@ from findme_core.single.lines import Lines, LineKind, classify, merge_collinear
 from findme_core.single.paths import path_features, path_pieces, path_polyline, path_rows
 from findme_core.single.ranking import (IDX, N_ADDITIVE, RANK_WEIGHTS, SEARCH_WEIGHTS,
                                         RankWeights, feature_matrix)
-from findme_core.single.refine import SnapParams, snap_polyline
+from findme_core.single.refine import SnapParams, prefetch, snap_polyline
 from findme_core.single.search import (SearchParams, best_paths, events, rewards, track_rows,
                                        track_tables, with_region)
 from findme_core.single.segments import (LSD_SCALE, MIN_SEGMENT_PX, Segments, detect_segments,
@@ -243,8 +243,10 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     keep = suppress_duplicates(rows, np.arange(len(ranked)), params.nms_px, max_n)
     hyps = []
     cache: dict = {}
-    for i in keep:
-        built = path_polyline(ranked[i][1][1], ranked[i][1][2], ev, coef, W, H)
+    built_all = [path_polyline(ranked[i][1][1], ranked[i][1][2], ev, coef, W, H) for i in keep]
+    if params.snap:   # every line's band measured at once, then each polyline snapped
+        prefetch(lab, camera, built_all, params.snap_params, cache)
+    for i, built in zip(keep, built_all):
         poly, kinds_i = built[0], built[1]
         if params.snap:
             poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache, built[2])

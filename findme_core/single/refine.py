@@ -105,6 +105,26 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     return out
 
 
+def prefetch(image_lab: np.ndarray, camera: Camera, polylines, p: SnapParams,
+             cache: dict) -> None:
+    """Fill ``cache`` (as ``snap_polyline`` fills it) with the shift of every WALL segment
+    of ``polylines`` [(polyline (M, 2), kinds (M - 1,), keys (M - 1,))] not in it yet, all
+    measured in one remap; a key's segment is its first one, as one by one. Then
+    ``snap_polyline`` with the same cache and keys gives what it gives without this."""
+    l = camera.horizon_line()
+    down = l[:2] / max(np.hypot(l[0], l[1]), 1e-12)
+    wall = int(SegKind.WALL)
+    todo: dict = {}
+    for polyline, kinds, keys in polylines:
+        poly = np.array(polyline, float)
+        for k, kind in enumerate(np.asarray(kinds).tolist()):
+            if kind == wall and keys[k] not in cache and keys[k] not in todo:
+                todo[keys[k]] = (poly[k], poly[k + 1])
+    for key, shift in zip(todo, segment_shifts(image_lab, camera, list(todo.values()), down, p)):
+        if shift is not None:   # as snap_polyline: a segment too short to tell is not kept
+            cache[key] = shift  # (a longer one of the same line, later, may tell)
+
+
 def _row_at(q, d, u):
     return q[1] + (u - q[0]) * d[1] / d[0] if abs(d[0]) > 1e-9 else q[1]
 
@@ -131,30 +151,67 @@ def _median0(x: np.ndarray) -> np.ndarray:
 def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
     """Pixels to move the segment a-b along its normal (0 = keep; None = too little of it
     in the image to tell)."""
+    return segment_shifts(lab, camera, [(a, b)], down, p)[0]
+
+
+def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
+    """``_segment_shift`` of each (a, b) of ``segments``, their samples taken in one remap.
+
+    Args:
+        lab: (H, W, 3) Lab image; segments: [((2,) a, (2,) b)] in pixels; down: (2,) unit
+            image direction away from the horizon.
+    Returns:
+        per segment the shift in pixels (0 = keep) or None (too little of it to tell).
+    """
     H, W = lab.shape[:2]
-    d = b - a
-    n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
-    if n_cols < 4:
-        return None
-    t = (np.arange(n_cols) + 0.5) / n_cols
-    base = a[None, :] + t[:, None] * d[None, :]
-    inside = (base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0) & (base[:, 1] <= H - 1)
-    base = base[inside]
-    if len(base) < 4:
-        return None
-    dep = np.maximum(_depression(camera, base), 1.0)
     s = _offsets(p)
-    pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
-    # a column of samples is a straight run: inside the image iff both its ends are
-    ends = pts[:, [0, -1]]
-    cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
-            & (ends[..., 1] <= H - 1)).all(1)
-    n_in = int(cols.sum())
-    if n_in < 4:
-        return None
-    P = pts[cols].reshape(-1, 2).astype(np.float32)
-    prof = cv2.remap(lab, P[:, 0].reshape(1, -1), P[:, 1].reshape(1, -1), cv2.INTER_LINEAR)
-    prof = prof.reshape(n_in, len(s), 3).astype(np.float32)
+    out: list = [None] * len(segments)
+    picked = []                       # (segment, its column samples (n_in, S, 2), dep)
+    for j, (a, b) in enumerate(segments):
+        d = b - a
+        n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
+        if n_cols < 4:
+            continue
+        t = (np.arange(n_cols) + 0.5) / n_cols
+        base = a[None, :] + t[:, None] * d[None, :]
+        inside = ((base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0)
+                  & (base[:, 1] <= H - 1))
+        base = base[inside]
+        if len(base) < 4:
+            continue
+        dep = np.maximum(_depression(camera, base), 1.0)
+        pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
+        # a column of samples is a straight run: inside the image iff both its ends are
+        ends = pts[:, [0, -1]]
+        cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
+                & (ends[..., 1] <= H - 1)).all(1)
+        if int(cols.sum()) < 4:
+            continue
+        picked.append((j, pts[cols], dep[cols]))
+    if not picked:
+        return out
+    # every segment's samples in one remap (bilinear per sample: the same values as one
+    # remap per segment)
+    P = np.concatenate([q.reshape(-1, 2) for _, q, _ in picked]).astype(np.float32)
+    m = len(P)
+    width = 1024                      # remap's maps must stay under SHRT_MAX columns
+    rows = -(-m // width)
+    mx = np.zeros(rows * width, np.float32)
+    my = np.zeros(rows * width, np.float32)
+    mx[:m], my[:m] = P[:, 0], P[:, 1]
+    prof_all = cv2.remap(lab, mx.reshape(rows, width), my.reshape(rows, width),
+                         cv2.INTER_LINEAR).reshape(-1, 3)[:m].reshape(-1, len(s), 3)
+    at = 0
+    for j, q, dep in picked:
+        n_in = len(q)
+        out[j] = _shift_from_profile(prof_all[at:at + n_in].astype(np.float32), s, dep, p)
+        at += n_in
+    return out
+
+
+def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
+    """The shift from a segment's (n_in, S, 3) colour samples at offsets s (S,) and its
+    columns' depressions dep (n_in,)."""
     prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
     floor = _median0(prof[fb])
@@ -181,7 +238,7 @@ def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
     if (math.hypot(band[1] - floor[1], band[2] - floor[2]) < p.shadow_chroma
             and band[0] < floor[0]):
         return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
-    shift = float(s[k] * _median0(dep[cols]))
+    shift = float(s[k] * _median0(dep))
     return shift if shift >= p.min_shift_px else 0.0
 
 
