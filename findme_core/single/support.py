@@ -93,8 +93,12 @@ class EdgeField:
         top = int(np.clip(top_row - 8, 0, self.height - 1)) if top_row > 0 else 0
         gray = cv2.GaussianBlur(cv2.cvtColor(img[top:], cv2.COLOR_BGR2GRAY).astype(np.float32),
                                 (0, 0), params.blur_sigma)
-        self.gx = np.zeros((self.height, self.width), np.float32)
-        self.gy = np.zeros((self.height, self.width), np.float32)
+        # rows above ``top`` are 0 (no edge), the rest are written by Sobel: np.empty, not
+        # np.zeros (whose fresh zero pages then fault in one by one as Sobel writes them)
+        self.gx = np.empty((self.height, self.width), np.float32)
+        self.gy = np.empty((self.height, self.width), np.float32)
+        self.gx[:top] = 0.0
+        self.gy[:top] = 0.0
         # scale 1/8: the Sobel kernel's weight, exact (a power of two)
         cv2.Sobel(gray, cv2.CV_32F, 1, 0, dst=self.gx[top:], ksize=3, scale=0.125)
         cv2.Sobel(gray, cv2.CV_32F, 0, 1, dst=self.gy[top:], ksize=3, scale=0.125)
