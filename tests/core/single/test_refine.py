@@ -3,7 +3,7 @@ import pytest
 
 from findme_core.geometry.camera import Camera
 from findme_core.single.appearance import to_lab
-from findme_core.single.refine import snap_polyline
+from findme_core.single.refine import SnapParams, prefetch, snap_polyline
 from findme_core.single.search import SegKind
 
 
@@ -37,3 +37,29 @@ def test_leaves_a_clean_boundary_and_other_segments_alone():
     assert np.array_equal(snap_polyline(lab, cam, poly, np.array([SegKind.WALL])), poly)
     lab2, _ = _scene((40, 60, 110))
     assert np.array_equal(snap_polyline(lab2, cam, poly, np.array([SegKind.OPEN])), poly)
+
+
+def test_prefetching_every_lines_band_at_once_snaps_as_one_by_one():
+    """``prefetch`` measures the bands of all the hypotheses' lines in one remap; snapping
+    from its cache gives, bit for bit, what snapping each polyline alone gives, including a
+    line whose first segment is too short to tell and a later one of it is long enough."""
+    lab, cam = _scene((40, 60, 110))
+    W = int(SegKind.WALL)
+    polys = [   # (polyline, kinds, the image line of each segment)
+        (np.array([[0, 400.0], [639, 400.0]]), np.array([W]), [0]),
+        (np.array([[0, 430.0], [8, 400.0], [639, 400.0]]), np.array([W, W]), [1, 0]),
+        (np.array([[0, 400.0], [6, 400.0], [639, 450.0]]), np.array([W, W]), [2, 3]),
+        (np.array([[0, 400.0], [300, 400.0], [639, 400.0]]), np.array([W, W]), [2, 0]),
+    ]
+    alone, cache_a = [], {}
+    for poly, kinds, keys in polys:
+        alone.append(snap_polyline(lab, cam, poly, kinds, cache=cache_a, keys=keys))
+    cache_b: dict = {}
+    prefetch(lab, cam, polys, SnapParams(), cache_b)
+    assert 2 not in cache_b            # its first segment (6 px) is too short to tell
+    batched = [snap_polyline(lab, cam, poly, kinds, cache=cache_b, keys=keys)
+               for poly, kinds, keys in polys]
+    for a, b in zip(alone, batched):
+        assert np.array_equal(a, b)
+    assert cache_a == cache_b
+    assert batched[0][:, 1] == pytest.approx([414.0, 414.0], abs=1.5)
