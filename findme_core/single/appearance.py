@@ -43,6 +43,10 @@ class RegionStats:
         lab: (H, W, 3) Lab image (``to_lab``).
         n_cols: number of sampled columns.
         row_step: use every ``row_step``-th row (moments are scaled back to full rows).
+
+    Attributes:
+        prefix: (R + 1, 10, n_cols) moments (1, mean (3), upper second moments (6)) summed
+            over the sampled rows above each row R; total: (10,) over the whole image.
     """
 
     def __init__(self, lab: np.ndarray, n_cols: int = 64, row_step: int = 2):
@@ -61,10 +65,9 @@ class RegionStats:
             np.multiply(x[:, a], x[:, b], out=P[1:, 4 + k])
         for i in range(1, len(P)):   # = np.cumsum(axis=0), the same sums in the same order
             np.add(P[i], P[i - 1], out=P[i])
-        self._moments = P                      # (R + 1, 10, C)
-        self.prefix = np.moveaxis(P, 1, 2)    # (R + 1, C, 10), a view
+        self.prefix = P
         # summed as a contiguous (C, 10) block: numpy sums a strided view in another order
-        self.total = np.ascontiguousarray(self.prefix[-1]).sum(0)
+        self.total = np.ascontiguousarray(P[-1].T).sum(0)   # (10,)
 
     def _logdet(self, m: np.ndarray) -> np.ndarray:
         """(K, 10) moments -> (K,) 1/2 log det of the covariance (regularised)."""
@@ -83,10 +86,10 @@ class RegionStats:
         """(K, n_cols) boundary rows (floor = rows >= row) -> (K,) separability gain."""
         r = np.clip(np.ceil(np.asarray(rows, float) / self.row_step), 0,
                     self.prefix.shape[0] - 1).astype(int)
-        P = self._moments
+        P = self.prefix
         M, C = P.shape[1:]
         # (10, C, K): moment m of column c at row r[k, c], one gather; summed over the
-        # columns in order (the sums of ``(prefix[-1][c] - prefix[r, c]).sum(1)``, bit for bit)
+        # columns one after another, c = 0, 1, ... (a sum over a leading axis, not pairwise)
         at = r.T * (M * C) + np.arange(C)[:, None]
         below = P[-1][:, :, None] - P.reshape(-1)[at[None] + (np.arange(M) * C)[:, None, None]]
         floor = below.sum(1).T   # (K, 10)

@@ -18,11 +18,11 @@ from dataclasses import dataclass
 
 import math
 
-import cv2
 import numpy as np
 
 from findme_core.geometry.camera import Camera
 from findme_core.single.search import SegKind
+from findme_core.single.support import sample_bilinear
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,12 @@ def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
     return (pts @ l[:2] + l[2]) / max(n, 1e-12)
 
 
+def _down(camera: Camera) -> np.ndarray:
+    """(2,) unit image direction away from the horizon (towards the floor)."""
+    l = camera.horizon_line()
+    return l[:2] / max(np.hypot(l[0], l[1]), 1e-12)
+
+
 def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
                   kinds: np.ndarray, p: SnapParams = SnapParams(),
                   cache: dict | None = None, keys=None) -> np.ndarray:
@@ -61,8 +67,7 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     """
     poly = np.array(polyline, float)
     H, W = image_lab.shape[:2]
-    l = camera.horizon_line()
-    down = l[:2] / max(np.hypot(l[0], l[1]), 1e-12)   # unit image direction away from horizon
+    down = _down(camera)
     lines = {}
     wall = int(SegKind.WALL)
     for s, kind in enumerate(np.asarray(kinds).tolist()):   # Python ints: a numpy integer
@@ -73,7 +78,7 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
         if cache is not None and key in cache:
             shift = cache[key]
         else:
-            shift = _segment_shift(image_lab, camera, a, b, down, p)
+            shift = segment_shifts(image_lab, camera, [(a, b)], down, p)[0]
             if cache is not None and shift is not None:
                 cache[key] = shift
         if shift is None:  # too short to measure: its corners follow the neighbours
@@ -111,8 +116,7 @@ def prefetch(image_lab: np.ndarray, camera: Camera, polylines, p: SnapParams,
     of ``polylines`` [(polyline (M, 2), kinds (M - 1,), keys (M - 1,))] not in it yet, all
     measured in one remap; a key's segment is its first one, as one by one. Then
     ``snap_polyline`` with the same cache and keys gives what it gives without this."""
-    l = camera.horizon_line()
-    down = l[:2] / max(np.hypot(l[0], l[1]), 1e-12)
+    down = _down(camera)
     wall = int(SegKind.WALL)
     todo: dict = {}
     for polyline, kinds, keys in polylines:
@@ -148,14 +152,9 @@ def _median0(x: np.ndarray) -> np.ndarray:
     return (q[k - 1] + q[k]) / 2
 
 
-def _segment_shift(lab, camera, a, b, down, p: SnapParams) -> float | None:
-    """Pixels to move the segment a-b along its normal (0 = keep; None = too little of it
-    in the image to tell)."""
-    return segment_shifts(lab, camera, [(a, b)], down, p)[0]
-
-
 def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
-    """``_segment_shift`` of each (a, b) of ``segments``, their samples taken in one remap.
+    """Pixels to move each segment (a, b) of ``segments`` along its normal, their samples
+    taken in one remap.
 
     Args:
         lab: (H, W, 3) Lab image; segments: [((2,) a, (2,) b)] in pixels; down: (2,) unit
@@ -192,15 +191,8 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
         return out
     # every segment's samples in one remap (bilinear per sample: the same values as one
     # remap per segment)
-    P = np.concatenate([q.reshape(-1, 2) for _, q, _ in picked]).astype(np.float32)
-    m = len(P)
-    width = 1024                      # remap's maps must stay under SHRT_MAX columns
-    rows = -(-m // width)
-    mx = np.zeros(rows * width, np.float32)
-    my = np.zeros(rows * width, np.float32)
-    mx[:m], my[:m] = P[:, 0], P[:, 1]
-    prof_all = cv2.remap(lab, mx.reshape(rows, width), my.reshape(rows, width),
-                         cv2.INTER_LINEAR).reshape(-1, 3)[:m].reshape(-1, len(s), 3)
+    # (every sample lies in the image: the border mode plays no part)
+    prof_all = sample_bilinear(lab, np.concatenate([q for _, q, _ in picked]))
     at = 0
     for j, q, dep in picked:
         n_in = len(q)
