@@ -8,8 +8,11 @@ below the horizon (a level camera sees height y above the floor at (h - y) / h o
 floor's depression). So we average the colour profile across each WALL segment in
 *relative* offsets s = offset / depression, over the whole segment (a strong average where
 one column is noise), find where the profile settles into the floor colour, and move the
-segment's line down to the last colour edge before it. A band with the floor's chromaticity
-but darker is a shadow on the floor (under furniture) and is left alone.
+segment's line down to the last colour edge before it. A floor of planks or tiles along the
+wall may never settle within the search: a band of one colour just below the line, unlike
+the floor and ending at a colour edge, is taken first (``_band_end``: a baseboard). A band
+with the floor's chromaticity but darker is a shadow on the floor (under furniture) and is
+left alone.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ class SnapParams:
     step_px: float = 3.0         # spacing of profile columns along the segment
     s_step: float = 0.01         # profile resolution, relative to the depression
     robust: bool = True          # median over columns (else mean)
+    band_tol: float = 6.0        # Lab step between samples inside a uniform (baseboard) band
 
 
 def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
@@ -215,7 +219,9 @@ def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
     cf = np.concatenate([[0], np.cumsum(far)])
     ks = np.arange(start, len(s) - win)
     hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
-    settle = int(ks[hit[0]]) if len(hit) else None
+    settle = _band_end(prof, s, start, floor, p)
+    if settle is None:
+        settle = int(ks[hit[0]]) if len(hit) else None
     if settle is None or settle == start:
         return 0.0
     # the colour edge just before settling: largest profile gradient between the top edge
@@ -232,6 +238,31 @@ def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
         return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
     shift = float(s[k] * _median0(dep))
     return shift if shift >= p.min_shift_px else 0.0
+
+
+def _band_end(prof, s, start: int, floor, p: SnapParams) -> int | None:
+    """Where a uniform band just below the line ends (a baseboard), tried before the
+    settling point, which a floor of planks or tiles may never reach.
+
+    Args:
+        prof: (S, 3) Lab profile at relative offsets ``s`` (S,); the line is at ``start``;
+            floor: (3,) the floor's colour.
+    Returns:
+        the index just after the band's lower edge (used as a settling point), or None
+        unless the band's samples step by less than ``band_tol``, it is at least two
+        samples long, unlike the floor (> ``settle_tol``), and ends at a step of at least
+        ``settle_tol`` within ``max_rel``.
+    """
+    step = np.sqrt(((prof[1:] - prof[:-1]) ** 2).sum(1))   # (S - 1,) sample to sample
+    i = start + 1
+    while i < len(step) and step[i] < p.band_tol:
+        i += 1
+    if i >= len(step) or i - start < 3 or step[i] < p.settle_tol or s[i + 1] > p.max_rel:
+        return None
+    band = _median0(prof[start + 1:i + 1])
+    if float(np.sqrt(((band - floor) ** 2).sum())) <= p.settle_tol:
+        return None
+    return i + 1
 
 
 def _offsets(p: SnapParams) -> np.ndarray:

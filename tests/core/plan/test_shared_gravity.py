@@ -88,9 +88,10 @@ def test_the_plan_of_plain_photos_is_the_room_or_leaves_photos_out(turn):
     R = np.array([[-2.5 - SPOT[0], -2.0 - SPOT[1]], [2.5 - SPOT[0], -2.0 - SPOT[1]],
                   [2.5 - SPOT[0], 2.0 - SPOT[1]], [-2.5 - SPOT[0], 2.0 - SPOT[1]]])
     d = np.linalg.norm(V[:, None] - R[None], axis=2)
-    # the plan of the same photos with their true gravity is 0.09 m off at its worst corner
-    # (the back wall's base, 1.6 m away, comes out 8 cm far): the shared gravity adds 2 cm
-    assert len(V) == 4 and d.min(1).max() < 0.12, V.round(3)
+    # the goal: the room within 10 cm. The plan of the same photos with their true gravity
+    # is 0.03 m off at its worst corner, this one 0.055 m (before the boundaries snapped
+    # past the baseboard over the floorboards, 0.09 and 0.11 m)
+    assert len(V) == 4 and d.min(1).max() < 0.10, V.round(3)
 
 
 def test_a_lone_ambiguous_photo_is_left_out_with_the_reason(turn):

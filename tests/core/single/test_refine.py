@@ -4,16 +4,23 @@ import pytest
 from findme_core.geometry.camera import Camera
 from findme_core.single.appearance import to_lab
 from findme_core.single.refine import SnapParams, prefetch, snap_polyline
+from findme_core.single.methods import hypothesize
 from findme_core.single.search import SegKind
+from findme_core.synth.render import render
+from findme_core.synth.room import Pose, Room
 
 
-def _scene(band_bgr, floor_bgr=(120, 130, 140)):
+def _scene(band_bgr, floor_bgr=(120, 130, 140), planks_bgr=None):
     """Wall above row 400, a 14 px band (a 12 cm baseboard seen from 1.4 m), then floor; a
-    level camera (horizon at row 239.5)."""
+    level camera (horizon at row 239.5). ``planks_bgr``: every other 6 rows of the floor
+    take this colour (floorboards along the wall: a floor colour that never settles)."""
     img = np.zeros((480, 640, 3), np.uint8)
     img[:400] = (235, 235, 235)
     img[400:414] = band_bgr
     img[414:] = floor_bgr
+    if planks_bgr is not None:
+        for r in range(420, 480, 12):
+            img[r:r + 6] = planks_bgr
     rng = np.random.default_rng(0)
     img = np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
     return to_lab(img), Camera.from_hfov(70, 640, 480)
@@ -23,6 +30,28 @@ def test_snaps_to_the_bottom_of_a_baseboard():
     lab, cam = _scene((40, 60, 110))  # brown wood
     out = snap_polyline(lab, cam, np.array([[0, 400.0], [639, 400.0]]), np.array([SegKind.WALL]))
     assert out[:, 1] == pytest.approx([414.0, 414.0], abs=1.5)
+
+
+def test_snaps_to_the_bottom_of_a_baseboard_over_floorboards():
+    """Floorboards along the wall: the floor's colour changes every 6 rows and never settles
+    within the search; the uniform grey band under the line still ends at the floor."""
+    lab, cam = _scene((95, 100, 105), floor_bgr=(60, 100, 150), planks_bgr=(40, 75, 120))
+    out = snap_polyline(lab, cam, np.array([[0, 400.0], [639, 400.0]]), np.array([SegKind.WALL]))
+    assert out[:, 1] == pytest.approx([414.0, 414.0], abs=1.5)
+
+
+def test_a_rendered_wall_base_behind_a_baseboard_on_a_wood_floor():
+    """The test suite's rendered room (8 cm baseboard, wood floor), a photo facing the back
+    wall 1.8 m away, 30 deg down: the best boundary is the wall's base, not the baseboard's
+    top edge 14 px above it (which puts the wall 10 cm too far)."""
+    v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, 180.0, 30.0, 0.0), 640, 480,
+               hfov_deg=70.0, supersample=1)
+    poly = hypothesize(v.image, v.camera, "findme", 1).hypotheses[0].polyline
+    rows = np.interp(np.arange(640), poly[:, 0], poly[:, 1])
+    truth = np.asarray(v.boundary_v, float)
+    ok = np.isfinite(truth)
+    assert ok.sum() > 600
+    assert np.median(np.abs(rows[ok] - truth[ok])) < 2.5
 
 
 def test_leaves_a_contact_shadow_alone():
