@@ -3,7 +3,7 @@ import pytest
 
 from findme_core.geometry.camera import Camera
 from findme_core.single.appearance import to_lab
-from findme_core.single.refine import SnapParams, prefetch, snap_polyline
+from findme_core.single.refine import SnapParams, _band_end, _offsets, prefetch, snap_polyline
 from findme_core.single.methods import hypothesize
 from findme_core.single.search import SegKind
 from findme_core.synth.render import render
@@ -92,3 +92,28 @@ def test_prefetching_every_lines_band_at_once_snaps_as_one_by_one():
         assert np.array_equal(a, b)
     assert cache_a == cache_b
     assert batched[0][:, 1] == pytest.approx([414.0, 414.0], abs=1.5)
+
+
+@pytest.mark.parametrize("band_len, band, edge_at, expect", [
+    (4, (80.0, 128.0, 134.0), None, 7),     # a grey band 4 samples long: ends at index 7
+    (1, (80.0, 128.0, 134.0), None, None),  # one sample is no band
+    (4, (88.0, 134.0, 144.0), None, None),  # the floor's own colour: not a baseboard
+    (4, (80.0, 128.0, 134.0), 0.20, None),  # its lower edge beyond max_rel (0.16)
+])
+def test_a_band_below_the_line_ends_at_its_lower_edge_or_is_none(band_len, band, edge_at,
+                                                                 expect):
+    """``_band_end`` on a profile: wall above the line (index ``start``), then a band of
+    ``band_len`` samples, then a floor of planks whose colour alternates and never settles."""
+    p = SnapParams()
+    s = _offsets(p)
+    start = int(np.searchsorted(s, 0.0))
+    n_band = band_len if edge_at is None else int(round(edge_at / p.s_step))
+    prof = np.empty((len(s), 3), np.float32)
+    prof[:start + 1] = (160.0, 129.0, 139.0)
+    prof[start + 1:start + 1 + n_band] = band
+    planks = np.array([(102.0, 136.0, 146.0), (78.0, 134.0, 142.0)], np.float32)
+    first = start + 1 + n_band
+    for i in range(first, len(s)):
+        prof[i] = planks[((i - first) // 2) % 2]
+    floor = np.array([88.0, 134.0, 144.0], np.float32)
+    assert _band_end(prof, s, start, floor, p) == expect
