@@ -8,8 +8,10 @@ else h = 1 (results up to scale, ``metric`` false).
 
 State is bounded and expires: per session at most ``max_photos`` photos (least recently
 used out), a session idle for ``idle_s`` is evicted; anything evicted is rebuilt from the
-bus (selection, hypotheses and frame from the store or the caches) when asked again. A
-photo's HypothesisSet is held only until its scene is built.
+bus when asked again: from the photo's Scene message (it carries the camera, height and
+boundary; this service and the store keep it 15 min, longer than the frame's minute in the
+store), else from its selection, hypotheses and frame. A photo's HypothesisSet is held only
+until its scene is built.
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ class MeasurementHandler(Handler):
         self.sessions = SessionTable(lambda s: _Photos(max_photos), idle_s, max_sessions, clock)
         self.wait_s, self.clock = wait_s, clock
         self._waiting: set[str] = set()   # sessions with a selection waiting for its inputs
-        self.answered = self.built = 0
+        self.answered = self.built = self.rebuilt = 0
 
     def on_message(self, key, msg):
         k = bus.parse_key(key)   # the key names session and n, never the payload
@@ -176,16 +178,23 @@ class MeasurementHandler(Handler):
         st = self.sessions.peek(k.session)
         known = st is not None
         if st is None or req.index not in st.scenes:
-            # not seen here (this service restarted, or evicted it): rebuild it from the bus
-            try:
-                sel = self.need(bus.key(k.session, "selection", req.index), schemas.Selection)
-            except HypothesisError:
-                if not known:
-                    raise UnknownSession(f"session {k.session!r} is not known") from None
-                raise HypothesisError(f"photo {req.index} of session {k.session!r} has no "
-                                      "selected hypothesis yet") from None
+            # not seen here (this service restarted, or evicted it): rebuild it from the bus,
+            # from the Scene published for it, else from its selection and inputs
+            held = self._published_scene(k.session, req.index)
+            if held is None:
+                try:
+                    sel = self.need(bus.key(k.session, "selection", req.index),
+                                    schemas.Selection)
+                except HypothesisError:
+                    if not known:
+                        raise UnknownSession(f"session {k.session!r} is not known") from None
+                    raise HypothesisError(f"photo {req.index} of session {k.session!r} has "
+                                          "no selected hypothesis yet") from None
             st = self.sessions.get(k.session)
-            self._select(k.session, st, req.index, sel)
+            if held is None:
+                self._select(k.session, st, req.index, sel)
+            else:
+                st.put(st.scenes, req.index, held)
         else:
             self.sessions.get(k.session)   # used now
         scene, rank, metric = st.scenes[req.index]
@@ -195,6 +204,24 @@ class MeasurementHandler(Handler):
         return measure_reply_msg(k.session, req.index, rank, metric, located, scene.height,
                                  scene.height_sigma)
 
+    def _published_scene(self, session: str, n: int):
+        """(Scene, rank, metric) of photo n rebuilt from its Scene message on the bus (the
+        same camera, height, sigmas and boundary it was built with), or None when nobody
+        has it."""
+        try:
+            msg = self.need(bus.key(session, "scene", n), schemas.Scene)
+        except HypothesisError:
+            return None
+        cam = msg_camera(msg.camera)
+        prov = msg_provenance(msg.camera) or Provenance()
+        poly, kinds = schemas.msg_to_polyline(msg.polyline)
+        scene = Scene(cam, msg.camera_height_m, poly, kinds,
+                      height_sigma=msg.camera_height_sigma_m, gravity_cov=prov.gravity_cov,
+                      boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+        self.rebuilt += 1
+        return scene, msg.rank, msg.metric
+
     def counters(self):
         return {"scenes": self.built, "sessions": len(self.sessions),
-                "evicted": self.sessions.evicted, "measure_queries": self.answered}
+                "evicted": self.sessions.evicted, "measure_queries": self.answered,
+                "scenes_rebuilt": self.rebuilt}

@@ -169,6 +169,28 @@ def test_measurement_scene_and_query(pipeline):
     assert rep.distances[0].distance_m == pytest.approx(np.linalg.norm(truth[0].xyz - truth[1].xyz))
 
 
+def test_measurement_rebuilds_a_scene_from_its_scene_message(pipeline):
+    """A measurement service that no longer holds a photo (restarted, or the session
+    evicted) and finds neither its frame nor its hypotheses on the bus (the store keeps
+    frames a minute) answers from the photo's Scene message, exactly as before."""
+    _, frame, hset, sel = pipeline
+    m = MeasurementHandler()
+    m.on_message("findme/t1/frame/0", frame)
+    m.on_message("findme/t1/hypotheses/0", hset)
+    (scene_out,) = m.on_message("findme/t1/selection/0", sel)
+    req = schemas.MeasureRequest(session="t1", index=0)
+    req.pixels.extend(schemas.pixels_to_msg([[320, 470], [100, 450], [600, 120], [5, 5]]))
+    before = m.on_query("findme/t1/measure", req)
+    fresh = MeasurementHandler()
+    fresh.fetch = {"findme/t1/scene/0": schemas.encode(scene_out.msg)}.get
+    after = fresh.on_query("findme/t1/measure", req)
+    assert schemas.encode(after) == schemas.encode(before)
+    assert fresh.counters()["scenes_rebuilt"] == 1 and fresh.counters()["scenes"] == 0
+    # held from now on: the next query asks the bus nothing
+    fresh.fetch = {}.get
+    assert schemas.encode(fresh.on_query("findme/t1/measure", req)) == schemas.encode(before)
+
+
 def test_measurement_errors_and_fetch(pipeline):
     _, frame, hset, sel = pipeline
     m = MeasurementHandler()
