@@ -100,3 +100,67 @@ def test_two_photo_session_across_processes(deployment):
     lsub.undeclare()
     st = json.loads(run_findme("status", "--connect", ep, "--json").stdout)
     assert "measurement" not in {s["service"] for s in st}
+
+
+def _measure(client, session: str, pixels) -> schemas.MeasureReply:
+    req = schemas.MeasureRequest(session=session, index=0)
+    req.pixels.extend(schemas.pixels_to_msg(pixels))
+    replies = list(client.get(f"findme/{session}/measure", payload=schemas.encode(req),
+                              timeout=10))
+    ok = [schemas.decode(schemas.MeasureReply, r.ok.payload.to_bytes()) for r in replies if r.ok]
+    assert len(ok) == 1, [r.err.payload.to_bytes() for r in replies if not r.ok]
+    return ok[0]
+
+
+def test_a_restarted_measurement_answers_from_the_photos_scene_message():
+    """Measurement SIGKILLed and started again after the photo's frame has left the bus (the
+    store holds frames 1 ms here, small results 15 min; the sender is gone): the measure
+    query is answered from the photo's Scene message, the same reply as before the kill."""
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    procs = {"router": spawn_findme("router", "--listen", ep)}
+    wait_logged(procs["router"], "listening on")
+    names = ("hypotheses", "selection", "measurement", "store")
+    extra = {"selection": ["--auto"], "store": ["--window", "0.001"]}
+    for name in names:
+        procs[name] = spawn_findme("serve", name, "--connect", ep, *extra.get(name, []))
+    client = open_session(BusConfig(mode="client", connect=(ep,)))
+    try:
+        for name in names:
+            wait_alive(client, name, 60)
+        got, cv = set(), threading.Condition()
+
+        def cb(sample):
+            with cv:
+                got.add(str(sample.key_expr))
+                cv.notify_all()
+
+        sub = client.declare_subscriber("findme/rs/scene/*", cb)
+        a = _example("room_a")
+        capture = spawn_findme("serve", "capture", "--connect", ep, "--session", "rs",
+                               *sum((["--wait-for", s] for s in names), []), a[0])
+        with cv:
+            assert cv.wait_for(lambda: "findme/rs/scene/0" in got, 120), got
+        sub.undeclare()
+        capture.send_signal(signal.SIGTERM)
+        capture.wait(20)
+        before = _measure(client, "rs", PIXELS)
+        assert len(before.points) == 2 and not before.points[0].error
+        gone = threading.Event()
+        lsub = client.liveliness().declare_subscriber(
+            "findme/@services/measurement/*",
+            lambda s: s.kind == zenoh.SampleKind.DELETE and gone.set())
+        procs["measurement"].send_signal(signal.SIGKILL)
+        assert gone.wait(10)
+        lsub.undeclare()
+        assert not [r for r in client.get("findme/rs/frame/0", timeout=5) if r.ok]
+        procs["measurement"] = spawn_findme("serve", "measurement", "--connect", ep)
+        wait_alive(client, "measurement", 60)
+        after = _measure(client, "rs", PIXELS)
+        assert schemas.encode(after) == schemas.encode(before)
+    finally:
+        client.close()
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        for p in procs.values():
+            p.wait(20)
