@@ -21,6 +21,12 @@ from findme_io.convert import motion_text, msg_room_view
 from services.runtime import bus
 
 
+#: a gravity from the photo's lines less sure than this (1-sigma, degrees) is said with the
+#: results that rest on it: a phone's sensors are within 0.5-1.5 deg, and the motion's and
+#: points' model errors were fitted on gravities that good
+UNSURE_GRAVITY_DEG = 5.0
+
+
 class Printer:
     """Prints a session's results as they arrive on the bus."""
 
@@ -97,6 +103,20 @@ class Printer:
         scene = self.seen.get(f"findme/{self.session}/scene/{n}")
         return "m" if scene is None or scene.metric else "h"
 
+    def _gravity_note(self, n: int) -> str | None:
+        """What a user must know about photo n's gravity when no sensor gave it: assumed
+        level, or taken from the photo's lines with a 1-sigma over ``UNSURE_GRAVITY_DEG``;
+        else None (given, or from the lines and sure)."""
+        hs = self.seen.get(f"findme/{self.session}/hypotheses/{n}")
+        if hs is None or not hs.HasField("camera"):
+            return None
+        src, sigma = hs.camera.gravity_source, math.degrees(hs.camera.gravity_sigma_rad)
+        if src == "level":
+            return f"photo {n}'s gravity ASSUMED LEVEL (± {sigma:.0f} deg)"
+        if src == "image" and sigma > UNSURE_GRAVITY_DEG:
+            return f"photo {n}'s gravity from its lines, unsure (± {sigma:.0f} deg)"
+        return None
+
     def describe(self, k: str, m) -> str | None:
         name = type(m).__name__
         if name == "Frame":
@@ -107,9 +127,11 @@ class Printer:
             h = (frame.camera_height_m if frame is not None and frame.HasField("camera_height_m")
                  else None)
             view = msg_room_view(m, h)
+            note = self._gravity_note(m.index)
             return (f"photo {m.index}: {len(m.hypotheses)} hypotheses in {t:.0f} ms"
                     + (f" ({m.reason})" if m.reason else "")
-                    + (f"; NOT A ROOM VIEW: {view.reason}" if view and not view.ok else ""))
+                    + (f"; NOT A ROOM VIEW: {view.reason}" if view and not view.ok else "")
+                    + (f"; {note}" if note else ""))
         if name == "Selection":
             return f"photo {m.index}: hypothesis {m.rank} selected ({'auto' if m.by == 2 else 'user'})"
         if name == "Scene":
@@ -117,7 +139,11 @@ class Printer:
                     "floor)" if m.metric else f"photo {m.index}: scene ready (no camera "
                     "height: lengths in camera heights, h)")
         if name == "Motion":
-            return motion_text(m, self.unit(m.index_b))
+            notes = [x for x in (self._gravity_note(m.index_a), self._gravity_note(m.index_b))
+                     if x] if not m.error else []
+            return motion_text(m, self.unit(m.index_b)) + (
+                "; it rests on " + " and ".join(notes) + ", which its figures do not allow for"
+                if notes else "")
         if name == "Pose":
             u = self.unit(m.index)
             return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "

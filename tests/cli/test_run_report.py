@@ -1,7 +1,8 @@
 """What ``findme run`` prints and records, as a newcomer sees it: a position line for every
 photo; lengths in camera heights ("h"), never "m", without a camera height; strictly
 increasing trajectory times for photos without EXIF time (the bundled example); the
-overlay of ``findme hypotheses`` with the best hypothesis on top."""
+overlay of ``findme hypotheses`` with the best hypothesis on top; a gravity that no sensor
+gave and the photo's lines do not settle is said with the results that rest on it."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ import cv2
 import numpy as np
 
 from findme_io.overlay import palette
+from findme_core.synth.render import render
+from findme_core.synth.room import Pose, Room
 from findme_core.motion.trajectory import from_tum
 from tests.cli.conftest import run_findme
 
@@ -23,6 +26,7 @@ EXAMPLES = resources.files("findme") / "examples"
 def test_example_pair_positions_and_increasing_trajectory_times(tmp_path):
     out = run_findme("run", "--out", tmp_path, "--session", "times").stdout
     assert "photo 0: at x +0.000 m, z +0.000 m" in out
+    assert "gravity" not in out       # given with the photos (their sidecars): nothing to say
     assert re.search(r"^photo 1: at x \+0\.3\d\d m, z \+0\.5\d\d m", out, re.M), out
     run_findme("export", tmp_path / "times.mcap", "--tum", tmp_path / "t.txt")
     stamps, poses = from_tum((tmp_path / "t.txt").read_text())
@@ -61,3 +65,21 @@ def test_overlay_draws_the_best_hypothesis_on_top(tmp_path):
     on_best = [tuple(int(c) for c in img[int(round(v)), u]) == best
                for u, v in zip(us[shared], v1[shared])]
     assert np.mean(on_best) > 0.9, np.mean(on_best)
+
+
+def test_an_unsure_gravity_is_said_with_the_motion_that_rests_on_it(tmp_path):
+    """Two plain photos of the rendered room, turning 45 deg at one spot, 30 deg down, no
+    gravity given: the second photo's lines leave its gravity unsure (tens of degrees), and
+    the motion line says it rests on that gravity."""
+    paths = []
+    for i, yaw in enumerate((0.0, 45.0)):
+        v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, yaw, 30.0, 0.0), 640, 480,
+                   hfov_deg=70.0, supersample=1)
+        paths.append(tmp_path / f"turn_{i}.jpg")
+        cv2.imwrite(str(paths[-1]), v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    out = run_findme("run", *paths, "--hfov", "70", "--no-record").stdout
+    m = re.search(r"^photo 1: \d+ hypotheses in \d+ ms; photo 1's gravity from its lines, "
+                  r"unsure \(± (\d+) deg\)$", out, re.M)
+    assert m and int(m.group(1)) > 5, out
+    assert re.search(r"^motion 0 -> 1: .*; it rests on photo 1's gravity from its lines, "
+                     r"unsure .*which its figures do not allow for$", out, re.M), out
