@@ -17,14 +17,8 @@ import zenoh
 import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
-from findme_io.convert import motion_text, msg_room_view
+from findme_io.convert import gravity_caveat, motion_text, msg_room_view, rests_on
 from services.runtime import bus
-
-
-#: a gravity from the photo's lines less sure than this (1-sigma, degrees) is said with the
-#: results that rest on it: a phone's sensors are within 0.5-1.5 deg, and the motion's and
-#: points' model errors were fitted on gravities that good
-UNSURE_GRAVITY_DEG = 5.0
 
 
 class Printer:
@@ -104,18 +98,12 @@ class Printer:
         return "m" if scene is None or scene.metric else "h"
 
     def _gravity_note(self, n: int) -> str | None:
-        """What a user must know about photo n's gravity when no sensor gave it: assumed
-        level, or taken from the photo's lines with a 1-sigma over ``UNSURE_GRAVITY_DEG``;
-        else None (given, or from the lines and sure)."""
+        """``gravity_caveat`` of photo n's gravity, as its hypotheses' camera says it."""
         hs = self.seen.get(f"findme/{self.session}/hypotheses/{n}")
         if hs is None or not hs.HasField("camera"):
             return None
-        src, sigma = hs.camera.gravity_source, math.degrees(hs.camera.gravity_sigma_rad)
-        if src == "level":
-            return f"photo {n}'s gravity ASSUMED LEVEL (± {sigma:.0f} deg)"
-        if src == "image" and sigma > UNSURE_GRAVITY_DEG:
-            return f"photo {n}'s gravity from its lines, unsure (± {sigma:.0f} deg)"
-        return None
+        return gravity_caveat(f"photo {n}", hs.camera.gravity_source,
+                              hs.camera.gravity_sigma_rad)
 
     def describe(self, k: str, m) -> str | None:
         name = type(m).__name__
@@ -139,11 +127,8 @@ class Printer:
                     "floor)" if m.metric else f"photo {m.index}: scene ready (no camera "
                     "height: lengths in camera heights, h)")
         if name == "Motion":
-            notes = [x for x in (self._gravity_note(m.index_a), self._gravity_note(m.index_b))
-                     if x] if not m.error else []
-            return motion_text(m, self.unit(m.index_b)) + (
-                "; it rests on " + " and ".join(notes) + ", which its figures do not allow for"
-                if notes else "")
+            return motion_text(m, self.unit(m.index_b)) + ("" if m.error else rests_on(
+                (self._gravity_note(m.index_a), self._gravity_note(m.index_b))))
         if name == "Pose":
             u = self.unit(m.index)
             return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "

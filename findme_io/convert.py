@@ -84,6 +84,32 @@ def msg_provenance(msg) -> Provenance | None:
     return Provenance(msg.lens_source or "input", msg.gravity_source, cov)
 
 
+#: a gravity from the photo's lines less sure than this (1-sigma, degrees) is said with the
+#: results that rest on it: a phone's sensors are within 0.5-1.5 deg, and the motion's and
+#: points' model errors were fitted on gravities that good
+UNSURE_GRAVITY_DEG = 5.0
+
+
+def gravity_caveat(photo: str, source: str, sigma_rad: float) -> str | None:
+    """What a user must know about a photo's gravity (``source`` and its 1-sigma tilt in
+    radians) when no sensor gave it: assumed level, or from the photo's lines with a 1-sigma
+    over ``UNSURE_GRAVITY_DEG``; else None. ``photo`` names it ("photo 1", "photo B")."""
+    sigma = math.degrees(sigma_rad)
+    if source == "level":
+        return f"{photo}'s gravity ASSUMED LEVEL (± {sigma:.0f} deg)"
+    if source == "image" and sigma > UNSURE_GRAVITY_DEG:
+        return f"{photo}'s gravity from its lines, unsure (± {sigma:.0f} deg)"
+    return None
+
+
+def rests_on(caveats) -> str:
+    """The clause a motion's line ends with when it rests on ``caveats`` (``gravity_caveat``
+    texts, None skipped), else ""."""
+    notes = [c for c in caveats if c]
+    return ("; it rests on " + " and ".join(notes) + ", which its figures do not allow for"
+            if notes else "")
+
+
 def provenance_text(msg) -> str:
     """One line saying where a Camera message's lens and gravity came from."""
     k = msg.intrinsics

@@ -19,7 +19,8 @@ from findme_core.motion.methods import METHODS
 from findme_core.motion.pair import PairResult, motion_photos, photo_of
 from findme_core.single.methods import METHODS as HYPOTHESIS_METHODS
 
-from findme_io.camera_source import camera_json
+from findme_io.camera_source import camera_json, hypothesize_photo
+from findme_io.convert import gravity_caveat, rests_on
 from findme_io.imageio import read_photo
 from .options import add_camera_args, camera_height, finite_float, photo_camera_from
 
@@ -96,15 +97,22 @@ def register(sub) -> None:
 
 def cmd_motion(args) -> int:
     h, metric = camera_height(args.camera_height)
-    images, cams, sources = [], [], []
+    images, cams, sources, caveats = [], [], [], []
     for path, grav, flag in ((args.image_a, args.gravity_a, "--gravity-a"),
                              (args.image_b, args.gravity_b, "--gravity-b")):
         photo = read_photo(path)   # lens: flags, else EXIF; gravity: flag, else the image
         cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, grav, flag,
                                       getattr(args, "gravity_sigma", None))
+        if prov.estimate is not None:
+            # a gravity from the image is refined with the photo's best boundary, as the
+            # hypotheses service and ``findme eval`` refine it: the same motion as theirs
+            _, cam, prov = hypothesize_photo(photo.image, cam, prov, args.hypothesis_method,
+                                             1, camera_height=h if metric else None)
         images.append(photo.image)
         cams.append(cam)
         sources.append(camera_json(cam, prov))
+        caveats.append(gravity_caveat(f"photo {'AB'[len(caveats)]}", prov.gravity,
+                                      prov.gravity_sigma))
     clock = time.perf_counter
     photos = [photo_of(img, cam, h, rank, args.hypothesis_method, which, clock=clock)
               for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b),
@@ -123,7 +131,7 @@ def cmd_motion(args) -> int:
     print(f"photo B relative to photo A ({out['method']}): x {out['x_m']:+.3f} ± "
           f"{out['sigma_x_m']:.3f} {unit} (right), z {out['z_m']:+.3f} ± {out['sigma_z_m']:.3f} "
           f"{unit} (forward), yaw {out['yaw_deg']:+.2f} ± {out['sigma_yaw_deg']:.2f} deg "
-          "(> 0: turned right)")
+          "(> 0: turned right)" + rests_on(caveats))
     print(f"  {out['inliers']} of {out['matches']} matches agree, {out['scale_points']} 3D points "
           f"fix the scale; {sum(out['timing_ms'].values()):.0f} ms")
     if "layout" in out:

@@ -81,5 +81,16 @@ def test_an_unsure_gravity_is_said_with_the_motion_that_rests_on_it(tmp_path):
     m = re.search(r"^photo 1: \d+ hypotheses in \d+ ms; photo 1's gravity from its lines, "
                   r"unsure \(± (\d+) deg\)$", out, re.M)
     assert m and int(m.group(1)) > 5, out
-    assert re.search(r"^motion 0 -> 1: .*; it rests on photo 1's gravity from its lines, "
-                     r"unsure .*which its figures do not allow for$", out, re.M), out
+    mo = re.search(r"^motion 0 -> 1: x ([-+.\d]+) h, z ([-+.\d]+) h, yaw ([-+.\d]+) deg .*; it "
+                   r"rests on photo 1's gravity from its lines, unsure .*which its figures do "
+                   r"not allow for$", out, re.M)
+    assert mo, out
+    # ``findme motion`` on the same photos: the same motion (its gravity from the image is
+    # refined with the best boundary, as the hypotheses service refines it) and the same
+    # caveat
+    text = run_findme("motion", *paths, "--hfov", "70").stdout
+    assert text.splitlines()[0].endswith(
+        "; it rests on photo B's gravity from its lines, unsure (± " + m.group(1)
+        + " deg), which its figures do not allow for"), text
+    js = json.loads(run_findme("motion", *paths, "--hfov", "70", "--json").stdout)
+    assert (f"{js['x_m']:+.3f}", f"{js['z_m']:+.3f}", f"{js['yaw_deg']:+.2f}") == mo.groups()
