@@ -98,8 +98,8 @@ def register(sub) -> None:
 def cmd_motion(args) -> int:
     h, metric = camera_height(args.camera_height)
     images, cams, sources, caveats = [], [], [], []
-    for path, grav, flag in ((args.image_a, args.gravity_a, "--gravity-a"),
-                             (args.image_b, args.gravity_b, "--gravity-b")):
+    for which, path, grav, flag in (("A", args.image_a, args.gravity_a, "--gravity-a"),
+                                    ("B", args.image_b, args.gravity_b, "--gravity-b")):
         photo = read_photo(path)   # lens: flags, else EXIF; gravity: flag, else the image
         cam, prov = photo_camera_from(photo, args.hfov, args.intrinsics, grav, flag,
                                       getattr(args, "gravity_sigma", None))
@@ -111,8 +111,7 @@ def cmd_motion(args) -> int:
         images.append(photo.image)
         cams.append(cam)
         sources.append(camera_json(cam, prov))
-        caveats.append(gravity_caveat(f"photo {'AB'[len(caveats)]}", prov.gravity,
-                                      prov.gravity_sigma))
+        caveats.append(gravity_caveat(f"photo {which}", prov.gravity, prov.gravity_sigma))
     clock = time.perf_counter
     photos = [photo_of(img, cam, h, rank, args.hypothesis_method, which, clock=clock)
               for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b),

@@ -211,17 +211,10 @@ def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
     prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
     floor = _median0(prof[fb])
-    diff = prof - floor
-    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
-    win = max(1, int(round(p.settle_len / p.s_step)))
-    # first offset >= 0 from which the profile stays at the floor colour for `win` samples
     start = int(np.searchsorted(s, 0.0))
-    cf = np.concatenate([[0], np.cumsum(far)])
-    ks = np.arange(start, len(s) - win)
-    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
     settle = _band_end(prof, s, start, floor, p)
     if settle is None:
-        settle = int(ks[hit[0]]) if len(hit) else None
+        settle = _settling(prof, s, start, floor, p)
     if settle is None or settle == start:
         return 0.0
     # the colour edge just before settling: largest profile gradient between the top edge
@@ -238,6 +231,19 @@ def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
         return 0.0  # the floor's own colour, darker: a contact shadow on the floor, not a wall
     shift = float(s[k] * _median0(dep))
     return shift if shift >= p.min_shift_px else 0.0
+
+
+def _settling(prof, s, start: int, floor, p: SnapParams) -> int | None:
+    """The first offset index >= ``start`` (the line) from which the (S, 3) profile stays
+    within ``settle_tol`` of the floor's colour for ``settle_len``, within ``max_rel``; None
+    when it never does."""
+    diff = prof - floor
+    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
+    win = max(1, int(round(p.settle_len / p.s_step)))
+    cf = np.concatenate([[0], np.cumsum(far)])
+    ks = np.arange(start, len(s) - win)
+    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
+    return int(ks[hit[0]]) if len(hit) else None
 
 
 def _band_end(prof, s, start: int, floor, p: SnapParams) -> int | None:

@@ -181,7 +181,10 @@ class MeasurementHandler(Handler):
             # not seen here (this service restarted, or evicted it): rebuild it from the bus,
             # from the Scene published for it, else from its selection and inputs
             held = self._published_scene(k.session, req.index)
-            if held is None:
+            if held is not None:
+                st = self.sessions.get(k.session)
+                st.put(st.scenes, req.index, held)
+            else:
                 try:
                     sel = self.need(bus.key(k.session, "selection", req.index),
                                     schemas.Selection)
@@ -190,11 +193,8 @@ class MeasurementHandler(Handler):
                         raise UnknownSession(f"session {k.session!r} is not known") from None
                     raise HypothesisError(f"photo {req.index} of session {k.session!r} has "
                                           "no selected hypothesis yet") from None
-            st = self.sessions.get(k.session)
-            if held is None:
+                st = self.sessions.get(k.session)
                 self._select(k.session, st, req.index, sel)
-            else:
-                st.put(st.scenes, req.index, held)
         else:
             self.sessions.get(k.session)   # used now
         scene, rank, metric = st.scenes[req.index]
