@@ -52,8 +52,8 @@ def pairs():
         index = json.loads(idx.read_text())
         for pid in sorted({p for s in index["subsets"].values() for p in s.get("pairs", [])}):
             _, photos = pair_inputs(EVAL_DIR / "pairs", EVAL_DIR / "views", pid)
-            if all((c.width, c.height) == (640, 480) for _, c, _ in photos):
-                (ia, ca, ha), (ib, cb, hb) = photos
+            if all((c.width, c.height) == (640, 480) for _, c, _, _ in photos):
+                (ia, ca, ha, _), (ib, cb, hb, _) = photos
                 yield pid, ia, ib, ca, cb, ha, hb
         return
     from findme_core.synth.render import Box, Pose, Room, render

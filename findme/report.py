@@ -17,7 +17,7 @@ import zenoh
 import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
-from findme_io.convert import gravity_caveat, motion_text, msg_room_view, rests_on
+from findme_io.convert import gravity_caveat, motion_gravity_text, motion_text, msg_room_view
 from services.runtime import bus
 
 
@@ -97,13 +97,17 @@ class Printer:
         scene = self.seen.get(f"findme/{self.session}/scene/{n}")
         return "m" if scene is None or scene.metric else "h"
 
-    def _gravity_note(self, n: int) -> str | None:
-        """``gravity_caveat`` of photo n's gravity, as its hypotheses' camera says it."""
+    def _own_gravity(self, n: int) -> tuple[str, float] | None:
+        """(source, 1-sigma radians) of photo n's gravity, as its hypotheses' camera says it."""
         hs = self.seen.get(f"findme/{self.session}/hypotheses/{n}")
         if hs is None or not hs.HasField("camera"):
             return None
-        return gravity_caveat(f"photo {n}", hs.camera.gravity_source,
-                              hs.camera.gravity_sigma_rad)
+        return hs.camera.gravity_source, hs.camera.gravity_sigma_rad
+
+    def _gravity_note(self, n: int) -> str | None:
+        """``gravity_caveat`` of photo n's own gravity."""
+        own = self._own_gravity(n)
+        return None if own is None else gravity_caveat(f"photo {n}", *own)
 
     def describe(self, k: str, m) -> str | None:
         name = type(m).__name__
@@ -127,8 +131,9 @@ class Printer:
                     "floor)" if m.metric else f"photo {m.index}: scene ready (no camera "
                     "height: lengths in camera heights, h)")
         if name == "Motion":
-            return motion_text(m, self.unit(m.index_b)) + ("" if m.error else rests_on(
-                (self._gravity_note(m.index_a), self._gravity_note(m.index_b))))
+            return motion_text(m, self.unit(m.index_b)) + ("" if m.error else motion_gravity_text(
+                m, f"photo {m.index_a}", f"photo {m.index_b}", self._own_gravity(m.index_a),
+                self._own_gravity(m.index_b)))
         if name == "Pose":
             u = self.unit(m.index)
             return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "

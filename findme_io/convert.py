@@ -15,6 +15,7 @@ import schemas
 from findme_core.errors import ImageError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import Provenance, tilt_cov
+from findme_core.motion.pair_gravity import UNSURE_GRAVITY_DEG
 from findme_core.single.hypotheses import Hypothesis, HypothesisSet
 from findme_core.single.scene import Located, distances
 
@@ -84,10 +85,6 @@ def msg_provenance(msg) -> Provenance | None:
     return Provenance(msg.lens_source or "input", msg.gravity_source, cov)
 
 
-#: a gravity from the photo's lines less sure than this (1-sigma, degrees) is said with the
-#: results that rest on it: a phone's sensors are within 0.5-1.5 deg, and the motion's and
-#: points' model errors were fitted on gravities that good
-UNSURE_GRAVITY_DEG = 5.0
 
 
 def gravity_caveat(photo: str, source: str, sigma_rad: float) -> str | None:
@@ -108,6 +105,41 @@ def rests_on(caveats) -> str:
     notes = [c for c in caveats if c]
     return ("; it rests on " + " and ".join(notes) + ", which its figures do not allow for"
             if notes else "")
+
+
+def set_motion_gravity(msg, pg) -> None:
+    """Fill ``msg.gravity`` (a ``schemas.Motion``, in place like ``set_motion_estimate``)
+    with a ``motion.pair_gravity.PairGravity``; nothing for None (the sensors gave both)."""
+    if pg is None:
+        return
+    g = msg.gravity
+    g.status, g.reason = pg.status, pg.reason or ""
+    if math.isfinite(pg.angle):
+        g.angle_rad = float(pg.angle)
+    for f, s in (("sigma_a_rad", pg.sigma_a), ("sigma_b_rad", pg.sigma_b)):
+        if math.isfinite(s):              # absent: assumed level, no evidence
+            setattr(g, f, float(s))
+
+
+def motion_gravity_text(msg, photo_a: str, photo_b: str, own_a, own_b) -> str:
+    """The clauses a successful motion's line ends with about the gravities it rests on:
+    whether the photos agreed on gravity through their matches (``msg.gravity``), and the
+    ``gravity_caveat`` of each photo's gravity as the motion used it. ``own_a`` / ``own_b``:
+    (source, 1-sigma radians) of each photo's own gravity, or None when unknown."""
+    g = msg.gravity if msg.HasField("gravity") else None
+    own = [o or ("input", 0.0) for o in (own_a, own_b)]
+    clause = ""
+    if g is not None and g.status == "agreed":
+        # the combined gravity came from the lines of both photos: no longer "assumed level"
+        own = [("image" if src == "level" else src, getattr(g, f) if g.HasField(f) else s)
+               for (src, s), f in zip(own, ("sigma_a_rad", "sigma_b_rad"))]
+        if g.HasField("angle_rad") and math.degrees(g.angle_rad) > UNSURE_GRAVITY_DEG:
+            clause = (f"; {photo_a} and {photo_b} agreed on gravity through their matches "
+                      f"(their own were {math.degrees(g.angle_rad):.0f} deg apart)")
+    elif g is not None and g.status == "disagree":
+        clause = f"; {photo_a} and {photo_b} DISAGREE on which way is down ({g.reason})"
+    return clause + rests_on(gravity_caveat(name, src, s)
+                             for name, (src, s) in zip((photo_a, photo_b), own))
 
 
 def provenance_text(msg) -> str:

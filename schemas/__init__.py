@@ -72,7 +72,7 @@ from .v1.measure_pb2 import (
     MeasureRequest,
     Surface,
 )
-from .v1.motion_pb2 import IndexPair, Motion, MotionAlternative, MotionLayout, Pose, Trajectory
+from .v1.motion_pb2 import IndexPair, Motion, MotionAlternative, MotionGravity, MotionLayout, Pose, Trajectory
 from .v1.plan_pb2 import (
     PLAN_PHOTO_STATUS_LEFT_OUT,
     PLAN_PHOTO_STATUS_NOT_PLACED,
@@ -107,7 +107,7 @@ __all__ = [
     "Frame", "Hypothesis", "HypothesisSet", "Selection", "SelectedBy", "SELECTED_BY_USER",
     "SELECTED_BY_AUTO", "Scene", "MeasureRequest", "MeasureReply", "MeasuredPoint",
     "Distance", "Surface", "SURFACE_NONE", "SURFACE_FLOOR", "SURFACE_WALL",
-    "Motion", "MotionLayout", "MotionAlternative", "IndexPair", "Pose", "Trajectory", "Error", "ErrorCode", "ServiceStatus",
+    "Motion", "MotionLayout", "MotionGravity", "MotionAlternative", "IndexPair", "Pose", "Trajectory", "Error", "ErrorCode", "ServiceStatus",
     "Plan", "PlanPoint", "PlanWall", "PlanOpening", "PlanPhoto", "WallKind", "PlanPhotoStatus",
     "WALL_KIND_WALL", "WALL_KIND_OPENING", "WALL_KIND_MISSING", "PLAN_PHOTO_STATUS_PLACED",
     "PLAN_PHOTO_STATUS_NOT_PLACED", "PLAN_PHOTO_STATUS_LEFT_OUT",

@@ -333,6 +333,22 @@ def _motion_evidence(p: Problems, m: motion_pb2.Motion) -> None:
             if len(getattr(lay, name)) > MAX_LAYOUT_PAIRS:
                 p.append(f"layout.{name}: at most {MAX_LAYOUT_PAIRS}, "
                          f"got {len(getattr(lay, name))}")
+    if m.HasField("gravity"):
+        _motion_gravity(p, m.gravity)
+
+
+#: How a Motion's photos' gravities were settled (``MotionGravity.status``).
+GRAVITY_STATUSES = ("agreed", "disagree", "unlinked")
+
+
+def _motion_gravity(p: Problems, g: motion_pb2.MotionGravity) -> None:
+    if g.status not in GRAVITY_STATUSES:
+        p.append(f"gravity.status {g.status!r} is not one of {GRAVITY_STATUSES}")
+    if g.HasField("angle_rad"):
+        _nonneg(p, "gravity.angle_rad", g.angle_rad)
+    for f in ("sigma_a_rad", "sigma_b_rad"):
+        if g.HasField(f):
+            _nonneg(p, f"gravity.{f}", getattr(g, f))
 
 
 def _pose_fields(p: Problems, m: motion_pb2.Pose, prefix: str = "") -> None:

@@ -58,7 +58,8 @@ def raw_motions(split: Path, subset: str, method: str) -> dict:
     for pid in index["subsets"][subset]["pairs"]:
         pair, photos = pair_inputs(split / "pairs", split / "views", pid)
         try:
-            pa, pb = (photo_of(i, c, h, 1, "findme", w) for (i, c, h), w in zip(photos, "AB"))
+            pa, pb = (photo_of(i, c, h, 1, "findme", w, gravity_sigma=s)
+                      for (i, c, h, s), w in zip(photos, "AB"))
             r = motion_photos(pa, pb, (method,), params=p0)[method]
         except FindmeError:
             continue

@@ -127,8 +127,9 @@ def diagnose(job):
     base = math.hypot(g["x_m"], g["z_m"])
     out = {"pair": pid, "baseline_m": base, "truth": g}
     try:
-        pa, pb = (photo_of(i, c, h, 1, "findme", w, max_layouts=params.max_layouts)
-                  for (i, c, h), w in zip(photos, "AB"))
+        pa, pb = (photo_of(i, c, h, 1, "findme", w, max_layouts=params.max_layouts,
+                           gravity_sigma=s)
+                  for (i, c, h, s), w in zip(photos, "AB"))
     except FindmeError as e:
         return {**out, "error": str(e)}
     seen, restore = _traced(methods) if why else ([], lambda: None)

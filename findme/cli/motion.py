@@ -15,12 +15,14 @@ import math
 import sys
 import time
 
+from findme_core.geometry.manhattan import pitch_roll_deg
 from findme_core.motion.methods import METHODS
 from findme_core.motion.pair import PairResult, motion_photos, photo_of
 from findme_core.single.methods import METHODS as HYPOTHESIS_METHODS
 
 from findme_io.camera_source import camera_json, hypothesize_photo
-from findme_io.convert import gravity_caveat, rests_on
+from findme_io.convert import motion_gravity_text, set_motion_gravity
+from schemas import Motion
 from findme_io.imageio import read_photo
 from .options import add_camera_args, camera_height, finite_float, photo_camera_from
 
@@ -52,13 +54,37 @@ def motion_json(r: PairResult, metric: bool) -> dict:
     which walls (A's index, B's index) and corners matched, the rms residual; ``appearance``:
     the correlation of the photos' normalised images over the samples each sees of the
     other's floor and walls) and the
-    ``alternatives`` the evidence allows nearly as well (a symmetric room), best first."""
+    ``alternatives`` the evidence allows nearly as well (a symmetric room), best first;
+    ``gravity``, when a photo's gravity came from its lines: whether the two photos agreed
+    on it through their matches (``motion.pair_gravity``)."""
     m = r.motion
     out = _estimate_json(m)
     out.update({"matches": r.matches, "keypoints": list(r.keypoints), "method": m.method,
                 "metric": metric, "alternatives": [_estimate_json(a) for a in m.alternatives],
                 "timing_ms": {k: round(v, 3) for k, v in r.timing_ms.items()}})
+    g = r.gravity
+    if g is not None:
+        out["gravity"] = {"status": g.status, "angle_deg": (round(math.degrees(g.angle), 3)
+                                                            if math.isfinite(g.angle) else None),
+                          "sigma_a_deg": round(math.degrees(g.sigma_a), 3),
+                          "sigma_b_deg": round(math.degrees(g.sigma_b), 3), "reason": g.reason}
     return out
+
+
+def _gravity_text(pg, provs) -> str:
+    """The motion line's clauses on the gravities it rests on (as ``findme run`` says them)."""
+    msg = Motion()
+    set_motion_gravity(msg, pg)
+    return motion_gravity_text(msg, "photo A", "photo B",
+                               *((p.gravity, p.gravity_sigma) for p in provs))
+
+
+def _agreed(pg, which: str) -> dict:
+    """Photo ``which``'s gravity as the motion used it, once the photos agreed on it."""
+    pitch, roll = pitch_roll_deg(pg.gravity_a if which == "A" else pg.gravity_b)
+    return {"pitch_deg": pitch, "roll_deg": roll,
+            "sigma_deg": math.degrees(pg.sigma_a if which == "A" else pg.sigma_b),
+            "source": "image"}
 
 
 MOTION_HELP = """\
@@ -97,7 +123,7 @@ def register(sub) -> None:
 
 def cmd_motion(args) -> int:
     h, metric = camera_height(args.camera_height)
-    images, cams, sources, caveats = [], [], [], []
+    images, cams, sources, own = [], [], [], []
     for which, path, grav, flag in (("A", args.image_a, args.gravity_a, "--gravity-a"),
                                     ("B", args.image_b, args.gravity_b, "--gravity-b")):
         photo = read_photo(path)   # lens: flags, else EXIF; gravity: flag, else the image
@@ -111,11 +137,12 @@ def cmd_motion(args) -> int:
         images.append(photo.image)
         cams.append(cam)
         sources.append(camera_json(cam, prov))
-        caveats.append(gravity_caveat(f"photo {which}", prov.gravity, prov.gravity_sigma))
+        own.append(prov)
     clock = time.perf_counter
-    photos = [photo_of(img, cam, h, rank, args.hypothesis_method, which, clock=clock)
-              for img, cam, rank, which in zip(images, cams, (args.hypothesis_a, args.hypothesis_b),
-                                               "AB")]
+    photos = [photo_of(img, cam, h, rank, args.hypothesis_method, which, clock=clock,
+                       gravity_sigma=prov.unsensed_sigma)
+              for img, cam, rank, which, prov in zip(
+                  images, cams, (args.hypothesis_a, args.hypothesis_b), "AB", own)]
     hyp_ms = sum(p.timing_ms.pop("hypotheses") for p in photos)
     res = motion_photos(*photos, (args.method,), clock=clock)[args.method]
     if isinstance(res, Exception):
@@ -130,7 +157,7 @@ def cmd_motion(args) -> int:
     print(f"photo B relative to photo A ({out['method']}): x {out['x_m']:+.3f} ± "
           f"{out['sigma_x_m']:.3f} {unit} (right), z {out['z_m']:+.3f} ± {out['sigma_z_m']:.3f} "
           f"{unit} (forward), yaw {out['yaw_deg']:+.2f} ± {out['sigma_yaw_deg']:.2f} deg "
-          "(> 0: turned right)" + rests_on(caveats))
+          "(> 0: turned right)" + _gravity_text(res.gravity, own))
     print(f"  {out['inliers']} of {out['matches']} matches agree, {out['scale_points']} 3D points "
           f"fix the scale; {sum(out['timing_ms'].values()):.0f} ms")
     if "layout" in out:
@@ -147,6 +174,8 @@ def cmd_motion(args) -> int:
               f"z {alt['z_m']:+.3f} {unit}, yaw {alt['yaw_deg']:+.2f} deg")
     for which, s in zip("AB", sources):
         g = s["gravity"]
+        if res.gravity is not None and res.gravity.status == "agreed":
+            g = {**g, **_agreed(res.gravity, which)}
         note = {"input": "given", "image": f"from the photo's lines, ± {g['sigma_deg']:.1f} deg",
                 "input+image": f"given, refined by the photo's lines, ± {g['sigma_deg']:.1f} deg",
                 "level": "NOT KNOWN: level assumed"}[g["source"]]

@@ -71,3 +71,10 @@ class Provenance:
     def gravity_sigma(self) -> float:
         """RMS 1-sigma of gravity's tilt per axis, radians."""
         return float(math.sqrt(max(np.trace(self.gravity_cov), 0.0) / 2.0))
+
+    @property
+    def unsensed_sigma(self) -> float | None:
+        """The 1-sigma (radians) a motion checks a gravity no sensor gave against the other
+        photo's (``motion.pair_gravity``): ``gravity_sigma`` when it came from the image,
+        infinite when level was assumed (no evidence at all); None when given."""
+        return {"image": self.gravity_sigma, "level": math.inf}.get(self.gravity)

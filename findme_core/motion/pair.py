@@ -12,8 +12,9 @@ frame (metres, radians). ``clock`` is injected (the core reads no clock itself);
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -21,7 +22,8 @@ import numpy as np
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.orientation import Orientation, orientation as room_orientation
-from findme_core.motion import features, lifting, photometric
+from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
+from findme_core.motion import features, lifting, pair_gravity, photometric
 from findme_core.motion.methods import MotionParams, PlanarMotion, estimate
 from findme_core.single import layout
 from findme_core.single.hypotheses import HypothesisParams
@@ -32,12 +34,14 @@ from findme_core.single.scene import Scene
 
 @dataclass
 class PairResult:
-    """A motion with what produced it (counts, milliseconds per stage)."""
+    """A motion with what produced it (counts, milliseconds per stage; ``gravity``: how the
+    photos' gravities were checked against each other, None when the sensors gave both)."""
 
     motion: PlanarMotion
     matches: int
     keypoints: tuple[int, int]
     timing_ms: dict
+    gravity: pair_gravity.PairGravity | None = None
 
 
 @dataclass
@@ -53,6 +57,13 @@ class Photo:
         surface: its pixels placed on the floor and walls of the chosen layout
             (``photometric``; none without a layout: then only looked up).
         timing_ms: milliseconds per stage of its preparation.
+        hypotheses: ((rank, polyline, kinds), ...) its layouts came from, the chosen first
+            (lifted again under a corrected gravity: ``relift``).
+        segments: (N, 4) its straight lines (the orientation's).
+        gravity_sigma: 1-sigma (radians) of a gravity found in the photo's own lines, which
+            its motions check against the other photo's (``pair_gravity``); infinite when
+            level was assumed; None for a gravity given by the phone's sensors.
+        rank: the chosen hypothesis (1-based; its scene lifts the matched points).
     """
 
     camera: Camera
@@ -63,12 +74,16 @@ class Photo:
     orientation: Orientation | None = None
     timing_ms: dict = field(default_factory=dict)
     surface: photometric.Surface | None = None
+    hypotheses: tuple = ()
+    segments: np.ndarray | None = None
+    gravity_sigma: float | None = None
+    rank: int = 0
 
 
 def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
             segments=None, max_layouts: int = 1,
             feature_params: features.FeatureParams = features.FeatureParams(),
-            clock=time.perf_counter) -> Photo:
+            clock=time.perf_counter, gravity_sigma: float | None = None) -> Photo:
     """A photo ready for its motions.
 
     Args:
@@ -78,6 +93,8 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
             comes first; the next best ranks follow, ``max_layouts`` in all.
         segments: (N, 4) image line segments (e.g. ``HypothesisSet.lines.ends``); detected
             (LSD) when None.
+        gravity_sigma: 1-sigma (radians) of a gravity from the photo's own lines (checked
+            against the other photo's in each motion); None when the sensors gave it.
     """
     t0 = clock()
     grey = features._grey(image)   # once, for the features and the surface
@@ -86,22 +103,43 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
     hyps = list(hypotheses)
     order = ([rank - 1] if 1 <= rank <= len(hyps) else []) + \
         [i for i in range(len(hyps)) if i != rank - 1]
-    scene, lays = None, []
-    for i in order[:max_layouts]:
-        h = hyps[i]
-        try:
-            if i == rank - 1:
-                scene = Scene(camera, height, h.polyline, h.kinds)
-            lays.append(layout.from_hypothesis(camera, height, h.polyline, h.kinds, i + 1))
-        except FindmeError:   # e.g. a level-camera polyline crossing a tilted horizon
-            continue
+    chosen = tuple((i + 1, hyps[i].polyline, hyps[i].kinds) for i in order[:max_layouts])
     if segments is None:
         segments = line_segments(image)
-    o = room_orientation(segments, camera)
-    surf = photometric.surface(grey, camera, lays[0] if lays else None)
-    t4 = clock()
-    return Photo(camera, float(height), f, scene, lays, o,
-                 {"features": 1e3 * (t1 - t0), "layout": 1e3 * (t4 - t1)}, surf)
+    photo = _lifted(Photo(camera, float(height), f, hypotheses=chosen,
+                          segments=np.asarray(segments, float), gravity_sigma=gravity_sigma,
+                          rank=rank), camera, rank, grey)
+    photo.timing_ms.update({"features": 1e3 * (t1 - t0), "layout": 1e3 * (clock() - t1)})
+    return photo
+
+
+def relift(photo: Photo, gravity, gravity_sigma: float) -> Photo:
+    """``photo`` under another gravity ((3,) camera frame, 1-sigma radians): its scene,
+    layouts, orientation and surface lifted again from the same hypotheses (image polylines)
+    and lines; its features kept."""
+    camera = photo.camera.with_gravity(gravity)
+    return _lifted(replace(photo, camera=camera, gravity_sigma=gravity_sigma, scene=None,
+                           layouts=[], orientation=None, surface=None,
+                           timing_ms=dict(photo.timing_ms)), camera, photo.rank, None,
+                   photo.surface)
+
+
+def _lifted(photo: Photo, camera: Camera, rank: int, grey, surf=None) -> Photo:
+    """``photo`` with the scene of hypothesis ``rank``, the layouts of its ``hypotheses``,
+    its orientation and surface under ``camera`` (from ``grey``, else ``surf``'s thumbnail)."""
+    scene, lays = None, []
+    for r, poly, kinds in photo.hypotheses:
+        try:
+            if r == rank:
+                scene = Scene(camera, photo.height, poly, kinds)
+            lays.append(layout.from_hypothesis(camera, photo.height, poly, kinds, r))
+        except FindmeError:   # e.g. a level-camera polyline crossing a tilted horizon
+            continue
+    o = room_orientation(photo.segments, camera)
+    top = lays[0] if lays else None
+    sf = (photometric.surface(grey, camera, top) if surf is None
+          else photometric.replaced(surf, camera, top))
+    return replace(photo, scene=scene, layouts=lays, orientation=o, surface=sf)
 
 
 def _work_scale(image) -> float:
@@ -143,7 +181,7 @@ def line_segments(image) -> np.ndarray:
 def photo_of(image, camera: Camera, height: float, rank: int = 1,
              hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 1,
              feature_params: features.FeatureParams = features.FeatureParams(),
-             clock=time.perf_counter) -> Photo:
+             clock=time.perf_counter, gravity_sigma: float | None = None) -> Photo:
     """``prepare`` with the photo's own hypotheses (``methods.hypothesize``, timed as
     "hypotheses"); a rank beyond the hypotheses found is a bad input (HypothesisError)."""
     t0 = clock()
@@ -156,7 +194,7 @@ def photo_of(image, camera: Camera, height: float, rank: int = 1,
                               + (f" ({hs.reason})" if hs.reason else ""))
     photo = prepare(image, camera, height, hs.hypotheses, rank,
                     photo_lines(hs, image), max_layouts,
-                    feature_params, clock)
+                    feature_params, clock, gravity_sigma)
     photo.timing_ms["hypotheses"] = ms
     return photo
 
@@ -191,6 +229,7 @@ def motion_photos(pa: Photo, pb: Photo, methods=("findme",),
     are raised (they concern every method)."""
     t1 = clock()
     m = features.match(pa.features, pb.features, feature_params)
+    pa, pb, pg = agreed_gravity(pa, pb, m)
     t2 = clock()
     out = {}
     for method in methods:
@@ -222,8 +261,27 @@ def motion_photos(pa: Photo, pb: Photo, methods=("findme",),
             "features": pa.timing_ms.get("features", 0.0) + pb.timing_ms.get("features", 0.0),
             "layout": pa.timing_ms.get("layout", 0.0) + pb.timing_ms.get("layout", 0.0),
             "matching": 1e3 * (t2 - t1), "lift": 1e3 * spent[0],
-            "motion": 1e3 * (total - spent[0])})
+            "motion": 1e3 * (total - spent[0])}, pg)
     return out
+
+
+def agreed_gravity(pa: Photo, pb: Photo, m: features.Matches,
+                   params: pair_gravity.PairGravityParams = pair_gravity.PairGravityParams()):
+    """(A, B, ``pair_gravity.PairGravity`` or None): when a photo's gravity from its own
+    lines is unsure, the two photos' gravities checked against each other through their
+    matches and, where they agree, the unsure photo lifted again under the combined gravity;
+    None (the photos as they are) when neither photo's gravity is unsure."""
+    given = math.radians(INPUT_GRAVITY_SIGMA_DEG)
+    sa, sb = (given if p.gravity_sigma is None else max(p.gravity_sigma, 1e-6)
+              for p in (pa, pb))
+    if not any(p.gravity_sigma is not None and pair_gravity.unsure(s, params)
+               for p, s in ((pa, sa), (pb, sb))):
+        return pa, pb, None
+    pg = pair_gravity.agree(m, pa.camera, pb.camera, sa, sb, params)
+    if pg.status != "agreed":
+        return pa, pb, pg
+    return (pa if pg.sigma_a == sa else relift(pa, pg.gravity_a, pg.sigma_a),
+            pb if pg.sigma_b == sb else relift(pb, pg.gravity_b, pg.sigma_b), pg)
 
 
 def motion_pair(image_a, image_b, cam_a: Camera, cam_b: Camera, scene_a, scene_b,

@@ -83,11 +83,22 @@ def surface(image, camera: Camera, layout: Layout | None,
     """The samples of one photo (``image`` (H, W[, 3]) uint8, the size of ``camera``) on the
     floor and walls of its ``layout``: none without a layout (or one that sees no floor),
     the photo then only serves as the other's lookup."""
-    s = params.width / camera.width
-    cam = camera.scaled(s)
+    cam = camera.scaled(params.width / camera.width)
     grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
     small = cv2.resize(grey, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
-    img = normalised(small, params.window, params.flat)
+    return _placed(cam, normalised(small, params.window, params.flat), layout, params)
+
+
+def replaced(surf: Surface, camera: Camera, layout: Layout | None,
+             params: PhotometricParams = PhotometricParams()) -> Surface:
+    """``surf``'s photo placed again under another ``camera`` (its gravity corrected, same
+    intrinsics) and ``layout``: the thumbnail is reused, not computed again."""
+    return _placed(camera.scaled(params.width / camera.width), surf.image, layout, params)
+
+
+def _placed(cam: Camera, img: np.ndarray, layout: Layout | None,
+            params: PhotometricParams) -> Surface:
+    """The samples of the normalised thumbnail ``img`` (of camera ``cam``) on ``layout``."""
     if layout is None or len(layout.azimuth) < 2:
         return Surface(cam, img, np.zeros((0, 3)), np.zeros(0, np.float32), None)
     v, u = np.mgrid[params.step // 2:cam.height:params.step, params.step // 2:cam.width:params.step]

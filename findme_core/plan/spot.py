@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from findme_core.geometry.camera import Camera
+from findme_core.motion import rotation
 from findme_core.motion.features import Matches
 
 
@@ -121,7 +122,7 @@ def _consensus(ba, bb, yaws, thr):
 
 
 def _accepts(k: int, n: int, params: SpotParams) -> bool:
-    return k >= params.min_inliers and k >= params.min_fraction * n
+    return rotation.accepts(k, n, params.min_inliers, params.min_fraction)
 
 
 def _whole_rotation(ba, bb, yaws, thr, params: SpotParams, fx: float) -> SpotYaw | None:
@@ -132,7 +133,7 @@ def _whole_rotation(ba, bb, yaws, thr, params: SpotParams, fx: float) -> SpotYaw
     for _ in range(3):
         if not _accepts(int(inl.sum()), len(ba), params):
             return None
-        M = _kabsch(ba[inl], bb[inl])
+        M = rotation.kabsch(ba[inl], bb[inl])
         res = np.linalg.norm(ba - bb @ M.T, axis=1)
         inl = res < thr
     k = int(inl.sum())
@@ -151,51 +152,11 @@ def camera_rotation(matches: Matches, cam_a: Camera, cam_b: Camera,
     """The rotation M with b_A = M b_B between the CAMERA frames of two photos taken at one
     spot (no gravity needed: ``shared_gravity`` uses it to carry one photo's gravity to
     the other), or None when fewer than ``min_inliers`` matches (or ``min_fraction`` of
-    them) agree on one pure rotation.
-
-    Seeded 2-match samples (two bearings fix a rotation), each fitted by Kabsch; the one
-    with the most matches within ``residual_px`` (at A's focal length) wins (ties: the
-    first), then it is refitted on its inliers twice. Returns (M (3, 3), inliers).
+    them) agree on one pure rotation (``rotation.pure_rotation``). Returns (M (3, 3),
+    inliers).
     """
-    n = len(matches.ua)
-    if n < max(params.min_inliers, 2):
-        return None
-    ba, bb = _camera_bearings(cam_a, matches.ua), _camera_bearings(cam_b, matches.ub)
-    thr = params.residual_px / cam_a.fx
-    rng = np.random.default_rng(seed)
-    best, best_k = None, 0
-    for _ in range(iterations):
-        i, j = rng.choice(n, 2, replace=False)
-        if np.linalg.norm(np.cross(ba[i], ba[j])) < 1e-3:   # one direction fixes no rotation
-            continue
-        M = _kabsch(ba[[i, j]], bb[[i, j]])
-        k = int((np.linalg.norm(ba - bb @ M.T, axis=1) < thr).sum())
-        if k > best_k:
-            best, best_k = M, k
-    if best is None or not _accepts(best_k, n, params):
-        return None
-    for _ in range(2):
-        inl = np.linalg.norm(ba - bb @ best.T, axis=1) < thr
-        if inl.sum() < 3:
-            return None
-        best = _kabsch(ba[inl], bb[inl])
-    k = int((np.linalg.norm(ba - bb @ best.T, axis=1) < thr).sum())
-    return (best, k) if _accepts(k, n, params) else None
-
-
-def _camera_bearings(camera: Camera, pixels) -> np.ndarray:
-    """(N, 3) unit rays of pixels in the camera frame (K^-1 [u, v, 1])."""
-    px = np.asarray(pixels, float).reshape(-1, 2)
-    r = np.column_stack([(px[:, 0] - camera.cx) / camera.fx, (px[:, 1] - camera.cy) / camera.fy,
-                         np.ones(len(px))])
-    return r / np.linalg.norm(r, axis=1, keepdims=True)
-
-
-def _kabsch(a, b) -> np.ndarray:
-    """(3, 3) the rotation M minimising sum |a_i - M b_i|^2 (a, b: (N, 3) unit vectors)."""
-    U, _, Vt = np.linalg.svd(a.T @ b)
-    d = np.sign(np.linalg.det(U @ Vt))
-    return U @ np.diag([1.0, 1.0, d]) @ Vt
+    return rotation.pure_rotation(matches, cam_a, cam_b, params.residual_px,
+                                  params.min_inliers, params.min_fraction, iterations, seed)
 
 
 def _yaw_only(ba, bb, yaws, thr, params: SpotParams) -> SpotYaw | None:

@@ -7,7 +7,7 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class Motion(_message.Message):
-    __slots__ = ("schema", "session", "index_a", "index_b", "x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "inliers", "matches", "method", "error", "time_ns", "score", "scale_points", "layout", "alternatives", "appearance", "appearance_samples")
+    __slots__ = ("schema", "session", "index_a", "index_b", "x_m", "z_m", "yaw_rad", "sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "inliers", "matches", "method", "error", "time_ns", "score", "scale_points", "layout", "alternatives", "appearance", "appearance_samples", "gravity")
     SCHEMA_FIELD_NUMBER: _ClassVar[int]
     SESSION_FIELD_NUMBER: _ClassVar[int]
     INDEX_A_FIELD_NUMBER: _ClassVar[int]
@@ -29,6 +29,7 @@ class Motion(_message.Message):
     ALTERNATIVES_FIELD_NUMBER: _ClassVar[int]
     APPEARANCE_FIELD_NUMBER: _ClassVar[int]
     APPEARANCE_SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_FIELD_NUMBER: _ClassVar[int]
     schema: str
     session: str
     index_a: int
@@ -50,7 +51,22 @@ class Motion(_message.Message):
     alternatives: _containers.RepeatedCompositeFieldContainer[MotionAlternative]
     appearance: float
     appearance_samples: int
-    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index_a: _Optional[int] = ..., index_b: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ..., inliers: _Optional[int] = ..., matches: _Optional[int] = ..., method: _Optional[str] = ..., error: _Optional[str] = ..., time_ns: _Optional[int] = ..., score: _Optional[float] = ..., scale_points: _Optional[int] = ..., layout: _Optional[_Union[MotionLayout, _Mapping]] = ..., alternatives: _Optional[_Iterable[_Union[MotionAlternative, _Mapping]]] = ..., appearance: _Optional[float] = ..., appearance_samples: _Optional[int] = ...) -> None: ...
+    gravity: MotionGravity
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index_a: _Optional[int] = ..., index_b: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ..., inliers: _Optional[int] = ..., matches: _Optional[int] = ..., method: _Optional[str] = ..., error: _Optional[str] = ..., time_ns: _Optional[int] = ..., score: _Optional[float] = ..., scale_points: _Optional[int] = ..., layout: _Optional[_Union[MotionLayout, _Mapping]] = ..., alternatives: _Optional[_Iterable[_Union[MotionAlternative, _Mapping]]] = ..., appearance: _Optional[float] = ..., appearance_samples: _Optional[int] = ..., gravity: _Optional[_Union[MotionGravity, _Mapping]] = ...) -> None: ...
+
+class MotionGravity(_message.Message):
+    __slots__ = ("status", "angle_rad", "sigma_a_rad", "sigma_b_rad", "reason")
+    STATUS_FIELD_NUMBER: _ClassVar[int]
+    ANGLE_RAD_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_A_RAD_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_B_RAD_FIELD_NUMBER: _ClassVar[int]
+    REASON_FIELD_NUMBER: _ClassVar[int]
+    status: str
+    angle_rad: float
+    sigma_a_rad: float
+    sigma_b_rad: float
+    reason: str
+    def __init__(self, status: _Optional[str] = ..., angle_rad: _Optional[float] = ..., sigma_a_rad: _Optional[float] = ..., sigma_b_rad: _Optional[float] = ..., reason: _Optional[str] = ...) -> None: ...
 
 class MotionLayout(_message.Message):
     __slots__ = ("rank_a", "rank_b", "samples", "violations", "rms_m", "walls", "corners")

@@ -35,7 +35,8 @@ from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
 from findme_core.single.segments import WORK_SIZE
-from findme_io.convert import msg_camera, msg_hypotheses, msg_lines, set_motion_estimate
+from findme_io.convert import (msg_camera, msg_hypotheses, msg_lines, msg_provenance,
+                               set_motion_estimate, set_motion_gravity)
 from findme_io.frame_photo import frame_camera, scaled_camera
 from findme_io.imageio import decode_photo
 
@@ -247,6 +248,7 @@ class OdometryHandler(Handler):
             return [Output(bus.key(session, "motion", a, b), m)]
         mo = res.motion
         set_motion_estimate(m, mo)
+        set_motion_gravity(m, res.gravity)
         m.matches = res.matches
         cov = [[mo.sigma_x ** 2, 0, 0], [0, mo.sigma_z ** 2, 0], [0, 0, mo.sigma_yaw ** 2]]
         st.poses[b] = compose(st.poses[a], mo.x, mo.z, mo.yaw, mo.dy, cov)
@@ -276,8 +278,11 @@ class OdometryHandler(Handler):
             p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
         if p.prepared is None or p.prepared[0] != p.selection.rank:
             image, cam, hyps, rank, h, lines = self._inputs(session, st, n)
-            # the hypotheses' own lines when sent (else detected again)
-            p.prepared = (rank, prepare(image, cam, h, hyps, rank, lines))
+            # the hypotheses' own lines when sent (else detected again); a gravity from the
+            # photo's lines is checked against the other photo's in each motion
+            prov = msg_provenance(p.hset.camera) if p.hset.HasField("camera") else None
+            p.prepared = (rank, prepare(image, cam, h, hyps, rank, lines,
+                                        gravity_sigma=prov and prov.unsensed_sigma))
         return p.prepared[1]
 
     def _inputs(self, session, st, n):

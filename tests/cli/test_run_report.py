@@ -7,6 +7,7 @@ gave and the photo's lines do not settle is said with the results that rest on i
 from __future__ import annotations
 
 import json
+import math
 import re
 import shutil
 from importlib import resources
@@ -67,10 +68,11 @@ def test_overlay_draws_the_best_hypothesis_on_top(tmp_path):
     assert np.mean(on_best) > 0.9, np.mean(on_best)
 
 
-def test_an_unsure_gravity_is_said_with_the_motion_that_rests_on_it(tmp_path):
+def test_an_unsure_gravity_is_completed_by_the_other_photo_and_said(tmp_path):
     """Two plain photos of the rendered room, turning 45 deg at one spot, 30 deg down, no
-    gravity given: the second photo's lines leave its gravity unsure (tens of degrees), and
-    the motion line says it rests on that gravity."""
+    gravity given: the second photo's lines leave its gravity unsure (tens of degrees; said
+    on its line); the motion carries the first photo's gravity to it through their matches,
+    says so, and is right (without: 58 deg and 0.9 h of translation)."""
     paths = []
     for i, yaw in enumerate((0.0, 45.0)):
         v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, yaw, 30.0, 0.0), 640, 480,
@@ -81,16 +83,18 @@ def test_an_unsure_gravity_is_said_with_the_motion_that_rests_on_it(tmp_path):
     m = re.search(r"^photo 1: \d+ hypotheses in \d+ ms; photo 1's gravity from its lines, "
                   r"unsure \(± (\d+) deg\)$", out, re.M)
     assert m and int(m.group(1)) > 5, out
-    mo = re.search(r"^motion 0 -> 1: x ([-+.\d]+) h, z ([-+.\d]+) h, yaw ([-+.\d]+) deg .*; it "
-                   r"rests on photo 1's gravity from its lines, unsure .*which its figures do "
-                   r"not allow for$", out, re.M)
-    assert mo, out
-    # ``findme motion`` on the same photos: the same motion (its gravity from the image is
-    # refined with the best boundary, as the hypotheses service refines it) and the same
-    # caveat
+    mo = re.search(r"^motion 0 -> 1: x ([-+.\d]+) h, z ([-+.\d]+) h, yaw ([-+.\d]+) deg .*; "
+                   r"photo 0 and photo 1 agreed on gravity through their matches \(their own "
+                   r"were (\d+) deg apart\)$", out, re.M)
+    assert mo and int(mo.group(4)) > 10, out
+    x, z, yaw = (float(v) for v in mo.groups()[:3])
+    assert math.hypot(x, z) < 0.05 and abs(yaw - 45.0) < 1.0, mo.group(0)
+    assert "rests on" not in mo.group(0)      # the gravity it used is no longer unsure
+    # ``findme motion`` on the same photos: the same motion and the same clause
     text = run_findme("motion", *paths, "--hfov", "70").stdout
     assert text.splitlines()[0].endswith(
-        "; it rests on photo B's gravity from its lines, unsure (± " + m.group(1)
-        + " deg), which its figures do not allow for"), text
+        "; photo A and photo B agreed on gravity through their matches (their own were "
+        + mo.group(4) + " deg apart)"), text
     js = json.loads(run_findme("motion", *paths, "--hfov", "70", "--json").stdout)
-    assert (f"{js['x_m']:+.3f}", f"{js['z_m']:+.3f}", f"{js['yaw_deg']:+.2f}") == mo.groups()
+    assert (f"{js['x_m']:+.3f}", f"{js['z_m']:+.3f}", f"{js['yaw_deg']:+.2f}") == mo.groups()[:3]
+    assert js["gravity"]["status"] == "agreed" and js["gravity"]["sigma_b_deg"] < 5.0

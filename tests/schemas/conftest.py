@@ -91,7 +91,10 @@ def sample_messages() -> list[tuple[str, object]]:
                                             corners=[S.IndexPair(a=1, b=3)]),
                       alternatives=[S.MotionAlternative(
                           x_m=-0.42, z_m=1.87, yaw_rad=math.radians(167.5), sigma_x_m=0.1,
-                          sigma_z_m=0.14, sigma_yaw_rad=0.03, inliers=20, score=51.0)])
+                          sigma_z_m=0.14, sigma_yaw_rad=0.03, inliers=20, score=51.0)],
+                      gravity=S.MotionGravity(status="disagree", angle_rad=0.35,
+                                              sigma_a_rad=0.02, sigma_b_rad=0.4,
+                                              reason="their gravities are 20 deg apart"))
     motion_failed = S.Motion(session=SESSION, index_a=4, index_b=5, inliers=3, matches=7,
                              method="sift+ratio+eq5-8",
                              error="too few matches: 7 (need 12)", time_ns=T0 + 13_000_000_000)
