@@ -29,6 +29,7 @@ class Printer:
         self.cv = threading.Condition()
         self.seen: dict[str, object] = {}     # key -> its latest message
         self.errors: list = []                # every Error published on the session
+        self.agreed: dict[int, float] = {}    # photo -> the sigma a motion's agreement gave it
 
     def __call__(self, sample: zenoh.Sample) -> None:
         k = str(sample.key_expr)
@@ -102,7 +103,10 @@ class Printer:
         hs = self.seen.get(f"findme/{self.session}/hypotheses/{n}")
         if hs is None or not hs.HasField("camera"):
             return None
-        return hs.camera.gravity_source, hs.camera.gravity_sigma_rad
+        src, sigma = hs.camera.gravity_source, hs.camera.gravity_sigma_rad
+        if n in self.agreed:   # an earlier motion completed it (the odometry carries it on)
+            return ("image" if src == "level" else src), min(sigma, self.agreed[n])
+        return src, sigma
 
     def _gravity_note(self, n: int) -> str | None:
         """``gravity_caveat`` of photo n's own gravity."""
@@ -131,9 +135,15 @@ class Printer:
                     "floor)" if m.metric else f"photo {m.index}: scene ready (no camera "
                     "height: lengths in camera heights, h)")
         if name == "Motion":
-            return motion_text(m, self.unit(m.index_b)) + ("" if m.error else motion_gravity_text(
+            text = motion_text(m, self.unit(m.index_b)) + ("" if m.error else motion_gravity_text(
                 m, f"photo {m.index_a}", f"photo {m.index_b}", self._own_gravity(m.index_a),
                 self._own_gravity(m.index_b)))
+            g = m.gravity
+            if not m.error and m.HasField("gravity") and g.status == "agreed":
+                for n, f in ((m.index_a, "sigma_a_rad"), (m.index_b, "sigma_b_rad")):
+                    if g.HasField(f):
+                        self.agreed[n] = min(self.agreed.get(n, math.inf), getattr(g, f))
+            return text
         if name == "Pose":
             u = self.unit(m.index)
             return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "

@@ -17,6 +17,7 @@ from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import Provenance, tilt_cov
 from findme_core.motion.pair_gravity import UNSURE_GRAVITY_DEG
 from findme_core.single.hypotheses import Hypothesis, HypothesisSet
+from findme_core.single.vanishing import GravityEstimate
 from findme_core.single.scene import Located, distances
 
 _FORMATS = {b"\xff\xd8\xff": "jpeg", b"\x89PNG": "png", b"RIFF": "webp"}
@@ -67,7 +68,29 @@ def camera_msg(cam: Camera, prov: Provenance | None = None):
         m.lens_source, m.gravity_source = prov.camera, prov.gravity
         m.gravity_sigma_rad = prov.gravity_sigma
         m.gravity_cov_rad2.extend(float(x) for x in prov.gravity_cov.ravel())
+        est = prov.estimate
+        if prov.gravity == "image" and est is not None and est.alternatives:
+            for g, r in est.alternatives[:schemas.MAX_GRAVITY_ALTERNATIVES]:
+                if np.all(np.isfinite(g)) and math.isfinite(r) and r > 0:
+                    m.gravity_alternatives.add(gravity=schemas.vec3_to_msg(g), ratio=float(r))
+            if est.fit_cov is not None:
+                m.gravity_fit_cov_rad2.extend(float(x) for x in np.ravel(est.fit_cov))
     return m
+
+
+def msg_gravity_estimate(msg) -> GravityEstimate | None:
+    """The gravity estimate a Camera message carries when its gravity came from the image
+    ("image", with its alternatives and own fit covariance) or was assumed level; None when
+    it was given (sensors, "input", "input+image") or not said."""
+    if msg.gravity_source not in ("image", "level") or not msg.HasField("gravity"):
+        return None
+    prov = msg_provenance(msg)
+    fit = (np.asarray(msg.gravity_fit_cov_rad2, float).reshape(2, 2)
+           if len(msg.gravity_fit_cov_rad2) == 4 else None)
+    alts = tuple((schemas.msg_to_vec3(a.gravity), float(a.ratio))
+                 for a in msg.gravity_alternatives[:schemas.MAX_GRAVITY_ALTERNATIVES])
+    return GravityEstimate(schemas.msg_to_vec3(msg.gravity), prov.gravity_cov,
+                           msg.gravity_source, alternatives=alts, fit_cov=fit)
 
 
 def msg_camera(msg) -> Camera:

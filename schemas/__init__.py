@@ -31,8 +31,8 @@ from ._codec import (
     schema_of,
     validate,
 )
-from ._validate import (IMAGE_FORMATS, MAX_ALTERNATIVES, MAX_LAYOUT_PAIRS, SESSION_PATTERN,
-                        is_valid_session)
+from ._validate import (IMAGE_FORMATS, MAX_ALTERNATIVES, MAX_GRAVITY_ALTERNATIVES,
+                        MAX_LAYOUT_PAIRS, SESSION_PATTERN, is_valid_session)
 from .helpers import (
     level_frame_id,
     msg_to_pixels,
@@ -53,6 +53,7 @@ from .v1.common_pb2 import (
     SEG_KIND_STEP,
     SEG_KIND_WALL,
     Camera,
+    GravityAlternative,
     Envelope,
     Intrinsics,
     Pixel,
@@ -98,11 +99,11 @@ VERSION = "findme.v1"
 __all__ = [
     "VERSION", "MESSAGE_TYPES", "SchemaError", "WrongTypeError", "Payload",
     "encode", "decode", "decode_any", "schema_of", "validate",
-    "IMAGE_FORMATS", "SESSION_PATTERN", "is_valid_session", "MAX_ALTERNATIVES", "MAX_LAYOUT_PAIRS",
+    "IMAGE_FORMATS", "SESSION_PATTERN", "is_valid_session", "MAX_ALTERNATIVES", "MAX_GRAVITY_ALTERNATIVES", "MAX_LAYOUT_PAIRS",
     "pixels_to_msg", "msg_to_pixels", "polyline_to_msg", "msg_to_polyline", "vec3_to_msg",
     "msg_to_vec3", "ns_to_timestamp", "timestamp_to_ns", "level_frame_id", "yaw_quaternion",
     "pose_to_foxglove", "pose_to_frame_transform",
-    "Envelope", "Pixel", "Vec3", "Intrinsics", "Camera", "Polyline", "SegKind",
+    "Envelope", "Pixel", "Vec3", "Intrinsics", "Camera", "GravityAlternative", "Polyline", "SegKind",
     "SEG_KIND_WALL", "SEG_KIND_STEP", "SEG_KIND_OPEN", "SEG_KIND_NONE",
     "Frame", "Hypothesis", "HypothesisSet", "Selection", "SelectedBy", "SELECTED_BY_USER",
     "SELECTED_BY_AUTO", "Scene", "MeasureRequest", "MeasureReply", "MeasuredPoint",

@@ -33,6 +33,8 @@ MAX_LINES = 4096
 #: Alternatives a Motion may carry, and wall / corner pairs of its layout evidence.
 MAX_ALTERNATIVES = 8
 MAX_LAYOUT_PAIRS = 64
+#: Gravity alternatives a Camera may carry.
+MAX_GRAVITY_ALTERNATIVES = 8
 
 
 def is_valid_session(session: object) -> bool:
@@ -138,11 +140,19 @@ def _camera(p: Problems, name: str, c: common_pb2.Camera) -> None:
         p.append(f"{name}.gravity_source must be one of {GRAVITY_SOURCES[1:]}, "
                  f"got {_short(c.gravity_source)}")
     _nonneg(p, f"{name}.gravity_sigma_rad", c.gravity_sigma_rad)
-    if len(c.gravity_cov_rad2) not in (0, 4):
-        p.append(f"{name}.gravity_cov_rad2 must have 0 or 4 numbers, got {len(c.gravity_cov_rad2)}")
-    else:
-        for i, x in enumerate(c.gravity_cov_rad2):
-            _finite(p, f"{name}.gravity_cov_rad2[{i}]", x)
+    for field_name in ("gravity_cov_rad2", "gravity_fit_cov_rad2"):
+        cov = getattr(c, field_name)
+        if len(cov) not in (0, 4):
+            p.append(f"{name}.{field_name} must have 0 or 4 numbers, got {len(cov)}")
+        else:
+            for i, x in enumerate(cov):
+                _finite(p, f"{name}.{field_name}[{i}]", x)
+    if len(c.gravity_alternatives) > MAX_GRAVITY_ALTERNATIVES:
+        p.append(f"{name}.gravity_alternatives: at most {MAX_GRAVITY_ALTERNATIVES}, got "
+                 f"{len(c.gravity_alternatives)}")
+    for i, a in enumerate(c.gravity_alternatives[:MAX_GRAVITY_ALTERNATIVES]):
+        _vec3(p, f"{name}.gravity_alternatives[{i}].gravity", a.gravity, nonzero=True)
+        _positive(p, f"{name}.gravity_alternatives[{i}].ratio", a.ratio)
 
 
 def _frame(m: frame_pb2.Frame) -> Problems:

@@ -58,8 +58,9 @@ def raw_motions(split: Path, subset: str, method: str) -> dict:
     for pid in index["subsets"][subset]["pairs"]:
         pair, photos = pair_inputs(split / "pairs", split / "views", pid)
         try:
-            pa, pb = (photo_of(i, c, h, 1, "findme", w, gravity_sigma=s)
-                      for (i, c, h, s), w in zip(photos, "AB"))
+            pa, pb = (photo_of(i, c, h, 1, "findme", w, gravity_sigma=pv.unsensed_sigma,
+                               gravity_alternatives=pv.unsensed_alternatives)
+                      for (i, c, h, pv), w in zip(photos, "AB"))
             r = motion_photos(pa, pb, (method,), params=p0)[method]
         except FindmeError:
             continue

@@ -128,8 +128,9 @@ def diagnose(job):
     out = {"pair": pid, "baseline_m": base, "truth": g}
     try:
         pa, pb = (photo_of(i, c, h, 1, "findme", w, max_layouts=params.max_layouts,
-                           gravity_sigma=s)
-                  for (i, c, h, s), w in zip(photos, "AB"))
+                           gravity_sigma=pv.unsensed_sigma,
+                           gravity_alternatives=pv.unsensed_alternatives)
+                  for (i, c, h, pv), w in zip(photos, "AB"))
     except FindmeError as e:
         return {**out, "error": str(e)}
     seen, restore = _traced(methods) if why else ([], lambda: None)

@@ -140,7 +140,8 @@ def cmd_motion(args) -> int:
         own.append(prov)
     clock = time.perf_counter
     photos = [photo_of(img, cam, h, rank, args.hypothesis_method, which, clock=clock,
-                       gravity_sigma=prov.unsensed_sigma)
+                       gravity_sigma=prov.unsensed_sigma,
+                       gravity_alternatives=prov.unsensed_alternatives)
               for img, cam, rank, which, prov in zip(
                   images, cams, (args.hypothesis_a, args.hypothesis_b), "AB", own)]
     hyp_ms = sum(p.timing_ms.pop("hypotheses") for p in photos)

@@ -23,7 +23,7 @@ from .views import GravityInput, view_camera, view_inputs
 def pair_inputs(pair_dir, view_dir, pid: str, gravity: GravityInput | bool = True
                 ) -> tuple[dict, list]:
     """A dataset pair's record and, for its photos A and B, (image, camera, camera height,
-    the 1-sigma of a gravity from the image or None: ``Provenance.unsensed_sigma``); of each
+    provenance: its ``unsensed_sigma`` and ``unsensed_alternatives``); of each
     view only its inputs are read (``view_inputs``), its camera with the gravity the view's
     own prediction ends with (``view_camera``, then ``hypothesize_photo``)."""
     with open(os.path.join(pair_dir, pid + ".json")) as f:
@@ -37,7 +37,7 @@ def pair_inputs(pair_dir, view_dir, pid: str, gravity: GravityInput | bool = Tru
         cam, prov = view_camera(meta, image, gravity)
         if prov.estimate is not None:   # the gravity the view's own prediction ends with
             _, cam, prov = hypothesize_photo(image, cam, prov, max_n=1, camera_height=h)
-        photos.append((image, cam, h, prov.unsensed_sigma))
+        photos.append((image, cam, h, prov))
     return pair, photos
 
 
@@ -49,8 +49,10 @@ def predict_pair(args) -> tuple[str, dict, dict]:
     preds, errs = {}, {}
     try:
         _, photos = pair_inputs(pair_dir, view_dir, pid, gravity)
-        pa, pb = [photo_of(image, cam, h, 1, hyp_method, which, gravity_sigma=sigma)
-                  for (image, cam, h, sigma), which in zip(photos, "AB")]
+        pa, pb = [photo_of(image, cam, h, 1, hyp_method, which,
+                           gravity_sigma=prov.unsensed_sigma,
+                           gravity_alternatives=prov.unsensed_alternatives)
+                  for (image, cam, h, prov), which in zip(photos, "AB")]
         for method, r in motion_photos(pa, pb, methods).items():
             if isinstance(r, FindmeError):
                 errs[method] = str(r)

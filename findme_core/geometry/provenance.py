@@ -78,3 +78,11 @@ class Provenance:
         photo's (``motion.pair_gravity``): ``gravity_sigma`` when it came from the image,
         infinite when level was assumed (no evidence at all); None when given."""
         return {"image": self.gravity_sigma, "level": math.inf}.get(self.gravity)
+
+    @property
+    def unsensed_alternatives(self) -> tuple:
+        """((3,) vector, ...): the other vertical directions the image supports nearly as
+        well, when gravity came from the image (``estimate.alternatives``); else ()."""
+        if self.gravity != "image" or self.estimate is None:
+            return ()
+        return tuple(np.asarray(g, float) for g, _ in self.estimate.alternatives)

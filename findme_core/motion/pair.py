@@ -35,13 +35,15 @@ from findme_core.single.scene import Scene
 @dataclass
 class PairResult:
     """A motion with what produced it (counts, milliseconds per stage; ``gravity``: how the
-    photos' gravities were checked against each other, None when the sensors gave both)."""
+    photos' gravities were checked against each other, None when the sensors gave both;
+    ``photos``: (A, B) as the motion used them, an unsure one under the agreed gravity)."""
 
     motion: PlanarMotion
     matches: int
     keypoints: tuple[int, int]
     timing_ms: dict
     gravity: pair_gravity.PairGravity | None = None
+    photos: tuple = ()
 
 
 @dataclass
@@ -64,6 +66,8 @@ class Photo:
             its motions check against the other photo's (``pair_gravity``); infinite when
             level was assumed; None for a gravity given by the phone's sensors.
         rank: the chosen hypothesis (1-based; its scene lifts the matched points).
+        gravity_alternatives: ((3,) vector, ...) other vertical directions the photo's lines
+            support nearly as well (with ``gravity_sigma``; ``pair_gravity.agree``).
     """
 
     camera: Camera
@@ -78,12 +82,14 @@ class Photo:
     segments: np.ndarray | None = None
     gravity_sigma: float | None = None
     rank: int = 0
+    gravity_alternatives: tuple = ()
 
 
 def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
             segments=None, max_layouts: int = 1,
             feature_params: features.FeatureParams = features.FeatureParams(),
-            clock=time.perf_counter, gravity_sigma: float | None = None) -> Photo:
+            clock=time.perf_counter, gravity_sigma: float | None = None,
+            gravity_alternatives: tuple = ()) -> Photo:
     """A photo ready for its motions.
 
     Args:
@@ -94,7 +100,8 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
         segments: (N, 4) image line segments (e.g. ``HypothesisSet.lines.ends``); detected
             (LSD) when None.
         gravity_sigma: 1-sigma (radians) of a gravity from the photo's own lines (checked
-            against the other photo's in each motion); None when the sensors gave it.
+            against the other photo's in each motion); None when the sensors gave it;
+            ``gravity_alternatives`` its alternatives ((3,) vectors).
     """
     t0 = clock()
     grey = features._grey(image)   # once, for the features and the surface
@@ -108,7 +115,8 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
         segments = line_segments(image)
     photo = _lifted(Photo(camera, float(height), f, hypotheses=chosen,
                           segments=np.asarray(segments, float), gravity_sigma=gravity_sigma,
-                          rank=rank), camera, rank, grey)
+                          rank=rank, gravity_alternatives=tuple(gravity_alternatives)),
+                    camera, rank, grey)
     photo.timing_ms.update({"features": 1e3 * (t1 - t0), "layout": 1e3 * (clock() - t1)})
     return photo
 
@@ -119,6 +127,7 @@ def relift(photo: Photo, gravity, gravity_sigma: float) -> Photo:
     and lines; its features kept."""
     camera = photo.camera.with_gravity(gravity)
     return _lifted(replace(photo, camera=camera, gravity_sigma=gravity_sigma, scene=None,
+                           gravity_alternatives=(),
                            layouts=[], orientation=None, surface=None,
                            timing_ms=dict(photo.timing_ms)), camera, photo.rank, None,
                    photo.surface)
@@ -181,7 +190,8 @@ def line_segments(image) -> np.ndarray:
 def photo_of(image, camera: Camera, height: float, rank: int = 1,
              hypothesis_method: str = "findme", which: str = "A", max_layouts: int = 1,
              feature_params: features.FeatureParams = features.FeatureParams(),
-             clock=time.perf_counter, gravity_sigma: float | None = None) -> Photo:
+             clock=time.perf_counter, gravity_sigma: float | None = None,
+             gravity_alternatives: tuple = ()) -> Photo:
     """``prepare`` with the photo's own hypotheses (``methods.hypothesize``, timed as
     "hypotheses"); a rank beyond the hypotheses found is a bad input (HypothesisError)."""
     t0 = clock()
@@ -194,7 +204,7 @@ def photo_of(image, camera: Camera, height: float, rank: int = 1,
                               + (f" ({hs.reason})" if hs.reason else ""))
     photo = prepare(image, camera, height, hs.hypotheses, rank,
                     photo_lines(hs, image), max_layouts,
-                    feature_params, clock, gravity_sigma)
+                    feature_params, clock, gravity_sigma, gravity_alternatives)
     photo.timing_ms["hypotheses"] = ms
     return photo
 
@@ -261,7 +271,7 @@ def motion_photos(pa: Photo, pb: Photo, methods=("findme",),
             "features": pa.timing_ms.get("features", 0.0) + pb.timing_ms.get("features", 0.0),
             "layout": pa.timing_ms.get("layout", 0.0) + pb.timing_ms.get("layout", 0.0),
             "matching": 1e3 * (t2 - t1), "lift": 1e3 * spent[0],
-            "motion": 1e3 * (total - spent[0])}, pg)
+            "motion": 1e3 * (total - spent[0])}, pg, (pa, pb))
     return out
 
 
@@ -277,7 +287,8 @@ def agreed_gravity(pa: Photo, pb: Photo, m: features.Matches,
     if not any(p.gravity_sigma is not None and pair_gravity.unsure(s, params)
                for p, s in ((pa, sa), (pb, sb))):
         return pa, pb, None
-    pg = pair_gravity.agree(m, pa.camera, pb.camera, sa, sb, params)
+    pg = pair_gravity.agree(m, pa.camera, pb.camera, sa, sb, params,
+                            (pa.gravity_alternatives, pb.gravity_alternatives))
     if pg.status != "agreed":
         return pa, pb, pg
     return (pa if pg.sigma_a == sa else relift(pa, pg.gravity_a, pg.sigma_a),

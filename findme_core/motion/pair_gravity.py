@@ -9,7 +9,8 @@ translation instead of 45 deg and none). Gravity is one direction in the world, 
 rotation M between two photos taken turning at one spot follows from their matches alone
 (``rotation.pure_rotation``): A's gravity seen from B is M^T g_A. So B's gravity is carried
 into A's frame and the two are combined by their information (the inverse-variance
-weighted mean direction:
+weighted mean direction; a photo's alternatives take part as a spot's photos vote with
+them, ``agree``):
 
     g = normalise(g_A / s_A^2 + M g_B / s_B'^2),  s_B'^2 = s_B^2 + s_link^2,
     1-sigma s = (1 / s_A^2 + 1 / s_B'^2)^-1/2),
@@ -55,6 +56,8 @@ class PairGravityParams:
             fitted on all groups but one (KITTI, blocks of 10 TUM frames) the 68th
             percentile ranges 0.9-2.4 deg. Too few links to decide, so widened: 2.0 deg
             holds 6 of the 9 within 1 sigma and all within 3.
+        alternative_sigma_deg: 1-sigma given to an alternative (it has no fit of its own), as
+            ``plan.shared_gravity``'s.
         conflict: two gravities further apart than this many combined sigmas disagree.
         unsure_deg: photos whose own 1-sigma is above this take the combined gravity.
     """
@@ -63,6 +66,7 @@ class PairGravityParams:
     min_inliers: int = 15
     min_fraction: float = 0.3
     link_sigma_deg: float = 2.0
+    alternative_sigma_deg: float = 2.0
     conflict: float = 3.0
     unsure_deg: float = UNSURE_GRAVITY_DEG
 
@@ -111,10 +115,15 @@ def unsure(sigma: float, params: PairGravityParams = PairGravityParams()) -> boo
 
 
 def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_b: float,
-          params: PairGravityParams = PairGravityParams()) -> PairGravity:
+          params: PairGravityParams = PairGravityParams(),
+          alternatives: tuple = ((), ())) -> PairGravity:
     """The gravities of photos A and B (their cameras' gravities, 1-sigma ``sigma_a`` /
     ``sigma_b`` radians, > 0; infinite: assumed level) completed through their matches
-    (module doc). Two photos both assumed level have nothing to combine: "unlinked"."""
+    (module doc). ``alternatives``: each photo's other vertical directions its lines support
+    nearly as well ((3,) vectors, ``vanishing.GravityEstimate.alternatives``): the two photos
+    agree on the pair of candidates (own or alternative) nearest in units of their combined
+    sigma (own-own first on a tie), as a spot's photos vote (``plan.shared_gravity``). Two
+    photos both assumed level have nothing to combine: "unlinked"."""
     own_a, own_b = _down(cam_a.gravity), _down(cam_b.gravity)
     if math.isinf(sigma_a) and math.isinf(sigma_b):
         return PairGravity(own_a, own_b, sigma_a, sigma_b, "unlinked", math.nan, 0,
@@ -126,15 +135,25 @@ def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_
                            "their matches agree on no rotation about one spot")
     M, k = rot
     link = math.radians(params.link_sigma_deg)
-    b_in_a = _down(M @ own_b)
-    angle = math.acos(float(np.clip(own_a @ b_in_a, -1.0, 1.0)))
-    spread = math.sqrt(sigma_a ** 2 + sigma_b ** 2 + link ** 2)
-    if angle > params.conflict * spread:
+    s_alt = math.radians(params.alternative_sigma_deg)
+    cands_a = [(own_a, sigma_a)] + [(_down(g), s_alt) for g in alternatives[0]]
+    cands_b = [(_down(M @ own_b), sigma_b)] + [(_down(M @ _down(g)), s_alt)
+                                               for g in alternatives[1]]
+    pairs = []
+    for i, (ga, sa) in enumerate(cands_a):
+        for j, (gb, sb) in enumerate(cands_b):
+            spread = math.sqrt(sa ** 2 + sb ** 2 + link ** 2)
+            ang = math.acos(float(np.clip(ga @ gb, -1.0, 1.0)))
+            pairs.append((ang / spread, i + j, i, j, ang, spread))
+    z, _, i, j, _, _ = min(pairs)          # ties: the photos' own estimates first
+    angle, spread = pairs[0][4], pairs[0][5]
+    if z > params.conflict:
         return PairGravity(own_a, own_b, sigma_a, sigma_b, "disagree", angle, k,
                            f"their gravities are {math.degrees(angle):.0f} deg apart where "
                            f"their sigmas allow {math.degrees(spread):.1f} deg (1-sigma): "
                            "one of them is wrong")
-    g, s = combine(own_a, sigma_a, b_in_a, math.hypot(sigma_b, link))
+    (ga, sa), (gb, sb) = cands_a[i], cands_b[j]
+    g, s = combine(ga, sa, gb, math.hypot(sb, link))
     ga, sa = (g, s) if unsure(sigma_a, params) else (own_a, sigma_a)
     gb, sb = ((_down(M.T @ g), math.hypot(s, link)) if unsure(sigma_b, params)
               else (own_b, sigma_b))

@@ -215,6 +215,22 @@ def _undecided(found: list, params: SharedGravityParams) -> str | None:
     return None
 
 
+def verdicts(estimates, sg: SharedGravity) -> list:
+    """What a plan does with each photo once its spot has voted: None (its gravity was given:
+    as it is), a str (left out, the reason: its spot could not decide, or it stands alone
+    with an ambiguous gravity), or the (3,) gravity to analyse it under."""
+    out: list = []
+    for i, e in enumerate(estimates):
+        if e is None:
+            out.append(None)
+            continue
+        why = sg.undecided.get(i)
+        if why is None and sg.status[i] == "own" and e.alternatives:
+            why = e.reason or alt.describe(e.vector, e.alternatives)
+        out.append(f"gravity unknown: {why}" if why is not None else sg.vectors[i])
+    return out
+
+
 def analyse_plain(images, cameras, heights, estimates, params=None,
                   shared: SharedGravityParams = SharedGravityParams()):
     """A session's photos (``session.analyse``) where some photos' gravity came from their
@@ -233,17 +249,12 @@ def analyse_plain(images, cameras, heights, estimates, params=None,
                 for im, c, h, f in zip(images, cameras, heights, feats)], None
     sg = agree(cameras, estimates, feats, shared)
     photos = []
-    for i, (im, c, h, f, e) in enumerate(zip(images, cameras, heights, feats, estimates)):
-        if e is None:
+    for im, c, h, f, v in zip(images, cameras, heights, feats, verdicts(estimates, sg)):
+        if v is None:
             photos.append(session.analyse(im, c, h, params, f))
-            continue
-        why = sg.undecided.get(i)
-        if why is None and sg.status[i] == "own" and e.alternatives:
-            why = e.reason
-        if why is not None:
-            photos.append(session.Photo(c, float(h), None, None, f,
-                                        f"gravity unknown: {why}", gravity_from_image=True))
-            continue
-        photo = session.analyse(im, c.with_gravity(sg.vectors[i]), h, params, f)
-        photos.append(replace(photo, gravity_from_image=True))
+        elif isinstance(v, str):
+            photos.append(session.Photo(c, float(h), None, None, f, v, gravity_from_image=True))
+        else:
+            photo = session.analyse(im, c.with_gravity(v), h, params, f)
+            photos.append(replace(photo, gravity_from_image=True))
     return photos, sg

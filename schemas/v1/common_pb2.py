@@ -24,15 +24,15 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17schemas/v1/common.proto\x12\tfindme.v1\"\x1a\n\x08\x45nvelope\x12\x0e\n\x06schema\x18\x01 \x01(\t\"\x1d\n\x05Pixel\x12\t\n\x01u\x18\x01 \x01(\x01\x12\t\n\x01v\x18\x02 \x01(\x01\"\'\n\x04Vec3\x12\t\n\x01x\x18\x01 \x01(\x01\x12\t\n\x01y\x18\x02 \x01(\x01\x12\t\n\x01z\x18\x03 \x01(\x01\"[\n\nIntrinsics\x12\n\n\x02\x66x\x18\x01 \x01(\x01\x12\n\n\x02\x66y\x18\x02 \x01(\x01\x12\n\n\x02\x63x\x18\x03 \x01(\x01\x12\n\n\x02\x63y\x18\x04 \x01(\x01\x12\r\n\x05width\x18\x05 \x01(\r\x12\x0e\n\x06height\x18\x06 \x01(\r\"\xb7\x01\n\x06\x43\x61mera\x12)\n\nintrinsics\x18\x01 \x01(\x0b\x32\x15.findme.v1.Intrinsics\x12 \n\x07gravity\x18\x02 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\x13\n\x0blens_source\x18\x03 \x01(\t\x12\x16\n\x0egravity_source\x18\x04 \x01(\t\x12\x19\n\x11gravity_sigma_rad\x18\x05 \x01(\x01\x12\x18\n\x10gravity_cov_rad2\x18\x06 \x03(\x01\"O\n\x08Polyline\x12 \n\x06points\x18\x01 \x03(\x0b\x32\x10.findme.v1.Pixel\x12!\n\x05kinds\x18\x02 \x03(\x0e\x32\x12.findme.v1.SegKind*U\n\x07SegKind\x12\x11\n\rSEG_KIND_WALL\x10\x00\x12\x11\n\rSEG_KIND_STEP\x10\x01\x12\x11\n\rSEG_KIND_OPEN\x10\x02\x12\x11\n\rSEG_KIND_NONE\x10\x03\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x17schemas/v1/common.proto\x12\tfindme.v1\"\x1a\n\x08\x45nvelope\x12\x0e\n\x06schema\x18\x01 \x01(\t\"\x1d\n\x05Pixel\x12\t\n\x01u\x18\x01 \x01(\x01\x12\t\n\x01v\x18\x02 \x01(\x01\"\'\n\x04Vec3\x12\t\n\x01x\x18\x01 \x01(\x01\x12\t\n\x01y\x18\x02 \x01(\x01\x12\t\n\x01z\x18\x03 \x01(\x01\"[\n\nIntrinsics\x12\n\n\x02\x66x\x18\x01 \x01(\x01\x12\n\n\x02\x66y\x18\x02 \x01(\x01\x12\n\n\x02\x63x\x18\x03 \x01(\x01\x12\n\n\x02\x63y\x18\x04 \x01(\x01\x12\r\n\x05width\x18\x05 \x01(\r\x12\x0e\n\x06height\x18\x06 \x01(\r\"\x92\x02\n\x06\x43\x61mera\x12)\n\nintrinsics\x18\x01 \x01(\x0b\x32\x15.findme.v1.Intrinsics\x12 \n\x07gravity\x18\x02 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\x13\n\x0blens_source\x18\x03 \x01(\t\x12\x16\n\x0egravity_source\x18\x04 \x01(\t\x12\x19\n\x11gravity_sigma_rad\x18\x05 \x01(\x01\x12\x18\n\x10gravity_cov_rad2\x18\x06 \x03(\x01\x12;\n\x14gravity_alternatives\x18\x07 \x03(\x0b\x32\x1d.findme.v1.GravityAlternative\x12\x1c\n\x14gravity_fit_cov_rad2\x18\x08 \x03(\x01\"E\n\x12GravityAlternative\x12 \n\x07gravity\x18\x01 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\r\n\x05ratio\x18\x02 \x01(\x01\"O\n\x08Polyline\x12 \n\x06points\x18\x01 \x03(\x0b\x32\x10.findme.v1.Pixel\x12!\n\x05kinds\x18\x02 \x03(\x0e\x32\x12.findme.v1.SegKind*U\n\x07SegKind\x12\x11\n\rSEG_KIND_WALL\x10\x00\x12\x11\n\rSEG_KIND_STEP\x10\x01\x12\x11\n\rSEG_KIND_OPEN\x10\x02\x12\x11\n\rSEG_KIND_NONE\x10\x03\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'schemas.v1.common_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_SEGKIND']._serialized_start=498
-  _globals['_SEGKIND']._serialized_end=583
+  _globals['_SEGKIND']._serialized_start=660
+  _globals['_SEGKIND']._serialized_end=745
   _globals['_ENVELOPE']._serialized_start=38
   _globals['_ENVELOPE']._serialized_end=64
   _globals['_PIXEL']._serialized_start=66
@@ -42,7 +42,9 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_INTRINSICS']._serialized_start=138
   _globals['_INTRINSICS']._serialized_end=229
   _globals['_CAMERA']._serialized_start=232
-  _globals['_CAMERA']._serialized_end=415
-  _globals['_POLYLINE']._serialized_start=417
-  _globals['_POLYLINE']._serialized_end=496
+  _globals['_CAMERA']._serialized_end=506
+  _globals['_GRAVITYALTERNATIVE']._serialized_start=508
+  _globals['_GRAVITYALTERNATIVE']._serialized_end=577
+  _globals['_POLYLINE']._serialized_start=579
+  _globals['_POLYLINE']._serialized_end=658
 # @@protoc_insertion_point(module_scope)

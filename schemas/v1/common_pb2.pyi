@@ -59,20 +59,32 @@ class Intrinsics(_message.Message):
     def __init__(self, fx: _Optional[float] = ..., fy: _Optional[float] = ..., cx: _Optional[float] = ..., cy: _Optional[float] = ..., width: _Optional[int] = ..., height: _Optional[int] = ...) -> None: ...
 
 class Camera(_message.Message):
-    __slots__ = ("intrinsics", "gravity", "lens_source", "gravity_source", "gravity_sigma_rad", "gravity_cov_rad2")
+    __slots__ = ("intrinsics", "gravity", "lens_source", "gravity_source", "gravity_sigma_rad", "gravity_cov_rad2", "gravity_alternatives", "gravity_fit_cov_rad2")
     INTRINSICS_FIELD_NUMBER: _ClassVar[int]
     GRAVITY_FIELD_NUMBER: _ClassVar[int]
     LENS_SOURCE_FIELD_NUMBER: _ClassVar[int]
     GRAVITY_SOURCE_FIELD_NUMBER: _ClassVar[int]
     GRAVITY_SIGMA_RAD_FIELD_NUMBER: _ClassVar[int]
     GRAVITY_COV_RAD2_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_ALTERNATIVES_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_FIT_COV_RAD2_FIELD_NUMBER: _ClassVar[int]
     intrinsics: Intrinsics
     gravity: Vec3
     lens_source: str
     gravity_source: str
     gravity_sigma_rad: float
     gravity_cov_rad2: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, intrinsics: _Optional[_Union[Intrinsics, _Mapping]] = ..., gravity: _Optional[_Union[Vec3, _Mapping]] = ..., lens_source: _Optional[str] = ..., gravity_source: _Optional[str] = ..., gravity_sigma_rad: _Optional[float] = ..., gravity_cov_rad2: _Optional[_Iterable[float]] = ...) -> None: ...
+    gravity_alternatives: _containers.RepeatedCompositeFieldContainer[GravityAlternative]
+    gravity_fit_cov_rad2: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, intrinsics: _Optional[_Union[Intrinsics, _Mapping]] = ..., gravity: _Optional[_Union[Vec3, _Mapping]] = ..., lens_source: _Optional[str] = ..., gravity_source: _Optional[str] = ..., gravity_sigma_rad: _Optional[float] = ..., gravity_cov_rad2: _Optional[_Iterable[float]] = ..., gravity_alternatives: _Optional[_Iterable[_Union[GravityAlternative, _Mapping]]] = ..., gravity_fit_cov_rad2: _Optional[_Iterable[float]] = ...) -> None: ...
+
+class GravityAlternative(_message.Message):
+    __slots__ = ("gravity", "ratio")
+    GRAVITY_FIELD_NUMBER: _ClassVar[int]
+    RATIO_FIELD_NUMBER: _ClassVar[int]
+    gravity: Vec3
+    ratio: float
+    def __init__(self, gravity: _Optional[_Union[Vec3, _Mapping]] = ..., ratio: _Optional[float] = ...) -> None: ...
 
 class Polyline(_message.Message):
     __slots__ = ("points", "kinds")

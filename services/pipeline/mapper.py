@@ -31,6 +31,7 @@ Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan,
 cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline
 yet gets a Plan with the reason. Camera height: the selection's, else the frame's, else 1
 (``metric`` false: lengths in camera heights). Instances share the load by session.
+Plain photos (no gravity in the frame) agree on gravity spot by spot (``mapper_gravity``).
 """
 
 from __future__ import annotations
@@ -49,9 +50,10 @@ from findme_core.single.scene import Scene
 from findme_io.convert import msg_camera, msg_hypotheses
 from findme_io.frame_photo import frame_camera
 from findme_core.single.segments import WORK_SIZE
-from findme_io.imageio import decode_photo
+from findme_io.imageio import decode_photo, encode_jpeg
 
 from ..runtime import bus
+from . import mapper_gravity
 from ..runtime.handler import Handler, Input, Output
 
 #: A seen edge with floor seen beyond at least this share of it is an opening, not a wall.
@@ -71,6 +73,7 @@ class _Photo:
     selection: object = None
     photo: plan_session.Photo | None = None
     key: tuple = ()                   # (rank, height) the photo was analysed with
+    plain: object = None              # a frame without gravity: ``mapper_gravity.Plain``
 
 
 @dataclass
@@ -167,6 +170,8 @@ class MapperHandler(Handler):
             ph.camera = frame_camera(f, photo.width, photo.height)
             ph.features = _in_photo(features.detect(photo.image, self.params.features),
                                     photo.scale, photo.width, photo.height)
+            if not f.HasField("gravity"):   # its spot may correct its gravity
+                ph.plain = mapper_gravity.Plain(encode_jpeg(photo.image, 95), photo.scale)
         except FindmeError as e:
             ph.bad = f"its photo cannot be used: {str(e).splitlines()[0][:200]}"
             ph.camera = None
@@ -236,7 +241,7 @@ class MapperHandler(Handler):
                                           reason=_left_out(ph, first))
         if order:
             msg.up_to_index, msg.photos, msg.origin_index = max(order), len(order), order[0]
-            photos = [st.photos[n].photo for n in order]
+            photos = mapper_gravity.agreed(st, order, self.params)
             msg.camera_height_m = photos[0].height
             msg.metric = all(st.photos[n].key[1] is not None for n in order)
             try:

@@ -35,8 +35,8 @@ from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
 from findme_core.single.segments import WORK_SIZE
-from findme_io.convert import (msg_camera, msg_hypotheses, msg_lines, msg_provenance,
-                               set_motion_estimate, set_motion_gravity)
+from findme_io.convert import (msg_camera, msg_gravity_estimate, msg_hypotheses, msg_lines,
+                               msg_provenance, set_motion_estimate, set_motion_gravity)
 from findme_io.frame_photo import frame_camera, scaled_camera
 from findme_io.imageio import decode_photo
 
@@ -242,6 +242,10 @@ class OdometryHandler(Handler):
             res = motion_photos(pa, pb, (self.method,))[self.method]
             if isinstance(res, FindmeError):
                 raise res
+            if res.photos and res.photos[1] is not pb:
+                # B's unsure gravity was completed by A's: B's next motions start from it, so
+                # a turn of plain photos carries the first sure gravity along
+                st.photos[b].prepared = (st.photos[b].prepared[0], res.photos[1])
         except FindmeError as e:
             st.close(b, "failed")
             m.error = str(e).splitlines()[0][:500] or type(e).__name__
@@ -280,9 +284,12 @@ class OdometryHandler(Handler):
             image, cam, hyps, rank, h, lines = self._inputs(session, st, n)
             # the hypotheses' own lines when sent (else detected again); a gravity from the
             # photo's lines is checked against the other photo's in each motion
-            prov = msg_provenance(p.hset.camera) if p.hset.HasField("camera") else None
-            p.prepared = (rank, prepare(image, cam, h, hyps, rank, lines,
-                                        gravity_sigma=prov and prov.unsensed_sigma))
+            has = p.hset.HasField("camera")
+            prov = msg_provenance(p.hset.camera) if has else None
+            est = msg_gravity_estimate(p.hset.camera) if has else None
+            p.prepared = (rank, prepare(
+                image, cam, h, hyps, rank, lines, gravity_sigma=prov and prov.unsensed_sigma,
+                gravity_alternatives=tuple(g for g, _ in est.alternatives) if est else ()))
         return p.prepared[1]
 
     def _inputs(self, session, st, n):

@@ -14,6 +14,7 @@ from importlib import resources
 
 import cv2
 import numpy as np
+import pytest
 
 from findme_io.overlay import palette
 from findme_core.synth.render import render
@@ -98,3 +99,33 @@ def test_an_unsure_gravity_is_completed_by_the_other_photo_and_said(tmp_path):
     js = json.loads(run_findme("motion", *paths, "--hfov", "70", "--json").stdout)
     assert (f"{js['x_m']:+.3f}", f"{js['z_m']:+.3f}", f"{js['yaw_deg']:+.2f}") == mo.groups()[:3]
     assert js["gravity"]["status"] == "agreed" and js["gravity"]["sigma_b_deg"] < 5.0
+
+
+def test_a_turn_of_plain_photos_is_posed_and_planned_through_the_services(tmp_path):
+    """Eight plain photos turning at one spot (45 deg steps, no gravity, JPEG): several
+    photos' lines alone leave their gravity 20-50 deg off. The odometry carries the first
+    sure gravity along the turn (each unsure photo completed by the one before it), so every
+    motion is a 45 deg turn on the spot; the mapper's spot agrees on gravity too, and the
+    room comes out 4 x 5 m."""
+    paths = []
+    for i, yaw in enumerate(range(0, 360, 45)):
+        v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, float(yaw), 30.0, 0.0), 640,
+                   480, hfov_deg=70.0, supersample=1)
+        paths.append(tmp_path / f"turn_{i}.jpg")
+        cv2.imwrite(str(paths[-1]), v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    out = run_findme("run", *paths, "--hfov", "70", "--camera-height", "1.4",
+                     "--no-record").stdout
+    motions = re.findall(r"^motion (\d) -> (\d): x ([-+.\d]+) m, z ([-+.\d]+) m, yaw ([-+.\d]+) "
+                         r"deg(.*)$", out, re.M)
+    assert [(int(a), int(b)) for a, b, *_ in motions] == [(i, i + 1) for i in range(7)], out
+    for *_, x, z, yaw, rest in motions:
+        assert math.hypot(float(x), float(z)) < 0.03 and abs(float(yaw) - 45.0) < 1.0, out
+        assert "rests on" not in rest, out
+    assert sum("agreed on gravity" in m[-1] for m in motions) >= 4, out
+    last = re.search(r"^photo 7: at x ([-+.\d]+) m, z ([-+.\d]+) m, heading ([-+.\d]+) deg", out,
+                     re.M)
+    assert last and abs(float(last.group(3)) + 45.0) < 2.0, out
+    plan = re.search(r"^floor plan: 4 walls \(([.\d]+), ([.\d]+), ([.\d]+), ([.\d]+) m", out,
+                     re.M)
+    assert plan and sorted(float(w) for w in plan.groups()) == pytest.approx([4, 4, 5, 5],
+                                                                              abs=0.1), out

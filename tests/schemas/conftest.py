@@ -47,7 +47,10 @@ def sample_messages() -> list[tuple[str, object]]:
         lines=[10.5, 300.0, 200.25, 280.0, 400.0, 120.0, 402.5, 460.0],
         camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="exif",
                         gravity_source="image", gravity_sigma_rad=0.0141,
-                        gravity_cov_rad2=[0.0002, 0.00001, 0.00001, 0.00018]))
+                        gravity_cov_rad2=[0.0002, 0.00001, 0.00001, 0.00018],
+                        gravity_fit_cov_rad2=[0.0001, 0.0, 0.0, 0.0001],
+                        gravity_alternatives=[S.GravityAlternative(
+                            gravity=S.Vec3(x=0.3, y=0.95, z=0.0), ratio=0.97)]))
     hset_empty = S.HypothesisSet(session=SESSION, index=4, width=640, height=480,
                                  reason="no floor lines below the horizon",
                                  timing_ms={"lines": 20.0}, method="lsd+dp findme_core 0.1")

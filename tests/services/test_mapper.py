@@ -315,3 +315,43 @@ def test_a_session_of_large_photos_is_planned_from_their_reduced_decode():
     assert np.abs(fuse.wrap(got[:, 2] - big.poses[:, 2])).max() < math.radians(0.5)
     photo = next(iter(m.sessions.values())).photos[0]
     assert photo.features.width == 1280 and photo.features.pixels[:, 0].max() > 700
+
+
+def test_plain_photos_of_one_spot_agree_on_gravity_before_the_plan():
+    """Eight photos turning at one spot, 30 deg down, wood floor, sent WITHOUT gravity (a
+    camera app's photos), through the real hypotheses and selection handlers: several
+    photos' lines alone leave their gravity tens of degrees off. The mapper's spot agrees
+    on one gravity, re-finds the automatically chosen boundaries under it and plans the
+    5 x 4 m room within 0.1 m, as ``findme plan`` does (without the agreement the plan is
+    refused: the photos do not make one room)."""
+    import cv2
+    from findme_core.single import gravity_alternatives as alt
+    from findme_core.synth.render import render
+    from findme_core.synth.room import Pose
+    from findme_io.convert import make_frame
+    from services.pipeline.hypotheses import HypothesesHandler
+    from services.pipeline.selection import SelectionHandler
+
+    hyp, sel, m = HypothesesHandler(), SelectionHandler(), MapperHandler()
+    plans, off = [], []
+    for n, yaw in enumerate(range(0, 360, 45)):
+        v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, float(yaw), 30.0, 0.0), 640,
+                   480, hfov_deg=70.0, supersample=1)
+        data = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
+        frame = make_frame("plain", n, data, hfov_deg=70.0, camera_height_m=1.4)
+        msgs = [(f"findme/plain/frame/{n}", frame)]
+        for out in hyp.on_message(*msgs[0]):
+            if isinstance(out.msg, schemas.HypothesisSet):
+                msgs.append((out.key, out.msg))
+                off.append(alt.angle_deg(schemas.msg_to_vec3(out.msg.camera.gravity),
+                                         v.camera.gravity))
+                msgs += [(o.key, o.msg) for o in sel.on_message(out.key, out.msg)]
+        assert [k.split("/")[2] for k, _ in msgs] == ["frame", "hypotheses", "selection"]
+        for key, msg in msgs:
+            plans += [o.msg for o in m.on_message(key, msg)]
+    assert sum(d > 10.0 for d in off) >= 3, off              # the case is real
+    plan = plans[-1]
+    assert plan.closed and not plan.reason, plan.reason
+    assert sorted(w.length_m for w in plan.walls) == pytest.approx([4, 4, 5, 5], abs=0.1)
+    assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
+    assert len(plan.poses) == 8

@@ -174,3 +174,26 @@ def test_a_photo_assumed_level_takes_the_other_photos_gravity():
     assert alt.angle_deg(out.gravity_b, R.T @ true_a) < 1e-6 and math.isfinite(out.sigma_b)
     both = pair_gravity.agree(m, CAM, CAM, math.inf, math.inf)
     assert both.status == "unlinked" and "neither" in both.reason
+
+
+def test_an_unsure_photos_alternative_can_be_the_one_the_pair_agrees_on():
+    """B's own estimate is 40 deg off, beyond 3 of its 10 deg sigma, but its lines also
+    support the true direction (an alternative): the pair agrees on that one, as a spot's
+    photos vote with their alternatives; without the alternative they disagree."""
+    R = _yaw(45.0)
+    m = _matches(_points(seed=5), R, np.zeros(3))
+    true_a = gravity_of(30.0, 0.0)
+    true_b = R.T @ true_a
+    ca, cb = CAM.with_gravity(true_a), CAM.with_gravity(gravity_of(-10.0, 0.0))
+    alone = pair_gravity.agree(m, ca, cb, math.radians(1.0), math.radians(10.0))
+    assert alone.status == "disagree" and math.degrees(alone.angle) > 30.0
+    near_truth = gravity_of(*[x + 1.0 for x in alt_pitch_roll(true_b)])
+    out = pair_gravity.agree(m, ca, cb, math.radians(1.0), math.radians(10.0),
+                             alternatives=((), (near_truth, gravity_of(0.0, 25.0))))
+    assert out.status == "agreed" and alt.angle_deg(out.gravity_b, true_b) < 1.0
+    assert math.degrees(out.angle) > 30.0          # the own estimates were that far apart
+
+
+def alt_pitch_roll(g):
+    from findme_core.geometry.manhattan import pitch_roll_deg
+    return pitch_roll_deg(alt.down(g))
