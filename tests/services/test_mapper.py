@@ -355,3 +355,36 @@ def test_plain_photos_of_one_spot_agree_on_gravity_before_the_plan():
     assert sorted(w.length_m for w in plan.walls) == pytest.approx([4, 4, 5, 5], abs=0.1)
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
     assert len(plan.poses) == 8
+
+
+def test_a_plain_photos_user_chosen_boundary_is_lifted_again_not_replaced():
+    """The same kind of photos, but the user chose each boundary: under its spot's gravity a
+    corrected photo keeps the user's polyline (they chose it on the image), lifted again; an
+    automatic choice would be found again."""
+    import cv2
+    from findme_core.synth.render import render
+    from findme_core.synth.room import Pose
+    from findme_io.convert import make_frame
+    from services.pipeline.hypotheses import HypothesesHandler
+
+    hyp, m = HypothesesHandler(), MapperHandler()
+    chosen = {}
+    for n, yaw in enumerate((135.0, 180.0)):        # photo 1 (yaw 180) is 52 deg off alone
+        v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, yaw, 30.0, 0.0), 640, 480,
+                   hfov_deg=70.0, supersample=1)
+        data = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
+        frame = make_frame("user", n, data, hfov_deg=70.0, camera_height_m=1.4)
+        m.on_message(f"findme/user/frame/{n}", frame)
+        hs = next(o.msg for o in hyp.on_message(f"findme/user/frame/{n}", frame)
+                  if isinstance(o.msg, schemas.HypothesisSet))
+        m.on_message(f"findme/user/hypotheses/{n}", hs)
+        chosen[n] = schemas.msg_to_polyline(hs.hypotheses[0].polyline)[0]
+        m.on_message(f"findme/user/selection/{n}",
+                     schemas.Selection(session="user", index=n, rank=1,
+                                       by=schemas.SELECTED_BY_USER))
+    ph = m.sessions["user"].photos[1]
+    assert ph.plain is not None and ph.plain.gravity_used is not None   # it was corrected
+    key, photo = ph.plain.relifted
+    np.testing.assert_allclose(photo.scene.polyline, chosen[1])       # the user's line
+    assert tuple(np.round(photo.camera.gravity, 12)) == key != tuple(
+        np.round(ph.photo.camera.gravity, 12))
