@@ -37,6 +37,15 @@ def kabsch(a, b) -> np.ndarray:
     return U @ np.diag([1.0, 1.0, d]) @ Vt
 
 
+def kabsch_batch(a, b) -> np.ndarray:
+    """(S, 3, 3) ``kabsch`` of S sets of pairs at once (a, b: (S, K, 3) unit vectors)."""
+    U, _, Vt = np.linalg.svd(a.transpose(0, 2, 1) @ b)
+    d = np.sign(np.linalg.det(U @ Vt))
+    D = np.tile(np.eye(3), (len(d), 1, 1))
+    D[:, 2, 2] = d
+    return U @ D @ Vt
+
+
 def accepts(k: int, n: int, min_inliers: int, min_fraction: float) -> bool:
     """Whether k agreeing matches of n make a model."""
     return k >= min_inliers and k >= min_fraction * n
@@ -58,16 +67,16 @@ def pure_rotation(matches: Matches, cam_a: Camera, cam_b: Camera, residual_px: f
     ba, bb = camera_bearings(cam_a, matches.ua), camera_bearings(cam_b, matches.ub)
     thr = residual_px / cam_a.fx
     rng = np.random.default_rng(seed)
-    best, best_k = None, 0
-    for _ in range(iterations):
-        i, j = rng.choice(n, 2, replace=False)
-        if np.linalg.norm(np.cross(ba[i], ba[j])) < 1e-3:   # one direction fixes no rotation
-            continue
-        M = kabsch(ba[[i, j]], bb[[i, j]])
-        k = int((np.linalg.norm(ba - bb @ M.T, axis=1) < thr).sum())
-        if k > best_k:
-            best, best_k = M, k
-    if best is None or not accepts(best_k, n, min_inliers, min_fraction):
+    ij = np.array([rng.choice(n, 2, replace=False) for _ in range(iterations)])
+    # every sample at once: one direction fixes no rotation (skipped), the others by Kabsch
+    ok = np.linalg.norm(np.cross(ba[ij[:, 0]], ba[ij[:, 1]]), axis=1) >= 1e-3
+    if not ok.any():
+        return None
+    Ms = kabsch_batch(ba[ij[ok]], bb[ij[ok]])
+    counts = (np.linalg.norm(ba[None] - bb[None] @ Ms.transpose(0, 2, 1), axis=2)
+              < thr).sum(axis=1)
+    best, best_k = Ms[int(np.argmax(counts))], int(counts.max())   # ties: the first sample
+    if not accepts(best_k, n, min_inliers, min_fraction):
         return None
     for _ in range(2):
         inl = np.linalg.norm(ba - bb @ best.T, axis=1) < thr
