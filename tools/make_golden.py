@@ -87,6 +87,15 @@ def _render(room, pose, w, h, hfov, seed, height_known=True) -> Photo:
                  v.camera_height if height_known else None, f"synth:seed{seed}")
 
 
+def _plain(room, pose) -> Photo:
+    """A rendered photo as a camera app saves it: JPEG, lens known, no gravity."""
+    from findme_core.synth.render import render
+    v = render(room, pose, 640, 480, hfov_deg=70.0, supersample=1)
+    c = v.camera
+    return Photo(encode_jpeg(v.image, 95), (c.fx, c.fy, c.cx, c.cy, c.width, c.height), None,
+                 1.4, "synth:plain")
+
+
 def specs() -> list[Spec]:
     from findme_core.synth.render import Box, Pose, Room
     pair = _example("room_a"), _example("room_b")
@@ -99,6 +108,8 @@ def specs() -> list[Spec]:
     l_room = _render(Room.l_shape(), Pose(-1.5, -1.5, 1.5, yaw_deg=30.0, pitch_deg=20.0),
                      320, 240, 70.0, 4)
     broken = Photo(b"\xff\xd8\xff\xe0" + bytes(200), device="corrupt.jpg")
+    plain = [_plain(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, yaw, 30.0, 0.0))
+             for yaw in (135.0, 180.0, 225.0)]
     return [
         Spec("examples-pair", list(pair), measure={0: gt},
              note="the bundled example photos as findme run sees them (auto selection)"),
@@ -108,6 +119,10 @@ def specs() -> list[Spec]:
                   "and gives the camera height with the choice; one tap above the horizon"),
         Spec("bad-input", [broken, l_room], measure={1: [(160.0, 200.0), (60.0, 180.0)]},
              note="a corrupt photo (errors, the session goes on) then a small L-shaped room"),
+        Spec("plain-turn", plain, measure={1: [(320.0, 400.0)]},
+             note="three photos turning at one spot without gravity (a camera app's): the "
+                  "second's lines leave it 50 deg off, the motions complete it from the "
+                  "first's through their matches (Motion.gravity)"),
     ]
 
 
