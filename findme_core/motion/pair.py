@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from findme_core.errors import FindmeError, HypothesisError
+from findme_core.errors import FindmeError, HypothesisError, MotionError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.orientation import Orientation, orientation as room_orientation
 from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
@@ -280,7 +280,12 @@ def agreed_gravity(pa: Photo, pb: Photo, m: features.Matches,
     """(A, B, ``pair_gravity.PairGravity`` or None): when a photo's gravity from its own
     lines is unsure, the two photos' gravities checked against each other through their
     matches and, where they agree, the unsure photo lifted again under the combined gravity;
-    None (the photos as they are) when neither photo's gravity is unsure."""
+    None (the photos as they are) when neither photo's gravity is unsure.
+
+    Raises:
+        MotionError: two gravities from the photos' lines disagree beyond their sigmas: one
+            is wrong, the pair cannot tell which, and a motion lifted on it would be too.
+    """
     given = math.radians(INPUT_GRAVITY_SIGMA_DEG)
     sa, sb = (given if p.gravity_sigma is None else max(p.gravity_sigma, 1e-6)
               for p in (pa, pb))
@@ -288,7 +293,12 @@ def agreed_gravity(pa: Photo, pb: Photo, m: features.Matches,
                for p, s in ((pa, sa), (pb, sb))):
         return pa, pb, None
     pg = pair_gravity.agree(m, pa.camera, pb.camera, sa, sb, params,
-                            (pa.gravity_alternatives, pb.gravity_alternatives))
+                            (pa.gravity_alternatives, pb.gravity_alternatives),
+                            (pa.gravity_sigma is None, pb.gravity_sigma is None))
+    if pg.status == "disagree":
+        raise MotionError(f"the photos disagree on which way is down: {pg.reason}, and the "
+                          "pair cannot tell which; a motion lifted on it would be wrong (give "
+                          "the phone's gravity)")
     if pg.status != "agreed":
         return pa, pb, pg
     return (pa if pg.sigma_a == sa else relift(pa, pg.gravity_a, pg.sigma_a),

@@ -18,7 +18,9 @@ them, ``agree``):
 and each UNSURE photo (1-sigma over ``unsure_deg``) takes the combined direction in its own
 frame; a sure photo keeps its own (a link is less certain than a good photo's lines). When
 the two disagree beyond ``conflict`` times their combined sigma, one of them is confidently
-wrong and the pair cannot tell which: both keep their own and ``status`` says "disagree";
+wrong: a gravity from the phone's sensors wins over one from lines; between two from lines
+the pair cannot tell which, both keep their own and ``status`` says "disagree" (a motion
+then refuses, ``pair.agreed_gravity``);
 when the matches fix no rotation (photos from two places, or too few matches),
 "unlinked".
 
@@ -116,14 +118,17 @@ def unsure(sigma: float, params: PairGravityParams = PairGravityParams()) -> boo
 
 def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_b: float,
           params: PairGravityParams = PairGravityParams(),
-          alternatives: tuple = ((), ())) -> PairGravity:
+          alternatives: tuple = ((), ()), given: tuple = (False, False)) -> PairGravity:
     """The gravities of photos A and B (their cameras' gravities, 1-sigma ``sigma_a`` /
     ``sigma_b`` radians, > 0; infinite: assumed level) completed through their matches
     (module doc). ``alternatives``: each photo's other vertical directions its lines support
     nearly as well ((3,) vectors, ``vanishing.GravityEstimate.alternatives``): the two photos
     agree on the pair of candidates (own or alternative) nearest in units of their combined
-    sigma (own-own first on a tie), as a spot's photos vote (``plan.shared_gravity``). Two
-    photos both assumed level have nothing to combine: "unlinked"."""
+    sigma (own-own first on a tie), as a spot's photos vote (``plan.shared_gravity``).
+    ``given``: whether each photo's gravity came from the phone's sensors; when a given
+    gravity and one from the lines disagree, the lines are wrong: that photo takes the given
+    one, carried ("agreed"). Two photos both assumed level have nothing to combine:
+    "unlinked"."""
     own_a, own_b = _down(cam_a.gravity), _down(cam_b.gravity)
     if math.isinf(sigma_a) and math.isinf(sigma_b):
         return PairGravity(own_a, own_b, sigma_a, sigma_b, "unlinked", math.nan, 0,
@@ -147,6 +152,12 @@ def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_
             pairs.append((ang / spread, i + j, i, j, ang, spread))
     z, _, i, j, _, _ = min(pairs)          # ties: the photos' own estimates first
     angle, spread = pairs[0][4], pairs[0][5]
+    if z > params.conflict and given[0] != given[1]:
+        if given[0]:
+            return PairGravity(own_a, _down(M.T @ own_a), sigma_a, math.hypot(sigma_a, link),
+                               "agreed", angle, k)
+        return PairGravity(_down(M @ own_b), own_b, math.hypot(sigma_b, link), sigma_b,
+                           "agreed", angle, k)
     if z > params.conflict:
         return PairGravity(own_a, own_b, sigma_a, sigma_b, "disagree", angle, k,
                            f"their gravities are {math.degrees(angle):.0f} deg apart where "

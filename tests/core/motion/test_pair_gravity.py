@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from findme_core.errors import MotionError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.manhattan import gravity_of
 from findme_core.motion import pair, pair_gravity
@@ -197,3 +198,30 @@ def test_an_unsure_photos_alternative_can_be_the_one_the_pair_agrees_on():
 def alt_pitch_roll(g):
     from findme_core.geometry.manhattan import pitch_roll_deg
     return pitch_roll_deg(alt.down(g))
+
+
+def test_a_phones_gravity_wins_over_a_photos_lines_that_disagree_with_it():
+    """A's gravity from the phone's sensors, B's from its lines 40 deg off at a claimed 10:
+    beyond 3 sigma, and the sensor is the one to believe: B takes A's, carried."""
+    R = _yaw(45.0)
+    m = _matches(_points(seed=7), R, np.zeros(3))
+    true_a = gravity_of(30.0, 0.0)
+    ca, cb = CAM.with_gravity(true_a), CAM.with_gravity(gravity_of(-10.0, 0.0))
+    out = pair_gravity.agree(m, ca, cb, math.radians(0.5), math.radians(10.0),
+                             given=(True, False))
+    assert out.status == "agreed" and alt.angle_deg(out.gravity_b, R.T @ true_a) < 1e-6
+    assert np.array_equal(out.gravity_a, true_a) and math.degrees(out.angle) > 30.0
+    both_lines = pair_gravity.agree(m, ca, cb, math.radians(0.5), math.radians(10.0))
+    assert both_lines.status == "disagree"
+
+
+def test_two_gravities_from_lines_that_disagree_refuse_the_motion():
+    """Neither photo's gravity was given and they are far apart beyond their sigmas: the
+    motion is refused with the reason rather than lifted on a gravity that is wrong."""
+    R = _yaw(45.0)
+    m = _matches(_points(seed=8), R, np.zeros(3))
+    pa = pair.Photo(CAM.with_gravity(gravity_of(30.0, 0.0)), H, gravity_sigma=math.radians(1.0))
+    pb = pair.Photo(CAM.with_gravity(gravity_of(-10.0, 0.0)), H,
+                    gravity_sigma=math.radians(10.0))
+    with pytest.raises(MotionError, match="disagree on which way is down.*give the phone's"):
+        pair.agreed_gravity(pa, pb, m)
