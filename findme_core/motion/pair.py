@@ -115,8 +115,7 @@ def prepare(image, camera: Camera, height: float, hypotheses=(), rank: int = 1,
         segments = line_segments(image)
     photo = _lifted(Photo(camera, float(height), f, hypotheses=chosen,
                           segments=np.asarray(segments, float), gravity_sigma=gravity_sigma,
-                          rank=rank, gravity_alternatives=tuple(gravity_alternatives)),
-                    camera, rank, grey)
+                          rank=rank, gravity_alternatives=tuple(gravity_alternatives)), grey)
     photo.timing_ms.update({"features": 1e3 * (t1 - t0), "layout": 1e3 * (clock() - t1)})
     return photo
 
@@ -125,21 +124,19 @@ def relift(photo: Photo, gravity, gravity_sigma: float) -> Photo:
     """``photo`` under another gravity ((3,) camera frame, 1-sigma radians): its scene,
     layouts, orientation and surface lifted again from the same hypotheses (image polylines)
     and lines; its features kept."""
-    camera = photo.camera.with_gravity(gravity)
-    return _lifted(replace(photo, camera=camera, gravity_sigma=gravity_sigma, scene=None,
-                           gravity_alternatives=(),
-                           layouts=[], orientation=None, surface=None,
-                           timing_ms=dict(photo.timing_ms)), camera, photo.rank, None,
-                   photo.surface)
+    return _lifted(replace(photo, camera=photo.camera.with_gravity(gravity),
+                           gravity_sigma=gravity_sigma, gravity_alternatives=(),
+                           timing_ms=dict(photo.timing_ms)), surf=photo.surface)
 
 
-def _lifted(photo: Photo, camera: Camera, rank: int, grey, surf=None) -> Photo:
-    """``photo`` with the scene of hypothesis ``rank``, the layouts of its ``hypotheses``,
-    its orientation and surface under ``camera`` (from ``grey``, else ``surf``'s thumbnail)."""
-    scene, lays = None, []
+def _lifted(photo: Photo, grey=None, surf=None) -> Photo:
+    """``photo`` with the scene of its chosen ``rank``, the layouts of its ``hypotheses``,
+    its orientation and surface under its camera (from ``grey``, else ``surf``'s
+    thumbnail)."""
+    camera, scene, lays = photo.camera, None, []
     for r, poly, kinds in photo.hypotheses:
         try:
-            if r == rank:
+            if r == photo.rank:
                 scene = Scene(camera, photo.height, poly, kinds)
             lays.append(layout.from_hypothesis(camera, photo.height, poly, kinds, r))
         except FindmeError:   # e.g. a level-camera polyline crossing a tilted horizon

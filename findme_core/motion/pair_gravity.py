@@ -40,6 +40,7 @@ import numpy as np
 from findme_core.geometry.camera import Camera
 from findme_core.motion.features import Matches
 from findme_core.motion.rotation import pure_rotation
+from findme_core.single.gravity_alternatives import down
 
 #: a gravity from the photo's lines less sure than this (1-sigma, degrees) is unsure: it is
 #: completed by the other photo's, and said with the results that rest on it. A phone's
@@ -98,16 +99,11 @@ class PairGravity:
     reason: str | None = None
 
 
-def _down(g) -> np.ndarray:
-    g = np.asarray(g, float) / np.linalg.norm(g)
-    return -g if g[1] < 0 else g
-
-
 def combine(g_a, sigma_a: float, g_b_in_a, sigma_b: float) -> tuple[np.ndarray, float]:
     """(unit direction, 1-sigma) of two estimates of one gravity in one frame (the module
     doc's equation); sigmas in radians, > 0, at most one infinite (no evidence)."""
     wa, wb = 1.0 / sigma_a ** 2, 1.0 / sigma_b ** 2
-    g = wa * _down(g_a) + wb * _down(g_b_in_a)
+    g = wa * down(g_a) + wb * down(g_b_in_a)
     return g / np.linalg.norm(g), 1.0 / math.sqrt(wa + wb)
 
 
@@ -129,7 +125,7 @@ def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_
     gravity and one from the lines disagree, the lines are wrong: that photo takes the given
     one, carried ("agreed"). Two photos both assumed level have nothing to combine:
     "unlinked"."""
-    own_a, own_b = _down(cam_a.gravity), _down(cam_b.gravity)
+    own_a, own_b = down(cam_a.gravity), down(cam_b.gravity)
     if math.isinf(sigma_a) and math.isinf(sigma_b):
         return PairGravity(own_a, own_b, sigma_a, sigma_b, "unlinked", math.nan, 0,
                            "neither photo's lines show which way is down")
@@ -141,8 +137,8 @@ def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_
     M, k = rot
     link = math.radians(params.link_sigma_deg)
     s_alt = math.radians(params.alternative_sigma_deg)
-    cands_a = [(own_a, sigma_a)] + [(_down(g), s_alt) for g in alternatives[0]]
-    cands_b = [(_down(M @ own_b), sigma_b)] + [(_down(M @ _down(g)), s_alt)
+    cands_a = [(own_a, sigma_a)] + [(down(g), s_alt) for g in alternatives[0]]
+    cands_b = [(down(M @ own_b), sigma_b)] + [(down(M @ down(g)), s_alt)
                                                for g in alternatives[1]]
     pairs = []
     for i, (ga, sa) in enumerate(cands_a):
@@ -154,9 +150,9 @@ def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_
     angle, spread = pairs[0][4], pairs[0][5]
     if z > params.conflict and given[0] != given[1]:
         if given[0]:
-            return PairGravity(own_a, _down(M.T @ own_a), sigma_a, math.hypot(sigma_a, link),
+            return PairGravity(own_a, down(M.T @ own_a), sigma_a, math.hypot(sigma_a, link),
                                "agreed", angle, k)
-        return PairGravity(_down(M @ own_b), own_b, math.hypot(sigma_b, link), sigma_b,
+        return PairGravity(down(M @ own_b), own_b, math.hypot(sigma_b, link), sigma_b,
                            "agreed", angle, k)
     if z > params.conflict:
         return PairGravity(own_a, own_b, sigma_a, sigma_b, "disagree", angle, k,
@@ -166,6 +162,6 @@ def agree(matches: Matches, cam_a: Camera, cam_b: Camera, sigma_a: float, sigma_
     (ga, sa), (gb, sb) = cands_a[i], cands_b[j]
     g, s = combine(ga, sa, gb, math.hypot(sb, link))
     ga, sa = (g, s) if unsure(sigma_a, params) else (own_a, sigma_a)
-    gb, sb = ((_down(M.T @ g), math.hypot(s, link)) if unsure(sigma_b, params)
+    gb, sb = ((down(M.T @ g), math.hypot(s, link)) if unsure(sigma_b, params)
               else (own_b, sigma_b))
     return PairGravity(ga, gb, sa, sb, "agreed", angle, k)

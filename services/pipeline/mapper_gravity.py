@@ -83,19 +83,22 @@ def agreed(st, order: list, params: plan_session.SessionParams,
                 rot[(i, j)] = st.pairs[key]
     sg = shared_gravity.agree(cams, ests, [p.features for p in photos], shared, rotations=rot)
     out = []
-    for n, p, v, status in zip(order, photos, shared_gravity.verdicts(ests, sg), sg.status):
+    for n, p, e, v, status in zip(order, photos, ests, shared_gravity.verdicts(ests, sg),
+                                  sg.status):
         ph = st.photos[n]
         if status == "agreed" and not isinstance(v, str):
             v = None     # its own gravity is its spot's (within ``agree_deg``): as it is
         used = None if v is None or isinstance(v, str) else tuple(np.round(v, 12))
         if ph.plain is None and used is not None:
-            v, used = None, None   # its frame gave gravity after all: nothing to redo
+            # hypotheses claiming a gravity from the lines of a frame that gave gravity (a
+            # sender's inconsistency): nothing kept to redo it with, as it is
+            v, used = None, None
         if ph.plain is not None and ph.plain.gravity_used != used:
             for k in [k for k in st.pairs if k[0] in ("turn", "motion") and n in k[1:]]:
                 del st.pairs[k]
             ph.plain.gravity_used = used
         if v is None:
-            out.append(p if ests[len(out)] is None else replace(p, gravity_from_image=True))
+            out.append(p if e is None else replace(p, gravity_from_image=True))
         elif isinstance(v, str):
             out.append(plan_session.Photo(p.camera, p.height, None, None, p.features, v,
                                           gravity_from_image=True))

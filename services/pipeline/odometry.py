@@ -284,12 +284,13 @@ class OdometryHandler(Handler):
             image, cam, hyps, rank, h, lines = self._inputs(session, st, n)
             # the hypotheses' own lines when sent (else detected again); a gravity from the
             # photo's lines is checked against the other photo's in each motion
-            has = p.hset.HasField("camera")
-            prov = msg_provenance(p.hset.camera) if has else None
-            est = msg_gravity_estimate(p.hset.camera) if has else None
+            c = p.hset.camera if p.hset.HasField("camera") else None
+            prov = msg_provenance(c) if c is not None else None
+            if prov is not None:
+                prov = replace(prov, estimate=msg_gravity_estimate(c))
             p.prepared = (rank, prepare(
                 image, cam, h, hyps, rank, lines, gravity_sigma=prov and prov.unsensed_sigma,
-                gravity_alternatives=tuple(g for g, _ in est.alternatives) if est else ()))
+                gravity_alternatives=prov.unsensed_alternatives if prov else ()))
         return p.prepared[1]
 
     def _inputs(self, session, st, n):
