@@ -1,0 +1,170 @@
+"""Choose how close a second motion must score to be an alternative
+(``MotionParams.alternative_ratio``) leave one room out: every refined motion scoring at least
+that fraction of the best one is an alternative, and the answer's 1-sigma spans them
+(``motion/alternatives.spread_over``: the variance of their score-weighted mixture).
+
+    python tools/choose_alternatives.py ../shared/data/findme-eval [--ratios 0.3,0.4,...]
+        [--jobs 2]
+
+Every dev pair (all four pair subsets, the dataset's gravity, rank-1 hypotheses, as
+``findme eval``) is estimated once per candidate ratio, its photos prepared once. For each
+ratio, each pair's x, z and yaw errors are normalised by the stated 1-sigmas; the loss of a
+set of pairs is the mean over its subsets (those with >= 10 pairs, so that TUM's 95 pairs do
+not outvote ZInD's 22) of the squared distance of their coverage (x, z and yaw pooled) to the
+goal: within 1 sigma between 0.60 and 0.80, within 3 sigma at least 0.97. Each group (ZInD
+room, TUM block of 6 frames, KITTI) is scored with the ratio whose loss is least on the other
+groups (on a tie the highest: the fewest alternatives); the shipped ratio is the one least on
+all.
+Prints, per ratio, the coverage in sample per subset and the accuracy (medians), then the
+leave-one-room-out choice and coverage, and how often an alternative is the right motion
+where the best one is wrong. Reads the dataset's ground truth: a tool, not the product.
+
+Measured 2026-11-29 (141 answered pairs, 22 of them wrong): the loss is least at 0.6 in
+sample (ZInD level 0.75 / 0.95 within 1 / 3 sigma where 0.8 gives 0.65 / 0.84), but at no
+ratio is an alternative the right motion for more than 1 of the 22 wrong answers: a lower
+ratio widens the 1-sigma over motions that are as wrong, which covers the wrong answers by
+chance. Left out, room06 (most of the wrong answers) takes 0.9, and the held-out coverage is
+0.8's. The ratio stays 0.8; this tool is the check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(__file__))
+from sigma_coverage import group_of  # noqa: E402
+from findme.evaluation.pairs import pair_inputs  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
+from findme_core.motion.model import MotionParams  # noqa: E402
+from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
+
+SUBSETS = ("zind-pairs-level", "zind-pairs-tilted", "tum-cabinet-pairs", "kitti06-pairs")
+
+
+def pair_errors(job) -> tuple[str, str, list]:
+    """(pair id, subset, per ratio: ((3,) |error| / sigma of x, z, yaw, (2,) the errors
+    (metres, degrees), (best right, any alternative right, has alternatives)) or None where
+    the motion was refused; right: within 5 deg and 25 % of the baseline, as score.py)."""
+    dataset, pid, ratios = job
+    cv2.setNumThreads(1)
+    pair, photos = pair_inputs(os.path.join(dataset, "pairs"), os.path.join(dataset, "views"),
+                               pid)
+    g = pair["motion"]
+    pa, pb = [photo_of(image, cam, h, 1, "findme", which, gravity_sigma=prov.unsensed_sigma,
+                       gravity_alternatives=prov.unsensed_alternatives)
+              for (image, cam, h, prov), which in zip(photos, "AB")]
+    out = []
+    for r in ratios:
+        try:
+            res = motion_photos(pa, pb, ("findme",), params=MotionParams(alternative_ratio=r))
+        except FindmeError:
+            out.append(None)
+            continue
+        m = res["findme"]
+        if isinstance(m, FindmeError):
+            out.append(None)
+            continue
+        m = m.motion
+        ex, ez = m.x - g["x_m"], m.z - g["z_m"]
+        ey = (math.degrees(m.yaw) - g["yaw_deg"] + 180.0) % 360.0 - 180.0
+        out.append(([abs(ex) / m.sigma_x, abs(ez) / m.sigma_z,
+                     abs(ey) / math.degrees(m.sigma_yaw)], [math.hypot(ex, ez), abs(ey)],
+                    (right(m, g), any(right(o, g) for o in m.alternatives),
+                     bool(m.alternatives))))
+    return pid, pair["subset"], out
+
+
+def right(m, g) -> bool:
+    """Whether motion ``m`` is within 5 deg and 25 % of the baseline of the truth ``g``."""
+    ey = (math.degrees(m.yaw) - g["yaw_deg"] + 180.0) % 360.0 - 180.0
+    return abs(ey) <= 5.0 and math.hypot(m.x - g["x_m"], m.z - g["z_m"]) <= 0.25 * math.hypot(
+        g["x_m"], g["z_m"])
+
+
+def coverage(rows, k: int) -> np.ndarray:
+    """(3,) within 1, 2, 3 sigma of the answered pairs of ``rows`` at ratio index k, the
+    three axes pooled."""
+    z = np.array([r[2][k][0] for r in rows if r[2][k] is not None]).ravel()
+    return np.array([np.mean(z <= s) for s in (1, 2, 3)]) if len(z) else np.full(3, np.nan)
+
+
+def loss(rows, k: int) -> float:
+    """Mean over the subsets with >= 10 pairs of the squared distance of the coverage to the
+    goal (module doc): 0.60-0.80 within 1 sigma, >= 0.97 within 3."""
+    parts = []
+    for s in SUBSETS:
+        sub = [r for r in rows if r[1] == s]
+        if len(sub) < 10:
+            continue
+        c = coverage(sub, k)
+        parts.append(max(0.60 - c[0], c[0] - 0.80, 0.0) ** 2 + max(0.97 - c[2], 0.0) ** 2)
+    return float(np.mean(parts)) if parts else float("inf")
+
+
+def least(rows, ratios) -> int:
+    """Index of the ratio of least loss on ``rows``; of equal losses (to 1e-12) the highest
+    ratio, the fewest alternatives."""
+    ls = np.array([loss(rows, k) for k in range(len(ratios))])
+    ok = np.flatnonzero(ls <= ls.min() + 1e-12)
+    return int(ok[np.argmax(np.asarray(ratios)[ok])])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("dataset")
+    ap.add_argument("--ratios", default="0.3,0.4,0.5,0.6,0.7,0.8,0.9")
+    ap.add_argument("--jobs", type=int, default=2)
+    a = ap.parse_args(argv)
+    ratios = [float(x) for x in a.ratios.split(",")]
+    idx = json.load(open(os.path.join(a.dataset, "index.json")))
+    pids = sorted({p for s in SUBSETS for p in idx["subsets"].get(s, {}).get("pairs", [])})
+    with ProcessPoolExecutor(a.jobs) as ex:
+        rows = list(ex.map(pair_errors, [(a.dataset, p, ratios) for p in pids], chunksize=2))
+    print("ratio  loss    " + "  ".join(f"{s:>26s}" for s in SUBSETS))
+    print("               " + "  ".join(f"{'1/2/3 sigma  t med  yaw med':>26s}"
+                                         for _ in SUBSETS))
+    for k, r in enumerate(ratios):
+        cells = []
+        for s in SUBSETS:
+            sub = [x for x in rows if x[1] == s]
+            c = coverage(sub, k)
+            e = np.array([x[2][k][1] for x in sub if x[2][k] is not None])
+            cells.append(f"{c[0]:.2f}/{c[1]:.2f}/{c[2]:.2f} {np.median(e[:, 0]):5.3f}m "
+                         f"{np.median(e[:, 1]):4.2f}d")
+        print(f"{r:5.2f}  {loss(rows, k):.4f}  " + "  ".join(f"{c:>26s}" for c in cells))
+    print("ratio  answered  best wrong  with alternatives  best wrong, an alternative right")
+    for k, r in enumerate(ratios):
+        f = [x[2][k][2] for x in rows if x[2][k] is not None]
+        print(f"{r:5.2f}  {len(f):8d}  {sum(not b for b, _, _ in f):10d}  "
+              f"{sum(h for _, _, h in f):17d}  {sum((not b) and a for b, a, _ in f):5d}")
+    groups = sorted({group_of(p) for p, _, _ in rows})
+    chosen, held = {}, []
+    for grp in groups:
+        train = [x for x in rows if group_of(x[0]) != grp]
+        k = least(train, ratios)
+        chosen[grp] = ratios[k]
+        held += [(x[0], x[1], [x[2][k]]) for x in rows if group_of(x[0]) == grp]
+    best = ratios[least(rows, ratios)]
+    print(f"chosen on all pairs: {best:g}; leave-one-room-out: "
+          + ", ".join(f"{g} {r:g}" for g, r in chosen.items()))
+    print("leave-one-room-out, within 1 / 2 / 3 sigma (x, z, yaw pooled):")
+    for s in SUBSETS:
+        sub = [x for x in held if x[1] == s]
+        c = coverage(sub, 0)
+        n = sum(x[2][0] is not None for x in sub)
+        print(f"  {s:20s} {c[0]:.2f} / {c[1]:.2f} / {c[2]:.2f}  (n={n} pairs)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
