@@ -142,6 +142,24 @@ def set_motion_gravity(msg, pg) -> None:
     for f, s in (("sigma_a_rad", pg.sigma_a), ("sigma_b_rad", pg.sigma_b)):
         if math.isfinite(s):              # absent: assumed level, no evidence
             setattr(g, f, float(s))
+    if pg.status == "agreed":
+        g.gravity_a.CopyFrom(schemas.vec3_to_msg(pg.gravity_a))
+        g.gravity_b.CopyFrom(schemas.vec3_to_msg(pg.gravity_b))
+
+
+def msg_agreed_gravities(msg) -> tuple:
+    """Of a ``schemas.Motion`` whose photos agreed on gravity: ((which photo, (3,) unit
+    gravity in its camera frame, 1-sigma radians), ...) for A and B where both are given;
+    else ()."""
+    g = msg.gravity if msg.HasField("gravity") else None
+    if g is None or g.status != "agreed":
+        return ()
+    out = []
+    for which, v, s in (("a", "gravity_a", "sigma_a_rad"), ("b", "gravity_b", "sigma_b_rad")):
+        if g.HasField(v) and g.HasField(s):
+            vec = schemas.msg_to_vec3(getattr(g, v))
+            out.append((which, vec / np.linalg.norm(vec), float(getattr(g, s))))
+    return tuple(out)
 
 
 def motion_gravity_text(msg, photo_a: str, photo_b: str, own_a, own_b) -> str:

@@ -9,14 +9,15 @@ c' = (c + 0.5) s - 0.5); gravity in camera coordinates.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 import schemas
-from findme_core.errors import CameraError, InputError
+from findme_core.errors import CameraError, FindmeError, InputError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import Provenance
+from findme_core.single.methods import hypothesize
 from findme_core.single.segments import WORK_SIZE
 
 from .camera_source import lens_camera, with_gravity
@@ -135,3 +136,22 @@ def frame_inputs(frame) -> tuple[np.ndarray, Camera]:
     """(BGR image, Camera) of a Frame, gravity estimated when the frame gives none."""
     image, cam, _ = frame_photo_camera(frame)
     return image, cam
+
+
+def best_again(image: np.ndarray, scale: float, camera: Camera, height: float,
+               method: str = "findme"):
+    """(the best boundary hypothesis of a photo under ``camera``'s gravity, or None and the
+    reason): a photo whose automatically chosen boundary was found under a gravity that
+    turned out wrong is hypothesized again under the right one. ``image``: the photo decoded
+    at ``scale`` of its size; ``camera``: the photo's own (its pixels, the gravity to use);
+    ``height``: camera height, metres (1 = up to scale). The polyline is in the photo's
+    pixels."""
+    try:
+        hs = hypothesize(image, scaled_camera(camera, scale, image.shape[1], image.shape[0]),
+                         method, 1, camera_height=height)
+    except FindmeError as e:
+        return None, str(e).splitlines()[0][:200]
+    if not hs.hypotheses:
+        return None, hs.reason or "no boundary under that gravity"
+    h = hs.hypotheses[0]
+    return replace(h, polyline=(np.asarray(h.polyline, float) + 0.5) / scale - 0.5), None

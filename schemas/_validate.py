@@ -359,6 +359,9 @@ def _motion_gravity(p: Problems, g: motion_pb2.MotionGravity) -> None:
     for f in ("sigma_a_rad", "sigma_b_rad"):
         if g.HasField(f):
             _nonneg(p, f"gravity.{f}", getattr(g, f))
+    for f in ("gravity_a", "gravity_b"):
+        if g.HasField(f):
+            _vec3(p, f"gravity.{f}", getattr(g, f), nonzero=True)
 
 
 def _pose_fields(p: Problems, m: motion_pb2.Pose, prefix: str = "") -> None:

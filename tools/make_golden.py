@@ -204,6 +204,9 @@ def run_session(spec: Spec, out_dir: Path) -> Path:
             return pred
         for n in range(len(spec.photos)):
             wait_result(group, watch, finished(n), 120)
+        # taps once the bus is quiet: after the motions, and the scenes they built again
+        # under an agreed gravity (regress asks again at the same scene)
+        wait_result(group, watch, lambda c: False, 120)
         for n, pixels in spec.measure.items():
             wait_result(group, watch, finished(n), 120)
             req = schemas.MeasureRequest(session=sid, index=n, pixels=schemas.pixels_to_msg(pixels))

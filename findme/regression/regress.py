@@ -108,8 +108,11 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
         for h in handlers:
             group.add(h)
         source = Source(session, session_id)
+        scenes = Counter()   # each photo's scenes recorded so far
         for r in recs:
             k = bus.parse_key(r.key)
+            if k.kind == "scene":
+                scenes[r.key] += 1
             if k.kind == "frame":
                 source.put(r.key, r.payload)
             elif k.kind == "selection":
@@ -118,8 +121,11 @@ def regress(path, *, method: str | None = None, max_n: int = 10, timeout: float 
                 source.put(r.key, _same_choice(r.payload, expected.get(need), watch, need,
                                                rank_maps, out.notes))
             elif k.kind == "measured":
+                # asked when the photo's scene is as it was when recorded (built, or built
+                # again under a gravity a motion agreed on)
                 need = bus.key(session_id, "scene", *k.parts)
-                wait_result(group, watch, lambda c, need=need: c[need] > 0, timeout)
+                at = max(scenes[need], 1)
+                wait_result(group, watch, lambda c, need=need, at=at: c[need] >= at, timeout)
                 rep = schemas.decode(schemas.MeasureReply, r.payload, check=False)
                 payload, err = ask_measure(session, session_id, measure_request(rep), timeout)
                 measured_now.append((r.key, payload, err))

@@ -1,3 +1,4 @@
+from schemas.v1 import common_pb2 as _common_pb2
 from google.protobuf.internal import containers as _containers
 from google.protobuf import descriptor as _descriptor
 from google.protobuf import message as _message
@@ -55,18 +56,22 @@ class Motion(_message.Message):
     def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index_a: _Optional[int] = ..., index_b: _Optional[int] = ..., x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ..., sigma_yaw_rad: _Optional[float] = ..., inliers: _Optional[int] = ..., matches: _Optional[int] = ..., method: _Optional[str] = ..., error: _Optional[str] = ..., time_ns: _Optional[int] = ..., score: _Optional[float] = ..., scale_points: _Optional[int] = ..., layout: _Optional[_Union[MotionLayout, _Mapping]] = ..., alternatives: _Optional[_Iterable[_Union[MotionAlternative, _Mapping]]] = ..., appearance: _Optional[float] = ..., appearance_samples: _Optional[int] = ..., gravity: _Optional[_Union[MotionGravity, _Mapping]] = ...) -> None: ...
 
 class MotionGravity(_message.Message):
-    __slots__ = ("status", "angle_rad", "sigma_a_rad", "sigma_b_rad", "reason")
+    __slots__ = ("status", "angle_rad", "sigma_a_rad", "sigma_b_rad", "reason", "gravity_a", "gravity_b")
     STATUS_FIELD_NUMBER: _ClassVar[int]
     ANGLE_RAD_FIELD_NUMBER: _ClassVar[int]
     SIGMA_A_RAD_FIELD_NUMBER: _ClassVar[int]
     SIGMA_B_RAD_FIELD_NUMBER: _ClassVar[int]
     REASON_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_A_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_B_FIELD_NUMBER: _ClassVar[int]
     status: str
     angle_rad: float
     sigma_a_rad: float
     sigma_b_rad: float
     reason: str
-    def __init__(self, status: _Optional[str] = ..., angle_rad: _Optional[float] = ..., sigma_a_rad: _Optional[float] = ..., sigma_b_rad: _Optional[float] = ..., reason: _Optional[str] = ...) -> None: ...
+    gravity_a: _common_pb2.Vec3
+    gravity_b: _common_pb2.Vec3
+    def __init__(self, status: _Optional[str] = ..., angle_rad: _Optional[float] = ..., sigma_a_rad: _Optional[float] = ..., sigma_b_rad: _Optional[float] = ..., reason: _Optional[str] = ..., gravity_a: _Optional[_Union[_common_pb2.Vec3, _Mapping]] = ..., gravity_b: _Optional[_Union[_common_pb2.Vec3, _Mapping]] = ...) -> None: ...
 
 class MotionLayout(_message.Message):
     __slots__ = ("rank_a", "rank_b", "samples", "violations", "rms_m", "walls", "corners")

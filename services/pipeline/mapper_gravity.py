@@ -31,10 +31,9 @@ from findme_core.motion import features
 from findme_core.plan import session as plan_session
 from findme_core.plan import shared_gravity, spot
 from findme_core.single import layout
-from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
 from findme_io.convert import msg_gravity_estimate, msg_hypotheses
-from findme_io.frame_photo import scaled_camera
+from findme_io.frame_photo import best_again
 from findme_io.imageio import decode_photo
 
 
@@ -139,14 +138,8 @@ def _relifted(ph, p: plan_session.Photo, g, params: plan_session.SessionParams
 def _best_again(ph, cam, height: float, params: plan_session.SessionParams):
     """(the best hypothesis of photo ``ph`` under ``cam`` in its full-size pixels, or None
     and the reason)."""
-    s = ph.plain.scale
     try:
         image = decode_photo(ph.plain.jpeg, "its working-size copy").image
-        hs = hypothesize(image, scaled_camera(cam, s, image.shape[1], image.shape[0]),
-                         params.method, 1, camera_height=height)
     except FindmeError as e:
         return None, str(e).splitlines()[0][:200]
-    if not hs.hypotheses:
-        return None, hs.reason or "no boundary under its spot's gravity"
-    h = hs.hypotheses[0]
-    return replace(h, polyline=(np.asarray(h.polyline, float) + 0.5) / s - 0.5), None
+    return best_again(image, ph.plain.scale, cam, height, params.method)

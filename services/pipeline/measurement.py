@@ -1,7 +1,15 @@
 """The measurement service: the scene model of each selected photo, and 3D on request.
 
     frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/scene/<n>
+    motion/<a>/<b> whose photos agreed on gravity  ->  scene/<n> again, under it
     query findme/<session>/measure (MeasureRequest)  ->  MeasureReply
+
+A photo whose gravity came from its own lines, unsure, may get a better one from a motion:
+the odometry's motions carry the gravity two photos agreed on through their matches. Its
+scene is then built again under it and its Scene published again (``measurement_gravity``:
+a user's boundary lifted again, an automatic one found again in its frame); points are
+located under it from then on. Until then, and for a photo no motion completes, its own
+gravity and its wide sigma hold.
 
 The camera height comes from the selection (if the user gave one there), else the frame,
 else h = 1 (results up to scale, ``metric`` false).
@@ -21,29 +29,31 @@ from collections import OrderedDict
 
 import schemas
 from findme_io.imageio import image_size
-from findme_core.errors import HypothesisError
+from findme_core.errors import FindmeError, HypothesisError
 from findme_core.geometry.provenance import Provenance
-from findme_core.single.scene import Scene, boundary_sigma_px
 
 from ..runtime import bus
-from findme_io.convert import (camera_msg, measure_reply_msg, msg_camera, msg_hypotheses,
-                               msg_provenance)
+from findme_io.convert import (camera_msg, measure_reply_msg, msg_agreed_gravities, msg_camera,
+                               msg_hypotheses, msg_provenance)
 from findme_io.frame_photo import frame_camera
 from ..runtime.handler import Handler, Input, Output, UnknownSession
 from ..runtime.sessions import SessionTable
+from .measurement_gravity import Held, boundary_under, scene_of, under_agreed
 
 DEFAULT_HEIGHT_SIGMA_M = 0.03
 
 
 class _Photos:
-    """One session's photos: n -> (camera, h, sigma), HypothesisSet, (Scene, rank, metric);
-    at most ``limit`` of each, least recently used out."""
+    """One session's photos: n -> (camera, h, sigma), HypothesisSet, ``Held`` scene, the
+    gravity a motion agreed on ((3,) unit, 1-sigma radians); at most ``limit`` of each,
+    least recently used out."""
 
     def __init__(self, limit: int):
         self.limit = limit
         self.frames: OrderedDict[int, tuple] = OrderedDict()
         self.hsets: OrderedDict[int, object] = OrderedDict()
         self.scenes: OrderedDict[int, tuple] = OrderedDict()
+        self.agreed: OrderedDict[int, tuple] = OrderedDict()
         self.waiting: dict[int, tuple[object, float]] = {}   # n -> (Selection, since)
 
     def put(self, table: OrderedDict, n: int, value) -> None:
@@ -59,7 +69,9 @@ class MeasurementHandler(Handler):
     inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
               Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection,
-                    answers=("findme/{session}/scene/{n}",)))
+                    answers=("findme/{session}/scene/{n}",)),
+              # a skipped motion leaves a photo under its own gravity (its sigma says so)
+              Input("findme/*/motion/*/*", schemas.Motion, state=True))
     queries = (Input("findme/*/measure", schemas.MeasureRequest),)
     tick_s = 0.5
 
@@ -69,11 +81,14 @@ class MeasurementHandler(Handler):
         self.wait_s, self.clock = wait_s, clock
         self._waiting: set[str] = set()   # sessions with a selection waiting for its inputs
         self.answered = self.built = self.rebuilt = 0
+        self.regravitated = self.not_regravitated = 0   # under a motion's agreed gravity
 
     def on_message(self, key, msg):
         k = bus.parse_key(key)   # the key names session and n, never the payload
         n = k.index()
         st = self.sessions.get(k.session)
+        if isinstance(msg, schemas.Motion):
+            return self._motion(k.session, st, (n, k.index(1)), msg)
         if isinstance(msg, schemas.Frame):
             self._frame(st, n, msg)
         elif isinstance(msg, schemas.HypothesisSet):
@@ -156,20 +171,73 @@ class MeasurementHandler(Handler):
             sigma = sel.camera_height_sigma_m if sel.HasField("camera_height_sigma_m") else sigma
         metric = height is not None
         h = hyps[sel.rank - 1]
-        scene = Scene(cam, height if metric else 1.0, h.polyline, h.kinds,
-                      height_sigma=sigma if metric else 0.0, gravity_cov=prov.gravity_cov,
-                      boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
-        st.put(st.scenes, n, (scene, sel.rank, metric))
+        held = Held(scene_of(cam, prov, height if metric else 1.0, sigma if metric else 0.0,
+                             h.polyline, h.kinds), sel.rank, metric, prov, sel.by)
+        held = self._agreed(session, st, n, held) or held   # a motion came first
+        st.put(st.scenes, n, held)
         st.hsets.pop(n, None)   # the scene is what queries need; another selection of this
         # photo fetches its hypotheses again (the store keeps small results 15 min): a
         # session's memory is then ~1 kB a photo, not its HypothesisSet's 3-10 kB
         self.built += 1
-        msg = schemas.Scene(session=session, index=n, rank=sel.rank,
-                            camera=camera_msg(cam, prov),
+        return [self._scene_output(session, n, held)]
+
+    @staticmethod
+    def _scene_output(session, n, held: Held) -> Output:
+        scene = held.scene
+        msg = schemas.Scene(session=session, index=n, rank=held.rank,
+                            camera=camera_msg(scene.camera, held.prov),
                             camera_height_m=scene.height, camera_height_sigma_m=scene.height_sigma,
-                            metric=metric, polyline=schemas.polyline_to_msg(h.polyline, h.kinds),
+                            metric=held.metric,
+                            polyline=schemas.polyline_to_msg(scene.polyline, scene.kinds),
                             time_ns=time.time_ns())
-        return [Output(bus.key(session, "scene", n), msg)]
+        return Output(bus.key(session, "scene", n), msg)
+
+    def _motion(self, session, st, pair, msg):
+        """A motion's agreed gravities (photo n = the key's a or b; ``measurement_gravity``):
+        each photo keeps the tightest; a built scene whose gravity is looser is built again
+        under it and its Scene published again."""
+        out = []
+        for which, g, sigma in msg_agreed_gravities(msg):
+            n = pair[0] if which == "a" else pair[1]
+            if n in st.agreed and st.agreed[n][1] <= sigma:
+                continue
+            st.put(st.agreed, n, (g, sigma))
+            if n in st.scenes:   # else its selection comes later: ``_select`` takes it then
+                held = self._agreed(session, st, n, st.scenes[n])
+                if held is not None:
+                    st.put(st.scenes, n, held)
+                    out.append(self._scene_output(session, n, held))
+        return out
+
+    def _agreed(self, session, st, n, held: Held) -> Held | None:
+        """``held`` under the gravity a motion agreed on for photo n (``measurement_gravity``),
+        or None when there is none better or no boundary under it (counted)."""
+        new = under_agreed(st.agreed.get(n), held.scene.camera, held.prov)
+        if new is None:
+            return None
+        by = held.by if held.by is not None else self._fetched(session, "selection", n,
+                                                               schemas.Selection, "by")
+        frame = (None if by == schemas.SELECTED_BY_USER else
+                 self._fetched(session, "frame", n, schemas.Frame))
+        sc = held.scene
+        try:
+            poly, kinds = boundary_under(frame, new[0], sc.height, by, sc.polyline, sc.kinds)
+            if poly is None:
+                raise HypothesisError(kinds)
+            scene = scene_of(*new, sc.height, sc.height_sigma, poly, kinds)
+        except FindmeError:   # it stays under its own gravity, whose sigma its answers carry
+            self.not_regravitated += 1
+            return None
+        self.regravitated += 1
+        return Held(scene, held.rank, held.metric, new[1], by)
+
+    def _fetched(self, session, kind, n, cls, field=None):
+        """Photo n's ``kind`` message from the bus (its ``field``), None when nobody has it."""
+        try:
+            msg = self.need(bus.key(session, kind, n), cls)
+        except HypothesisError:
+            return None
+        return msg if field is None else getattr(msg, field)
 
     def on_query(self, key, req):
         k = bus.parse_key(key)
@@ -197,17 +265,16 @@ class MeasurementHandler(Handler):
                 self._select(k.session, st, req.index, sel)
         else:
             self.sessions.get(k.session)   # used now
-        scene, rank, metric = st.scenes[req.index]
+        held = st.scenes[req.index]
         st.scenes.move_to_end(req.index)
-        located = scene.locate(schemas.msg_to_pixels(req.pixels))
+        located = held.scene.locate(schemas.msg_to_pixels(req.pixels))
         self.answered += 1
-        return measure_reply_msg(k.session, req.index, rank, metric, located, scene.height,
-                                 scene.height_sigma)
+        return measure_reply_msg(k.session, req.index, held.rank, held.metric, located,
+                                 held.scene.height, held.scene.height_sigma)
 
-    def _published_scene(self, session: str, n: int):
-        """(Scene, rank, metric) of photo n rebuilt from its Scene message on the bus (the
-        same camera, height, sigmas and boundary it was built with), or None when nobody
-        has it."""
+    def _published_scene(self, session: str, n: int) -> Held | None:
+        """Photo n's scene rebuilt from its Scene message on the bus (the same camera,
+        height, sigmas and boundary it was built with), or None when nobody has it."""
         try:
             msg = self.need(bus.key(session, "scene", n), schemas.Scene)
         except HypothesisError:
@@ -215,13 +282,12 @@ class MeasurementHandler(Handler):
         cam = msg_camera(msg.camera)
         prov = msg_provenance(msg.camera) or Provenance()
         poly, kinds = schemas.msg_to_polyline(msg.polyline)
-        scene = Scene(cam, msg.camera_height_m, poly, kinds,
-                      height_sigma=msg.camera_height_sigma_m, gravity_cov=prov.gravity_cov,
-                      boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+        scene = scene_of(cam, prov, msg.camera_height_m, msg.camera_height_sigma_m, poly, kinds)
         self.rebuilt += 1
-        return scene, msg.rank, msg.metric
+        return Held(scene, msg.rank, msg.metric, prov, None)
 
     def counters(self):
         return {"scenes": self.built, "sessions": len(self.sessions),
                 "evicted": self.sessions.evicted, "measure_queries": self.answered,
-                "scenes_rebuilt": self.rebuilt}
+                "scenes_rebuilt": self.rebuilt, "scenes_regravitated": self.regravitated,
+                "scenes_not_regravitated": self.not_regravitated}
