@@ -98,6 +98,14 @@ def sample_messages() -> list[tuple[str, object]]:
                       gravity=S.MotionGravity(status="disagree", angle_rad=0.35,
                                               sigma_a_rad=0.02, sigma_b_rad=0.4,
                                               reason="their gravities are 20 deg apart"))
+    motion_agreed = S.Motion(session=SESSION, index_a=5, index_b=6, x_m=0.01, z_m=-0.02,
+                             yaw_rad=math.radians(45.0), sigma_x_m=0.02, sigma_z_m=0.02,
+                             sigma_yaw_rad=0.01, inliers=150, matches=180, method="findme",
+                             time_ns=T0 + 14_000_000_000,
+                             gravity=S.MotionGravity(
+                                 status="agreed", angle_rad=0.9, sigma_a_rad=0.02,
+                                 sigma_b_rad=0.04, gravity_a=S.Vec3(x=0.0, y=0.866, z=0.5),
+                                 gravity_b=S.Vec3(x=0.01, y=0.87, z=0.49)))
     motion_failed = S.Motion(session=SESSION, index_a=4, index_b=5, inliers=3, matches=7,
                              method="sift+ratio+eq5-8",
                              error="too few matches: 7 (need 12)", time_ns=T0 + 13_000_000_000)
@@ -158,7 +166,7 @@ def sample_messages() -> list[tuple[str, object]]:
            ("hypotheses-empty", hset_empty), ("selection-user", sel),
            ("selection-auto", sel_auto), ("scene", scene), ("measure-request", req),
            ("measure-reply", reply), ("measure-reply-error", reply_err), ("motion", motion),
-           ("motion-failed", motion_failed), ("pose", pose), ("trajectory", traj),
+           ("motion-agreed", motion_agreed), ("motion-failed", motion_failed), ("pose", pose), ("trajectory", traj),
            ("plan", plan), ("plan-closed", plan_closed),
            ("plan-reason", plan_reason),
            ("error", err), ("error-no-session", err_nosession), ("status", status)]
