@@ -214,10 +214,10 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
         paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],
                            -ws[IDX["steps"]], limit=1)
-        ranked, seed = None, (paths[0] if paths else None)
+        cands, seed = None, (paths[0] if paths else None)
     else:
-        ranked, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
-                                        rows_t, params.seed_top)
+        cands, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, params, W, H,
+                                       rows_t, params.seed_top)
     if ws[IDX["region"]] != 0 and seed is not None:
         # the colour model is seeded by the best under the *search* weights, so the candidate
         # pool does not depend on the re-ranking weights (no feedback when fitting them)
@@ -226,10 +226,11 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
                              scale=params.likelihood_scale)
         if fl.valid:  # second pass with colour evidence inside the search
             F = with_region(F, fl.below(rows_t))
-            ranked = None
-    if ranked is None:
-        ranked, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H,
-                                     rows_t, params.rerank_top)
+            cands = None
+    if cands is None:
+        cands, _ = _search_and_rank(F, valid, ev, coef, stats, verts, ws, params, W, H,
+                                    rows_t, params.rerank_top, seed=False)
+    ranked = _ranked(cands, w)
     if clock:
         t.append(clock())
     if not ranked:
@@ -258,20 +259,21 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
                          _timing(t, ("lines", "support", "search", "rank")))
 
 
-def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows_t,
-                     top: int):
-    """Best paths under search weights ``ws``, re-scored under weights ``w``; the answer
-    "no floor visible" is among them when the search found it or when the search's best
-    boundary lies partly implausibly far (``search.farness``).
+def _search_and_rank(F, valid, ev, coef, stats, verts, ws, params, W, H, rows_t, top: int,
+                     seed: bool = True):
+    """Best paths under search weights ``ws`` and their features for re-ranking
+    (``_ranked``); the answer "no floor visible" is among them when the search found it or
+    when the search's best boundary lies partly implausibly far (``search.farness``).
 
     Returns:
-        (list of (score, path, rows at ``stats.cols``, features), best first;
-         the best path under ``ws``). A path is (score, start track, event chain).
+        ((paths, rows (K, len(stats.cols)) at ``stats.cols``, features (K, len(FEATURES)))
+         or () without paths; the best path under ``ws``, or None unless ``seed``). A path
+         is (score, start track, event chain).
     """
     A = rewards(F, valid, ws[:N_ADDITIVE])
     paths = best_paths(A, valid, ev, -ws[IDX["corners"]], -ws[IDX["steps"]], limit=top)
     if not paths:
-        return [], None
+        return (), None
     found = len(paths)
     none = len(A) - 1   # the BOTTOM track alone: "no floor visible"
     if (not any(p[1] == none and not p[2] for p in paths)
@@ -284,12 +286,19 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, w, params, W, H, rows
     rows = full_rows[:, stats.cols]
     feats = feature_matrix(path_features(pieces, F, len(paths)), stats.gain(rows),
                            vertical_in_floor(full_rows, verts), rows, W, H)
-    # scores without BLAS, ties (equal within ties.RTOL) in the search's order: the same
-    # ranking on every CPU
+    best = paths[ties.argmax(ties.matvec(feats[:found], ws))] if seed else None  # among the
+    return (paths, rows, feats), best                                  # search's own paths
+
+
+def _ranked(cands, w):
+    """list of (score, path, rows, features) of ``_search_and_rank``'s candidates under the
+    weights ``w``, best first (empty without candidates). Scores without BLAS, ties (equal
+    within ties.RTOL) in the search's order: the same ranking on every CPU."""
+    if not cands:
+        return []
+    paths, rows, feats = cands
     score = ties.matvec(feats, w)
-    order = ties.order(score)
-    seed = paths[ties.argmax(ties.matvec(feats[:found], ws))]   # among the search's own paths
-    return [(float(score[i]), paths[i], rows[i], feats[i]) for i in order], seed
+    return [(float(score[i]), paths[i], rows[i], feats[i]) for i in ties.order(score)]
 
 
 def _timing(t, names):

@@ -101,16 +101,21 @@ def _group_collinear(p1, p2, weight, angle_tol_deg, dist_tol_px):
     d1 = np.abs(dot2(nrm, p1) + c[:, None])
     d2 = np.abs(dot2(nrm, p2) + c[:, None])
     compat = cos_ok & (np.maximum(d1, d2) <= dist_tol_px)
-    group = np.full(n, -1)
-    g = 0
-    for i in np.argsort(-weight, kind="stable"):
-        if group[i] >= 0:
-            continue
-        members = compat[i] & (group < 0)
-        members[i] = True
-        group[members] = g
-        g += 1
-    return group, g
+    # the greedy pass on bit sets (Python ints, bit j of row i = compat[i, j]): a group is
+    # its seed's compatible segments not yet in a group, and the seed
+    nb = (n + 7) // 8
+    packed = np.packbits(compat, axis=1, bitorder="little").tobytes()
+    rows = [int.from_bytes(packed[i * nb:(i + 1) * nb], "little") for i in range(n)]
+    free = (1 << n) - 1
+    sets = []
+    for i in np.argsort(-weight, kind="stable").tolist():
+        if free >> i & 1:
+            members = (rows[i] & free) | (1 << i)
+            free &= ~members
+            sets.append(members)
+    bits = np.frombuffer(b"".join(m.to_bytes(nb, "little") for m in sets), np.uint8)
+    member = np.unpackbits(bits.reshape(len(sets), nb), axis=1, count=n, bitorder="little")
+    return np.argmax(member, axis=0), len(sets)   # each segment is in one group
 
 
 def merge_collinear(segments: np.ndarray, angle_tol_deg: float = 2.0,

@@ -42,12 +42,11 @@ class SnapParams:
     band_tol: float = 6.0        # Lab step between samples inside a uniform (baseboard) band
 
 
-def _depression(camera: Camera, pts: np.ndarray) -> np.ndarray:
-    """(M,) pixel distance from each point to the horizon, measured along the image
-    direction 'down' (towards the floor)."""
-    l = camera.horizon_line()
-    n = np.hypot(l[0], l[1])
-    return (pts @ l[:2] + l[2]) / max(n, 1e-12)
+def _depression(horizon: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """(M,) pixel distance from each point to the horizon (``Camera.horizon_line``, (3,)),
+    measured along the image direction 'down' (towards the floor)."""
+    n = np.hypot(horizon[0], horizon[1])
+    return (pts @ horizon[:2] + horizon[2]) / max(n, 1e-12)
 
 
 def _down(camera: Camera) -> np.ndarray:
@@ -72,45 +71,48 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     poly = np.array(polyline, float)
     H, W = image_lab.shape[:2]
     down = _down(camera)
-    lines = {}
+    dx, dy = float(down[0]), float(down[1])
+    P = poly.tolist()   # the arithmetic below on Python floats: the same IEEE operations as
+    lines = {}          # on numpy scalars, without their overhead
     wall = int(SegKind.WALL)
     for s, kind in enumerate(np.asarray(kinds).tolist()):   # Python ints: a numpy integer
         if kind != wall:                                     # against an enum is slow
             continue
-        a, b = poly[s], poly[s + 1]
-        key = keys[s] if keys is not None else (round(a[0]), round(a[1]), round(b[0]), round(b[1]))
+        (ax, ay), (bx, by) = P[s], P[s + 1]
+        key = keys[s] if keys is not None else (round(ax), round(ay), round(bx), round(by))
         if cache is not None and key in cache:
             shift = cache[key]
         else:
-            shift = segment_shifts(image_lab, camera, [(a, b)], down, p)[0]
+            shift = segment_shifts(image_lab, camera, [(poly[s], poly[s + 1])], down, p)[0]
             if cache is not None and shift is not None:
                 cache[key] = shift
         if shift is None:  # too short to measure: its corners follow the neighbours
             continue
-        d = b - a
-        n = np.array([-d[1], d[0]]) / max(math.hypot(d[0], d[1]), 1e-12)
-        if n[0] * down[0] + n[1] * down[1] < 0:
-            n = -n
-        lines[s] = (a + shift * n, d)   # point on the moved line, direction
-    if not lines:
+        ux, uy = bx - ax, by - ay
+        norm = max(math.hypot(ux, uy), 1e-12)
+        nx, ny = -uy / norm, ux / norm
+        if nx * dx + ny * dy < 0:
+            nx, ny = -nx, -ny
+        lines[s] = ((ax + shift * nx, ay + shift * ny), (ux, uy))  # point on the moved line,
+    if not lines:                                                  # direction
         return poly
     out = poly.copy()
-    for k in range(len(poly)):
+    for k in range(len(P)):
         left, right = lines.get(k - 1), lines.get(k)
         if left and right:
             x = _intersect(*left, *right)
-            lo = poly[k - 1, 0] if k > 0 else 0.0
-            hi = poly[k + 1, 0] if k + 1 < len(poly) else W - 1.0
+            lo = P[k - 1][0] if k > 0 else 0.0
+            hi = P[k + 1][0] if k + 1 < len(P) else W - 1.0
             # a corner of two nearly parallel lines can slide far when they move: then keep
             # its column (the polyline must stay monotonic in u) and take the lines' mean row
-            if x is not None and abs(x[0] - poly[k, 0]) <= 2.0 and lo <= x[0] <= hi:
+            if x is not None and abs(x[0] - P[k][0]) <= 2.0 and lo <= x[0] <= hi:
                 out[k] = x
             else:
-                out[k, 1] = (_row_at(*left, poly[k, 0]) + _row_at(*right, poly[k, 0])) / 2
+                out[k, 1] = (_row_at(*left, P[k][0]) + _row_at(*right, P[k][0])) / 2
             continue
         ln = left or right
         if ln is not None:
-            out[k, 1] = _row_at(*ln, poly[k, 0])
+            out[k, 1] = _row_at(*ln, P[k][0])
     return out
 
 
@@ -138,12 +140,12 @@ def _row_at(q, d, u):
 
 
 def _intersect(p, d, q, e):
-    """Intersection of the lines p + t d and q + s e (None if nearly parallel)."""
+    """Intersection (x, y) of the lines p + t d and q + s e (None if nearly parallel)."""
     det = e[0] * d[1] - d[0] * e[1]
     if abs(det) < 1e-9:
         return None
     t = (e[0] * (q[1] - p[1]) - e[1] * (q[0] - p[0])) / det
-    return p + t * d
+    return (p[0] + t * d[0], p[1] + t * d[1])
 
 
 def _median0(x: np.ndarray) -> np.ndarray:
@@ -168,6 +170,7 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
     """
     H, W = lab.shape[:2]
     s = _offsets(p)
+    horizon = camera.horizon_line()
     out: list = [None] * len(segments)
     picked = []                       # (segment, its column samples (n_in, S, 2), dep)
     for j, (a, b) in enumerate(segments):
@@ -182,7 +185,7 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
         base = base[inside]
         if len(base) < 4:
             continue
-        dep = np.maximum(_depression(camera, base), 1.0)
+        dep = np.maximum(_depression(horizon, base), 1.0)
         pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
         # a column of samples is a straight run: inside the image iff both its ends are
         ends = pts[:, [0, -1]]

@@ -208,40 +208,33 @@ def events(coef: np.ndarray, rows: np.ndarray, valid: np.ndarray, verticals: np.
         it = np.nonzero(okt)[0]
         for a, b in ((it, np.full(len(it), track)), (np.full(len(it), track), it)):
             src.append(a), dst.append(b), us.append(ut[it]), step.append(np.zeros(len(it), bool))
-    # occluding steps at the foot of vertical edges
-    for seg in np.asarray(verticals, float).reshape(-1, 4):
-        (u1, v1), (u2, v2) = seg[:2], seg[2:]
-        if np.hypot(u2 - u1, v2 - v1) < p.min_vertical_px:
-            continue
-        fu, fv = (u1, v1) if v1 > v2 else (u2, v2)
-        k = int(round(fu))
-        if not 1 <= k <= W - 2:
-            continue
-        r = rows[:, k]
-        near = np.nonzero(valid[:n, k] & (np.abs(r[:n] - fv) <= p.step_foot_tol_px))[0]
-        far = np.nonzero(valid[: n + 1, k] & (r[: n + 1] < fv - p.step_min_jump_px))[0]
-        if len(near) == 0 or len(far) == 0:
-            continue
-        a = np.repeat(near, len(far))
-        b = np.tile(far, len(near))
-        for s_, d_ in ((a, b), (b, a)):
-            src.append(s_), dst.append(d_), us.append(np.full(len(a), fu))
-            step.append(np.ones(len(a), bool))
+    # occluding steps at the foot of vertical edges: for each edge in turn, (near, far) for
+    # every near line at its foot and farther track, then the same pairs reversed
+    seg = np.asarray(verticals, float).reshape(-1, 4)
+    lower = seg[:, 1] > seg[:, 3]                 # the foot is the lower end
+    fu, fv = np.where(lower, seg[:, 0], seg[:, 2]), np.where(lower, seg[:, 1], seg[:, 3])
+    k = np.round(fu)
+    ok = ~(np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]) < p.min_vertical_px)
+    ok &= (k >= 1) & (k <= W - 2)
+    k, fu, fv = k[ok].astype(int), fu[ok], fv[ok]
+    r = rows[:, k]                                                   # (N + 2, V)
+    near = valid[:n, k] & (np.abs(r[:n] - fv) <= p.step_foot_tol_px)  # (N, V)
+    far = valid[: n + 1, k] & (r[: n + 1] < fv - p.step_min_jump_px)  # (N + 1, V)
+    e, a, b = np.nonzero(near.T[:, :, None] & far.T[:, None, :])     # by edge, near, far
+    if len(e):
+        c = np.bincount(e, minlength=len(k))                          # pairs per edge
+        first = np.arange(len(e)) + np.repeat(np.cumsum(c) - c, c)   # 2 blocks per edge
+        at = np.concatenate([first, first + np.repeat(c, c)])
+        for out, vals in ((src, np.concatenate([a, b])), (dst, np.concatenate([b, a])),
+                          (us, np.concatenate([fu[e], fu[e]]))):
+            arr = np.empty(2 * len(e), vals.dtype)
+            arr[at] = vals
+            out.append(arr)
+        step.append(np.ones(2 * len(e), bool))
     cat = np.concatenate
     u_all = cat(us) if us else np.zeros(0)
     return Events(cat(src).astype(int), cat(dst).astype(int),
                   np.clip(np.round(u_all + 0.5), 1, W - 1).astype(int), u_all, cat(step))
-
-
-def _beats(new: float, old: float) -> bool:
-    """``new`` is larger than ``old`` by more than the rounding of sums of their size
-    (``TIE_ABS + TIE_REL * max(|new|, |old|)``): else a tie, and the first met stays."""
-    d = new - old
-    if d <= TIE_ABS:
-        return False
-    an = new if new >= 0.0 else -new
-    ao = old if old >= 0.0 else -old
-    return d > TIE_ABS + TIE_REL * (an if an >= ao else ao)
 
 
 def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
@@ -276,8 +269,13 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
         val = fi + ai - c
         fval[e], pred[e] = val, ptr[i]
         new, old = val - aj, F[j]
-        if _beats(new, old):   # a tie: the first met
-            F[j], ptr[j] = new, e
+        # better by more than TIE_ABS + TIE_REL * max(|new|, |old|), else a tie: the first met
+        d = new - old
+        if d > TIE_ABS:
+            an = new if new >= 0.0 else -new
+            ao = old if old >= 0.0 else -old
+            if d > TIE_ABS + TIE_REL * (an if an >= ao else ao):   # a tie: the first met
+                F[j], ptr[j] = new, e
     # backward: B[t] so that the best suffix value from column k on t is B[t] - A[t][k]
     B = np.where(valid[:, -1], A[:, W], NEG).tolist()
     ptrb = [-1] * n_tracks
@@ -289,8 +287,12 @@ def best_paths(A: np.ndarray, valid: np.ndarray, ev: Events, corner_cost: float,
         suf = bj - aj
         sval[e], succ[e] = suf, ptrb[j]
         new, old = suf - c + ai, B[i]
-        if _beats(new, old):
-            B[i], ptrb[i] = new, e
+        d = new - old   # beats, as above
+        if d > TIE_ABS:
+            an = new if new >= 0.0 else -new
+            ao = old if old >= 0.0 else -old
+            if d > TIE_ABS + TIE_REL * (an if an >= ao else ao):
+                B[i], ptrb[i] = new, e
     # candidates: single tracks spanning the image, then the best path through each event
     single = np.nonzero(valid[:, 0] & valid[:, -1])[0]
     fv, sv = np.array(fval), np.array(sval)

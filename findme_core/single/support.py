@@ -39,6 +39,11 @@ class SupportParams:
 def sample_bilinear(arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Bilinear samples of a float32 image ``arr`` ((H, W) or (H, W, C)) at (..., 2) pixel
     positions (border replicated): shape pts.shape[:-1] (+ (C,))."""
+    return sample_bilinear_many((arr,), pts)[0]
+
+
+def sample_bilinear_many(arrs, pts: np.ndarray) -> list:
+    """``[sample_bilinear(arr, pts) for arr in arrs]``, the remap maps made once."""
     shape = pts.shape[:-1]
     flat = pts.reshape(-1, 2)
     m = len(flat)
@@ -47,11 +52,15 @@ def sample_bilinear(arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
     mx = np.zeros(rows * cols, np.float32)
     my = np.zeros(rows * cols, np.float32)
     mx[:m], my[:m] = flat[:, 0], flat[:, 1]
-    out = cv2.remap(arr, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
-    if arr.ndim == 3:
-        return out.reshape(rows * cols, -1)[:m].reshape(*shape, -1)
-    return out.reshape(-1)[:m].reshape(shape)
+    mx, my = mx.reshape(rows, cols), my.reshape(rows, cols)
+    outs = []
+    for arr in arrs:
+        out = cv2.remap(arr, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        if arr.ndim == 3:
+            outs.append(out.reshape(rows * cols, -1)[:m].reshape(*shape, -1))
+        else:
+            outs.append(out.reshape(-1)[:m].reshape(shape))
+    return outs
 
 
 @dataclass(frozen=True)
@@ -138,7 +147,7 @@ class EdgeField:
         p = self.params
         # one channel at a time: OpenCV remaps one float channel with exact bilinear
         # weights, several channels with weights quantised to 1/32 pixel
-        gx, gy = self.sample(self.gx, pts), self.sample(self.gy, pts)
+        gx, gy = sample_bilinear_many((self.gx, self.gy), pts)   # one pair of maps
         gn = np.abs(gx * normals[:, 0] + gy * normals[:, 1])
         gm = np.sqrt(gx * gx + gy * gy)
         aligned = gn >= np.cos(np.radians(p.max_angle_deg)) * gm
