@@ -101,6 +101,8 @@ def _group_collinear(p1, p2, weight, angle_tol_deg, dist_tol_px):
     d1 = np.abs(dot2(nrm, p1) + c[:, None])
     d2 = np.abs(dot2(nrm, p2) + c[:, None])
     compat = cos_ok & (np.maximum(d1, d2) <= dist_tol_px)
+    if n == 0:
+        return np.zeros(0, int), 0
     # the greedy pass on bit sets (Python ints, bit j of row i = compat[i, j]): a group is
     # its seed's compatible segments not yet in a group, and the seed
     nb = (n + 7) // 8

@@ -192,3 +192,42 @@ def test_a_group_of_zero_weight_points_gets_a_finite_line():
     assert np.isfinite(lines).all()
     for line, group in ((lines[0], pts[:2]), (lines[1], pts[2:])):   # y = 5, x = 3
         assert np.allclose(group @ line[:2] + line[2], 0.0, atol=1e-9)
+
+
+def _greedy_reference(compat, weight):
+    """The grouping written plainly: heaviest first, a group is its seed's compatible
+    segments not yet grouped, and the seed."""
+    group, g = np.full(len(weight), -1), 0
+    for i in np.argsort(-weight, kind="stable"):
+        if group[i] < 0:
+            members = compat[i] & (group < 0)
+            members[i] = True
+            group[members] = g
+            g += 1
+    return group, g
+
+
+def test_grouping_on_bit_sets_is_the_plain_greedy_grouping():
+    from findme_core.single.lines import _group_collinear
+    rng = np.random.default_rng(3)
+    for n in (0, 1, 7, 8, 9, 64, 150):
+        # segments along a few lines, jittered, so that groups form and overlap
+        base = rng.integers(0, 4, n)
+        t0, t1 = rng.uniform(0, 200, n), rng.uniform(200, 400, n)
+        ang = np.radians(base * 40.0 + rng.normal(0, 1.0, n))
+        off = base * 30.0 + rng.normal(0, 1.5, n)
+        d, nrm = np.column_stack([np.cos(ang), np.sin(ang)]), np.column_stack(
+            [-np.sin(ang), np.cos(ang)])
+        p1 = t0[:, None] * d + off[:, None] * nrm
+        p2 = t1[:, None] * d + off[:, None] * nrm
+        w = rng.uniform(1, 50, n)
+        got = _group_collinear(p1, p2, w, 2.0, 2.0)
+        # the same compatibility the function computes, then the plain loop
+        u = (p2 - p1) / np.hypot(*(p2 - p1).T)[:, None]
+        nn = np.column_stack([-u[:, 1], u[:, 0]])
+        c = -(nn * p1).sum(1)
+        dot = lambda a, b: a[:, None, 0] * b[None, :, 0] + a[:, None, 1] * b[None, :, 1]  # noqa: E731
+        compat = (np.abs(dot(u, u)) >= np.cos(np.radians(2.0))) & (np.maximum(
+            np.abs(dot(nn, p1) + c[:, None]), np.abs(dot(nn, p2) + c[:, None])) <= 2.0)
+        want = _greedy_reference(compat, w)
+        assert got[1] == want[1] and np.array_equal(got[0], want[0]), n
