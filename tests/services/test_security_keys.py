@@ -76,14 +76,21 @@ def test_every_service_refuses_a_payload_of_another_key_on_every_input(name, zse
         if kind == "error":
             continue   # no photo number; odometry reads only an Error naming its own session
         good = {"frame": frame, "hypotheses": hs.msg, "selection": schemas.Selection(
-            session="alice-1", index=0, rank=1, by=schemas.SELECTED_BY_USER)}[kind]
+            session="alice-1", index=0, rank=1, by=schemas.SELECTED_BY_USER),
+                "motion": schemas.Motion(session="alice-1", index_a=0, index_b=1, x_m=0.0,
+                                         z_m=0.0, yaw_rad=0.1)}[kind]
         for session, n in (("bob-1", 0), ("alice-1", 5)):
             forged = cls()
             forged.CopyFrom(good)
-            forged.session, forged.index = session, n
-            key = f"findme/alice-1/{kind}/0"
+            forged.session = session
+            if kind == "motion":      # a motion's key names both its photos
+                forged.index_a, forged.index_b = n, n + 1
+                key, claimed = "findme/alice-1/motion/0/1", f"findme/{session}/motion/{n}/{n + 1}"
+            else:
+                forged.index = n
+                key, claimed = f"findme/alice-1/{kind}/0", f"findme/{session}/{kind}/{n}"
             zsession.put(key, schemas.encode(forged))
-            sent.append((key, f"findme/{session}/{kind}/{n}"))
+            sent.append((key, claimed))
     errs = [schemas.decode(schemas.Error, p) for _, p in errors.wait(len(sent))]
     assert sorted((e.key, e.code) for e in errs) == sorted(
         (k, CODE.ERROR_CODE_FORBIDDEN) for k, _ in sent)
