@@ -14,7 +14,9 @@ by the turn's rotation-only yaws, ``findme locate-in PLAN.json PHOTO...``; "turn
 with the plan's photos, ``session.find`` of the group). The truth (used only to score) is
 v's pose in o's frame from the room's ``poses_planar``. Success: within 0.25 m and 5 deg (issue 16's bar). Also: whether any of
 the returned poses (best first; a symmetric room gives several) is right, and the
-ambiguity (runner-up score / best score). --cache keeps each room's analysed photos.
+ambiguity (runner-up score / best score), and what ``findme locate-in`` says
+(``relocalise.verdict``): the pose stated (right or wrong), or the candidates given (the
+right one among them or not). --cache keeps each room's analysed photos.
 """
 
 from __future__ import annotations
@@ -86,19 +88,23 @@ def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
     and "turn photos" (with the plan's photos: ``session.find`` of the group)."""
     block, rel = session.turn(new)
     try:
-        cands, _ = relocalise.locate_turn(plan, [p.layout for p in new], block, rel)
+        cands, found = relocalise.locate_turn(plan, [p.layout for p in new], block, rel)
+        ev = _evidence([p.score for p in found], found[0].agreeing, with_photos=False,
+                       turn=True)
         for k, row in enumerate(rows):
-            row["turn walls"] = (_errors(cands[:, k], truths[k]) if np.isfinite(cands[0, k, 0])
+            row["turn walls"] = ({**_errors(cands[:, k], truths[k]), **ev}
+                                 if np.isfinite(cands[0, k, 0])
                                  else {"error": "not linked to the turn's other photos"})
     except FindmeError as e:
         for row in rows:
             row["turn walls"] = {"error": str(e).splitlines()[0]}
     try:
-        cands, _ = session.find(photos, plan.poses, new)
+        cands, sc = session.find(photos, plan.poses, new)
         for k, row in enumerate(rows):
             ok = np.isfinite(cands[:, k, 0])
-            row["turn photos"] = (_errors(cands[ok, k], truths[k]) if ok.any() else
-                                  {"error": "not placed with the turn"})
+            row["turn photos"] = ({**_errors(cands[ok, k], truths[k]),
+                                   **_evidence(sc[ok], turn=True)}
+                                  if ok.any() else {"error": "not placed with the turn"})
     except FindmeError as e:
         for row in rows:
             row["turn photos"] = {"error": str(e).splitlines()[0]}
@@ -114,15 +120,26 @@ def _locate(plan, photos, new, truth, row) -> dict:
                     raise FindmeError(f"no layout: {new.reason}")
                 found = relocalise.locate(plan, new.layout)
                 cands = np.array([(p.x, p.z, p.yaw) for p in found])
-                sc = np.array([p.score for p in found])
+                sc, agreeing = np.array([p.score for p in found]), found[0].agreeing
             else:                    # with the plan's photos: their features and motions too
                 cands, sc = session.find(photos, plan.poses, new)
+                agreeing = None
         except FindmeError as e:
             row[how] = {"error": str(e).splitlines()[0]}
             continue
-        row[how] = {**_errors(cands, truth),
-                    "ambiguity": float(sc[1] / sc[0]) if len(sc) > 1 and sc[0] > 0 else 0.0}
+        row[how] = {**_errors(cands, truth), **_evidence(sc, agreeing, how == "photos")}
     return row
+
+
+def _evidence(scores, agreeing=None, with_photos: bool = True, turn: bool = False) -> dict:
+    """What the answer rests on: the best candidate's score, the runner-up's share of it
+    (``ambiguity``, 0 with one candidate), the best's agreeing wall samples (walls), and
+    whether ``findme locate-in`` states it (``relocalise.verdict``) or gives candidates."""
+    sc = np.asarray(scores, float)
+    out = {"score": float(sc[0]),
+           "ambiguity": float(sc[1] / sc[0]) if len(sc) > 1 and sc[0] > 0 else 0.0,
+           "found": relocalise.verdict(sc, with_photos, turn)[0]}
+    return out if agreeing is None else {**out, "agreeing": int(agreeing)}
 
 
 def main(argv=None) -> int:
@@ -135,7 +152,8 @@ def main(argv=None) -> int:
         rooms = sorted(json.load(f)["subsets"].get("zind-rooms", {}).get("rooms", []))
     rows = []
     print("| room | photos | from | localised (<= 0.25 m, 5 deg) | any candidate right | "
-          "translation median | yaw median | no answer |\n|---|---|---|---|---|---|---|---|")
+          "translation median | yaw median | no answer | stated: right / wrong | candidates "
+          "given: the right one among them |\n|---|---|---|---|---|---|---|---|---|---|")
     for rid in rooms:
         rr = room(a.dataset, rid, a.cache)
         rows += rr
@@ -156,9 +174,12 @@ def _line(name, how, rows) -> str:
     done = [r[how] for r in rows if how in r and "error" not in r[how]]
     med = (lambda k: float(np.median([d[k] for d in done])) if done else float("nan"))
     n_ok = sum(d["ok"] for d in done)
+    stated = [d for d in done if d["found"]]
+    given = [d for d in done if not d["found"]]
     return (f"| {name} | {len(rows)} | {how} | {n_ok} ({n_ok / max(len(rows), 1):.2f}) | "
             f"{sum(d['any_ok'] for d in done)} | {med('t_m'):.3f} m | {med('yaw_deg'):.2f} deg | "
-            f"{len(rows) - len(done)} |")
+            f"{len(rows) - len(done)} | {sum(d['ok'] for d in stated)} / "
+            f"{sum(not d['ok'] for d in stated)} | {len(given)}: {sum(d['any_ok'] for d in given)} |")
 
 
 if __name__ == "__main__":

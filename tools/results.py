@@ -172,7 +172,8 @@ def _room_answer_rows(runs) -> list[str]:
 def _locate_rows(rows) -> list[str]:
     """"Find me" rows from ``tools/locate_report.py --json``: per room and pooled, each way."""
     out = ["| room | photos | from | localised | a right pose among the candidates | "
-           "translation median | yaw median |", "|---|---|---|---|---|---|---|"]
+           "translation median | yaw median | stated: right / wrong | candidates given: the "
+           "right one among them |", "|---|---|---|---|---|---|---|---|---|"]
     rooms = sorted({r["room"] for r in rows})
     for name in rooms + ["all"]:
         rr = [r for r in rows if name in ("all", r["room"])]
@@ -182,7 +183,11 @@ def _locate_rows(rows) -> list[str]:
             out.append(f"| {name} | {len(rr)} | {how} | "
                        f"{sum(d['ok'] for d in done) / max(len(rr), 1):.2f} | "
                        f"{sum(d['any_ok'] for d in done)} | {med('t_m', '.3f')} m | "
-                       f"{med('yaw_deg', '.2f')}° |")
+                       f"{med('yaw_deg', '.2f')}° | "
+                       f"{sum(d['ok'] for d in done if d['found'])} / "
+                       f"{sum(not d['ok'] for d in done if d['found'])} | "
+                       f"{sum(not d['found'] for d in done)}: "
+                       f"{sum(d['any_ok'] for d in done if not d['found'])} |")
     return out
 
 
@@ -296,7 +301,9 @@ def main(argv=None):
         "PHOTO`), \"photos\" with the plan's photos too (`--photos`: the new photo's feature "
         "matches and motions with them); \"turn\": the spot's photos found together (`findme "
         "locate-in PLAN.json PHOTO...`: a user turning round at the new place). Localised: "
-        "within 0.25 m and 5°.", "",
+        "within 0.25 m and 5°. \"stated\": `locate-in` says \"you are at\" (only a turn with "
+        "the plan's photos and a clear best: `relocalise.verdict`); otherwise it says it cannot "
+        "tell and gives its candidates, best first.", "",
         *_locate_rows(locate), "",
         *results_trust.section(a.split, ours, loro, ours_preds, nograv_preds, trust_tools),
     ]

@@ -3,7 +3,8 @@ calls it): leave-one-room-out figures beside the in-sample ones, the coverage of
 sigma, the rooms with gravity withheld, and how each fitted constant was chosen.
 
 ``run(split, tmp)`` runs what it needs (``fit_ranker --loro-out``, ``loro_eval``,
-``calibrate_plan`` with the dataset's and with withheld gravity, ``choose_ambiguity``) and
+``calibrate_plan`` with the dataset's and with withheld gravity, ``choose_ambiguity``,
+``choose_level_prior``, ``choose_alternatives``) and
 returns the markdown lines, given the scored in-sample runs.
 """
 
@@ -86,6 +87,8 @@ def run(split: Path, tmp: Path) -> dict:
     out["plan_given"] = _tool("calibrate_plan.py", split)
     out["plan_withheld"] = _tool("calibrate_plan.py", split, "--gravity", "withheld")
     out["ambiguity"] = _tool("choose_ambiguity.py", split)
+    out["level"] = _tool("choose_level_prior.py", split)
+    out["alternatives"] = _tool("choose_alternatives.py", split)
     return out
 
 
@@ -122,4 +125,13 @@ def section(split: Path, ours_scored: dict, loro_scored: dict, ours_preds: dict,
         "**Gravity's ambiguity ratio** (`tools/choose_ambiguity.py`: a frame scoring this share "
         "of the best, more than 5° away, widens the 1-sigma over it):", "", "```",
         *tools["ambiguity"].strip().splitlines(), "```", "",
+        "**\"Level assumed\"** (`tools/choose_level_prior.py`: when a photo's lines tell nothing, "
+        "its tilt is only known to be a hand-held photo's; the prior's 1-sigma per axis is the "
+        "RMS of the other rooms' true tilts):", "", "```",
+        *tools["level"].strip().splitlines()[-3:], "```", "",
+        "**A motion's alternatives** (`tools/choose_alternatives.py`: refined motions scoring at "
+        "least this share of the best widen its 1-sigma; kept at 0.8: lower ratios cover the "
+        "wrong answers by chance, an alternative is the right motion in at most 1 of them, and "
+        "left out room06 takes 0.9):", "", "```",
+        *tools["alternatives"].strip().splitlines(), "```", "",
     ]

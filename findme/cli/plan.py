@@ -177,23 +177,33 @@ def cmd_locate_in(args) -> int:
              for c, s, a in zip(cands, scores, agreeing)]
     best = poses[0]
     amb = (poses[1]["score"] / best["score"] if len(poses) > 1 and best["score"] > 0 else 0.0)
-    out = {"pose": best, "alternatives": poses[1:], "ambiguity": round(amb, 3)}
+    found, why = relocalise.verdict(scores, bool(args.photos), turn=len(photos) > 1)
+    out = {"pose": best, "alternatives": poses[1:], "ambiguity": round(amb, 3),
+           "found": found, **({"reason": why} if why else {})}
     if len(photos) > 1:
         out["photos"] = {n: _pose(c) if np.isfinite(c[0]) else None
                          for n, c in zip(names, cands[0])}
     if args.json:
         print(json.dumps(out))
         return 0
-    print(f"you are at x {best['x_m']:+.2f} z {best['z_m']:+.2f}, facing "
-          f"{best['yaw_deg']:+.1f} deg" + (f" in {best['photo']}" if len(photos) > 1 else "")
-          + (f" ({best['agreeing']} wall samples agree)" if "agreeing" in best else ""))
+    where = [_where(q, len(photos) > 1) for q in poses]
+    if found:
+        print(f"you are at {where[0]}")
+    else:
+        print(f"cannot tell where you are: {why}. {len(poses)} place(s) fit, best first:")
+        for k, q in enumerate(poses):
+            print(f"  {k + 1}. {where[k]}, score {q['score']:.1f}"
+                  + (f" ({q['agreeing']} wall samples agree)" if "agreeing" in q else ""))
     lost = [n for n, c in zip(names, cands[0]) if not np.isfinite(c[0])]
     if lost:
         print(f"  not placed (no view shared with the other photos): {', '.join(lost)}")
-    if amb > 0.8:
-        print(f"  ambiguous: {len(poses) - 1} other pose(s) fit almost as well "
-              f"(runner-up {amb:.0%} of the best score)")
     return 0
+
+
+def _where(q: dict, many: bool) -> str:
+    """A found pose as the user reads it (``many``: which photo of a turn it is)."""
+    return (f"x {q['x_m']:+.2f} z {q['z_m']:+.2f}, facing {q['yaw_deg']:+.1f} deg"
+            + (f" in {q['photo']}" if many else ""))
 
 
 def _photos(paths, args) -> list:

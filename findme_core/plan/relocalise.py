@@ -146,3 +146,44 @@ def locate_turn(plan: Plan, layouts, block, rel, **kw) -> tuple[np.ndarray, list
         for k in np.flatnonzero(block == main):
             poses[c, k] = (p.x, p.z, wrap(p.yaw + rel[k] - rel[idx[0]]))
     return poses, found
+
+
+#: A found pose is stated only when the runner-up scores less than this share of it.
+FOUND_RATIO = 0.8
+
+
+def verdict(scores, with_photos: bool, turn: bool,
+            ratio: float = FOUND_RATIO) -> tuple[bool, str | None]:
+    """Whether "find me" can state its best pose, or only give its candidates, and why not.
+
+    ``scores``: (C,) the candidates' scores, best first; ``with_photos``: the plan's photos
+    took part (feature matches and motions), not the plan's walls alone; ``turn``: several
+    photos taken standing at one place, found together.
+
+    Measured on the dev rooms, each spot found on the plan of the others
+    (``tools/locate_report.py``, 54 photos), the best candidate was the right pose (0.25 m,
+    5 deg) for 7 photos from the plan's walls alone, 18 turning; with the plan's photos 24
+    alone, 39 turning. So a pose is stated only from a turn with the plan's photos, whose best
+    scores above zero and whose runner-up scores under ``ratio`` of it: 35 stated there, all
+    right (the 15 others given as candidates, the right one among them each time). Anything
+    else gives the candidates: a room's walls fit several poses alike (a rectangle turned half
+    round, a corner like every corner), and one photo's matches leave too few walls in view.
+
+    Returns:
+        (True, None) to state the best pose; (False, the reason) to give the candidates.
+    """
+    sc = np.asarray(scores, float)
+    if len(sc) == 0:
+        raise GeometryError("no candidate pose to judge")
+    if not with_photos:
+        return False, ("the plan's walls alone fit several places alike; give the plan's "
+                       "photos (--photos) and take photos all round where you stand")
+    if not turn:
+        return False, ("one photo shows too little of the room to tell these places apart; "
+                       "take photos all round where you stand")
+    if not sc[0] > 0:
+        return False, "no place fits the plan better than it contradicts it"
+    if len(sc) > 1 and not sc[1] < ratio * sc[0]:
+        return False, (f"the runner-up fits {sc[1] / sc[0]:.0%} as well as the best; take "
+                       "more photos all round where you stand")
+    return True, None
