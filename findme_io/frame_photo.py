@@ -138,13 +138,13 @@ def frame_inputs(frame) -> tuple[np.ndarray, Camera]:
     return image, cam
 
 
-def best_again(image: np.ndarray, scale: float, camera: Camera, height: float,
+def best_again(image: np.ndarray, scale: float, camera: Camera, height: float | None,
                method: str = "findme"):
     """(the best boundary hypothesis of a photo under ``camera``'s gravity, or None and the
     reason): a photo whose automatically chosen boundary was found under a gravity that
     turned out wrong is hypothesized again under the right one. ``image``: the photo decoded
     at ``scale`` of its size; ``camera``: the photo's own (its pixels, the gravity to use);
-    ``height``: camera height, metres (1 = up to scale). The polyline is in the photo's
+    ``height``: camera height, metres (None: unknown). The polyline is in the photo's
     pixels."""
     try:
         hs = hypothesize(image, scaled_camera(camera, scale, image.shape[1], image.shape[0]),

@@ -221,7 +221,8 @@ class MeasurementHandler(Handler):
                  self._fetched(session, "frame", n, schemas.Frame))
         sc = held.scene
         try:
-            poly, kinds = boundary_under(frame, new[0], sc.height, by, sc.polyline, sc.kinds)
+            poly, kinds = boundary_under(frame, new[0], sc.height if held.metric else None, by,
+                                         sc.polyline, sc.kinds)
             if poly is None:
                 raise HypothesisError(kinds)
             scene = scene_of(*new, sc.height, sc.height_sigma, poly, kinds)

@@ -63,10 +63,11 @@ def under_agreed(agreed, cam, prov: Provenance):
             replace(prov, gravity="image", gravity_cov=tilt_cov(sigma), estimate=None))
 
 
-def boundary_under(frame, cam, height: float, by: int | None, polyline, kinds):
+def boundary_under(frame, cam, height: float | None, by: int | None, polyline, kinds):
     """((M, 2) polyline, (M - 1,) kinds) of a photo under ``cam``'s (agreed) gravity: the
     user's as it is; an automatic choice found again in ``frame`` (its Frame message, or None
-    when it is gone); or (None, the reason) when there is none."""
+    when it is gone; ``height``: camera height in metres, None when not known), as the
+    hypotheses service found it; or (None, the reason) when there is none."""
     if by == schemas.SELECTED_BY_USER:
         return polyline, kinds
     if frame is None:
