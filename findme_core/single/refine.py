@@ -25,7 +25,7 @@ import numpy as np
 
 from findme_core.geometry.camera import Camera
 from findme_core.single.search import SegKind
-from findme_core.single.support import sample_bilinear
+from findme_core.single.support import sample_bilinear_xy
 
 
 @dataclass(frozen=True)
@@ -172,39 +172,47 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
     s = _offsets(p)
     horizon = camera.horizon_line()
     out: list = [None] * len(segments)
-    picked = []                       # (segment, its column samples (n_in, S, 2), dep)
-    for j, (a, b) in enumerate(segments):
-        d = b - a
-        n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
-        if n_cols < 4:
-            continue
-        t = (np.arange(n_cols) + 0.5) / n_cols
-        base = a[None, :] + t[:, None] * d[None, :]
-        inside = ((base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0)
-                  & (base[:, 1] <= H - 1))
-        base = base[inside]
-        if len(base) < 4:
-            continue
-        dep = np.maximum(_depression(horizon, base), 1.0)
-        pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
-        # a column of samples is a straight run: inside the image iff both its ends are
-        ends = pts[:, [0, -1]]
-        cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
-                & (ends[..., 1] <= H - 1)).all(1)
-        if int(cols.sum()) < 4:
-            continue
-        picked.append((j, pts[cols], dep[cols]))
-    if not picked:
+    # every segment's columns at once, elementwise as one segment at a time: column i of a
+    # segment with n columns lies at t = (i + 0.5) / n of it
+    a = np.array([q for q, _ in segments], float).reshape(-1, 2)
+    d = np.array([r for _, r in segments], float).reshape(-1, 2) - a
+    n = np.array([int(math.hypot(x, y) // p.step_px) for x, y in d.tolist()], int)
+    n = np.where(n < 4, 0, n)                     # too short: no columns
+    seg = np.repeat(np.arange(len(n)), n)
+    i = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+    t = (i + 0.5) / n[seg]
+    base = a[seg] + t[:, None] * d[seg]
+    inside = ((base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0)
+              & (base[:, 1] <= H - 1))
+    seg, base = seg[inside], base[inside]
+    ok = np.bincount(seg, minlength=len(n)) >= 4
+    seg, base = seg[ok[seg]], base[ok[seg]]
+    bounds = np.searchsorted(seg, np.arange(len(n) + 1))
+    # the depression one segment at a time: the same matrix product as before
+    dep = np.concatenate([np.zeros(0)] + [_depression(horizon, base[bounds[j]:bounds[j + 1]])
+                                          for j in np.nonzero(ok)[0].tolist()])
+    dep = np.maximum(dep, 1.0)
+    # the samples' columns and rows apart (a last axis of 2 is numpy's slowest case), each
+    # base + (s * dep) * down as before
+    sd = s[None, :] * dep[:, None]                                         # (M, S)
+    px = base[:, :1] + sd * float(down[0])
+    py = base[:, 1:] + sd * float(down[1])
+    # a column of samples is a straight run: inside the image iff both its ends are
+    cols = ((px[:, 0] >= 0) & (px[:, 0] <= W - 1) & (py[:, 0] >= 0) & (py[:, 0] <= H - 1)
+            & (px[:, -1] >= 0) & (px[:, -1] <= W - 1) & (py[:, -1] >= 0)
+            & (py[:, -1] <= H - 1))
+    ok = np.bincount(seg[cols], minlength=len(n)) >= 4
+    keep = cols & ok[seg]
+    if not keep.any():
         return out
+    seg, dep = seg[keep], dep[keep]
     # every segment's samples in one remap (bilinear per sample: the same values as one
-    # remap per segment)
-    # (every sample lies in the image: the border mode plays no part)
-    prof_all = sample_bilinear(lab, np.concatenate([q for _, q, _ in picked]))
-    at = 0
-    for j, q, dep in picked:
-        n_in = len(q)
-        out[j] = _shift_from_profile(prof_all[at:at + n_in].astype(np.float32), s, dep, p)
-        at += n_in
+    # remap per segment; every sample lies in the image: the border mode plays no part)
+    prof_all = sample_bilinear_xy((lab,), px[keep], py[keep])[0]
+    bounds = np.searchsorted(seg, np.arange(len(n) + 1)).tolist()
+    for j in np.nonzero(ok)[0].tolist():
+        lo, hi = bounds[j], bounds[j + 1]
+        out[j] = _shift_from_profile(prof_all[lo:hi].astype(np.float32), s, dep[lo:hi], p)
     return out
 
 
