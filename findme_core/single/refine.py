@@ -149,13 +149,12 @@ def _intersect(p, d, q, e):
 
 
 def _median0(x: np.ndarray) -> np.ndarray:
-    """np.median(x, axis=0), by one partition (same values, less overhead)."""
+    """np.median(x, axis=0) of x without NaN, by one sort (the same order statistics, so the
+    same values; numpy sorts faster than it partitions each of many short columns)."""
     n = x.shape[0]
     k = n // 2
-    if n % 2:
-        return np.partition(x, k, axis=0)[k]
-    q = np.partition(x, (k - 1, k), axis=0)
-    return (q[k - 1] + q[k]) / 2
+    q = np.sort(x, axis=0)
+    return q[k] if n % 2 else (q[k - 1] + q[k]) / 2
 
 
 def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
@@ -210,19 +209,21 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
     # remap per segment; every sample lies in the image: the border mode plays no part)
     prof_all = sample_bilinear_xy((lab,), px[keep], py[keep])[0]
     bounds = np.searchsorted(seg, np.arange(len(n) + 1)).tolist()
+    fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])   # where the floor is sampled
+    start = int(np.searchsorted(s, 0.0))                    # the line's offset
     for j in np.nonzero(ok)[0].tolist():
         lo, hi = bounds[j], bounds[j + 1]
-        out[j] = _shift_from_profile(prof_all[lo:hi].astype(np.float32), s, dep[lo:hi], p)
+        out[j] = _shift_from_profile(prof_all[lo:hi].astype(np.float32), s, dep[lo:hi], p,
+                                     fb, start)
     return out
 
 
-def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
+def _shift_from_profile(prof, s, dep, p: SnapParams, fb, start: int) -> float:
     """The shift from a segment's (n_in, S, 3) colour samples at offsets s (S,) and its
-    columns' depressions dep (n_in,)."""
+    columns' depressions dep (n_in,); fb (S,): the offsets of the floor band; the line is
+    at offset index ``start``."""
     prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
-    fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
     floor = _median0(prof[fb])
-    start = int(np.searchsorted(s, 0.0))
     settle = _band_end(prof, s, start, floor, p)
     if settle is None:
         settle = _settling(prof, s, start, floor, p)
@@ -249,12 +250,14 @@ def _settling(prof, s, start: int, floor, p: SnapParams) -> int | None:
     within ``settle_tol`` of the floor's colour for ``settle_len``, within ``max_rel``; None
     when it never does."""
     diff = prof - floor
-    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
+    dd = diff * diff   # |diff|^2 as (dd0 + dd1) + dd2, as (diff * diff).sum(1) adds it
+    far = (np.sqrt(dd[:, 0] + dd[:, 1] + dd[:, 2]) > p.settle_tol).tolist()
     win = max(1, int(round(p.settle_len / p.s_step)))
-    cf = np.concatenate([[0], np.cumsum(far)])
-    ks = np.arange(start, len(s) - win)
-    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
-    return int(ks[hit[0]]) if len(hit) else None
+    within = (s <= p.max_rel).tolist()
+    for k in range(start, len(s) - win):     # the first clean window, a dozen at most
+        if within[k] and not any(far[k:k + win]):
+            return k
+    return None
 
 
 def _band_end(prof, s, start: int, floor, p: SnapParams) -> int | None:
@@ -271,8 +274,9 @@ def _band_end(prof, s, start: int, floor, p: SnapParams) -> int | None:
         ``settle_tol`` within ``max_rel``.
     """
     step = np.sqrt(((prof[1:] - prof[:-1]) ** 2).sum(1))   # (S - 1,) sample to sample
+    flat = (step < p.band_tol).tolist()   # compared as numpy compares, then Python bools
     i = start + 1
-    while i < len(step) and step[i] < p.band_tol:
+    while i < len(flat) and flat[i]:
         i += 1
     if i >= len(step) or i - start < 3 or step[i] < p.settle_tol or s[i + 1] > p.max_rel:
         return None
