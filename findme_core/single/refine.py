@@ -63,7 +63,9 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     Args:
         image_lab: (H, W, 3) Lab image (``appearance.to_lab``: uint8; float32 works too).
         polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
-        cache: optional dict reused across the hypotheses of one image.
+        cache: optional dict reused across the hypotheses of one image: key -> shift, and
+            ``_short(key, a, b)`` -> None for a segment (a, b) measured too short to tell
+            (the same segment of another hypothesis is then not measured again).
         keys: optional cache key per segment, e.g. the id of the image line it lies on: the
             band under a line is a property of the line, so each line is measured once
             (default: the segment's rounded end points).
@@ -80,12 +82,13 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
             continue
         (ax, ay), (bx, by) = P[s], P[s + 1]
         key = keys[s] if keys is not None else (round(ax), round(ay), round(bx), round(by))
-        if cache is not None and key in cache:
-            shift = cache[key]
+        short = _short(key, P[s], P[s + 1])
+        if cache is not None and (key in cache or short in cache):
+            shift = cache[key] if key in cache else None
         else:
             shift = segment_shifts(image_lab, camera, [(poly[s], poly[s + 1])], down, p)[0]
-            if cache is not None and shift is not None:
-                cache[key] = shift
+            if cache is not None:
+                cache[key if shift is not None else short] = shift
         if shift is None:  # too short to measure: its corners follow the neighbours
             continue
         ux, uy = bx - ax, by - ay
@@ -121,7 +124,8 @@ def prefetch(image_lab: np.ndarray, camera: Camera, polylines, p: SnapParams,
     """Fill ``cache`` (as ``snap_polyline`` fills it) with the shift of every WALL segment
     of ``polylines`` [(polyline (M, 2), kinds (M - 1,), keys (M - 1,))] not in it yet, all
     measured in one remap; a key's segment is its first one, as one by one. Then
-    ``snap_polyline`` with the same cache and keys gives what it gives without this."""
+    ``snap_polyline`` with the same cache and keys gives what it gives without this (and
+    the cache holds what it would hold)."""
     down = _down(camera)
     wall = int(SegKind.WALL)
     todo: dict = {}
@@ -132,7 +136,16 @@ def prefetch(image_lab: np.ndarray, camera: Camera, polylines, p: SnapParams,
                 todo[keys[k]] = (poly[k], poly[k + 1])
     for key, shift in zip(todo, segment_shifts(image_lab, camera, list(todo.values()), down, p)):
         if shift is not None:   # as snap_polyline: a segment too short to tell is not kept
-            cache[key] = shift  # (a longer one of the same line, later, may tell)
+            cache[key] = shift  # for its line (a longer one of the same line, later, may
+        else:                   # tell), only for itself
+            a, b = todo[key]
+            cache[_short(key, a.tolist(), b.tolist())] = None
+
+
+def _short(key, a, b) -> tuple:
+    """The cache key saying that the segment a-b ([x, y] lists) of line ``key`` is too short
+    to tell (no line key is a tuple starting with this string)."""
+    return ("too short", key, *a, *b)
 
 
 def _row_at(q, d, u):
@@ -168,8 +181,6 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
         per segment the shift in pixels (0 = keep) or None (too little of it to tell).
     """
     H, W = lab.shape[:2]
-    s = _offsets(p)
-    horizon = camera.horizon_line()
     out: list = [None] * len(segments)
     # every segment's columns at once, elementwise as one segment at a time: column i of a
     # segment with n columns lies at t = (i + 0.5) / n of it
@@ -177,6 +188,8 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
     d = np.array([r for _, r in segments], float).reshape(-1, 2) - a
     n = np.array([int(math.hypot(x, y) // p.step_px) for x, y in d.tolist()], int)
     n = np.where(n < 4, 0, n)                     # too short: no columns
+    if not n.any():
+        return out
     seg = np.repeat(np.arange(len(n)), n)
     i = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
     t = (i + 0.5) / n[seg]
@@ -185,29 +198,32 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
               & (base[:, 1] <= H - 1))
     seg, base = seg[inside], base[inside]
     ok = np.bincount(seg, minlength=len(n)) >= 4
+    if not ok.any():
+        return out
     seg, base = seg[ok[seg]], base[ok[seg]]
+    s = _offsets(p)
+    horizon = camera.horizon_line()
     bounds = np.searchsorted(seg, np.arange(len(n) + 1))
     # the depression one segment at a time: the same matrix product as before
     dep = np.concatenate([np.zeros(0)] + [_depression(horizon, base[bounds[j]:bounds[j + 1]])
                                           for j in np.nonzero(ok)[0].tolist()])
     dep = np.maximum(dep, 1.0)
-    # the samples' columns and rows apart (a last axis of 2 is numpy's slowest case), each
-    # base + (s * dep) * down as before
-    sd = s[None, :] * dep[:, None]                                         # (M, S)
-    px = base[:, :1] + sd * float(down[0])
-    py = base[:, 1:] + sd * float(down[1])
-    # a column of samples is a straight run: inside the image iff both its ends are
-    cols = ((px[:, 0] >= 0) & (px[:, 0] <= W - 1) & (py[:, 0] >= 0) & (py[:, 0] <= H - 1)
-            & (px[:, -1] >= 0) & (px[:, -1] <= W - 1) & (py[:, -1] >= 0)
-            & (py[:, -1] <= H - 1))
+    # a column of samples is a straight run: inside the image iff both its ends are (each
+    # sample at base + (s * dep) * down, as before; columns and rows apart: numpy is slowest
+    # on a last axis of 2)
+    dx, dy = float(down[0]), float(down[1])
+    e = s[[0, -1]][None, :] * dep[:, None]                                 # (M, 2)
+    ex, ey = base[:, :1] + e * dx, base[:, 1:] + e * dy
+    cols = ((ex >= 0) & (ex <= W - 1) & (ey >= 0) & (ey <= H - 1)).all(1)
     ok = np.bincount(seg[cols], minlength=len(n)) >= 4
     keep = cols & ok[seg]
     if not keep.any():
         return out
-    seg, dep = seg[keep], dep[keep]
+    seg, dep, base = seg[keep], dep[keep], base[keep]
+    sd = s[None, :] * dep[:, None]                                         # (M, S)
     # every segment's samples in one remap (bilinear per sample: the same values as one
     # remap per segment; every sample lies in the image: the border mode plays no part)
-    prof_all = sample_bilinear_xy((lab,), px[keep], py[keep])[0]
+    prof_all = sample_bilinear_xy((lab,), base[:, :1] + sd * dx, base[:, 1:] + sd * dy)[0]
     bounds = np.searchsorted(seg, np.arange(len(n) + 1)).tolist()
     fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])   # where the floor is sampled
     start = int(np.searchsorted(s, 0.0))                    # the line's offset
