@@ -137,16 +137,19 @@ def vertical_in_floor(rows: np.ndarray, verticals: np.ndarray, n_samples: int = 
 
 
 def floor_candidates(image: np.ndarray, camera: Camera, params: HypothesisParams,
-                     segments: Segments | None = None):
+                     segments: Segments | None = None, top: int | None = None):
     """Detect (or take from ``segments``), merge and classify lines.
 
     Args:
         segments: a whole-image detection of this image (``Segments.detect``), used when it
             is what ``params`` would detect: then only its part below the horizon is taken.
+        top: the first image row searched when known (default: ``horizon_top_row`` if
+            ``params.below_horizon_only``, else 0).
     Returns:
         (Lines, kinds (N,), indices of floor-candidate lines, indices of vertical lines).
     """
-    top = horizon_top_row(camera) if params.below_horizon_only else 0
+    if top is None:
+        top = horizon_top_row(camera) if params.below_horizon_only else 0
     H, W = image.shape[:2]
     if (segments is not None and params.segment_method == "lsd"
             and segments.fits(W, H, params.lsd_scale, params.min_segment_px)):
@@ -190,7 +193,8 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     _check_image(image, camera)
     H, W = image.shape[:2]
     t = [clock()] if clock else []
-    lines, kinds, cand, vert = floor_candidates(image, camera, params, segments)
+    top = horizon_top_row(camera) if params.below_horizon_only else 0
+    lines, kinds, cand, vert = floor_candidates(image, camera, params, segments, top)
     if clock:
         t.append(clock())
     if len(cand) == 0:
@@ -199,7 +203,6 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         return HypothesisSet(W, H, [], lines, kinds, reason, _timing(t, ("lines",)))
     coef = lines.coef[cand]
     lab = to_lab(image)
-    top = horizon_top_row(camera) if params.below_horizon_only else 0
     field = EdgeField(image, params.support, color=lab, top_row=top)
     table = tabulate(field, coef, params.substeps)
     if clock:

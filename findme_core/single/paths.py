@@ -25,21 +25,23 @@ def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarr
     """
     n = len(coef)
     seg_kind = {n: SegKind.OPEN, n + 1: SegKind.NONE}
+    lines = np.asarray(coef).tolist()   # Python floats: the same IEEE operations as numpy's
+    ev_at = list(chain)                 # scalars, without their overhead
 
     def row(t, u):
         if t >= n:
             return -0.5 if t == n else height - 0.5
-        return -(coef[t, 0] * u + coef[t, 2]) / coef[t, 1]
+        a, b, c = lines[t]
+        return -(a * u + c) / b
 
     track = start
     pts = [(0.0, row(track, 0.0))]
     kinds: list[int] = []
     tracks: list[int] = []
-    for e in chain:
-        d = int(ev.dst[e])
-        u = float(ev.u[e])
+    for d, u, step in zip(ev.dst[ev_at].tolist(), ev.u[ev_at].astype(float).tolist(),
+                          ev.step[ev_at].tolist()):
         here = seg_kind.get(track, SegKind.WALL)
-        if ev.step[e]:
+        if step:
             pts += [(u - 0.25, row(track, u)), (u + 0.25, row(d, u))]
             kinds += [here, SegKind.STEP]
             tracks += [track, -1]
@@ -51,16 +53,25 @@ def path_polyline(start: int, chain: tuple[int, ...], ev: Events, coef: np.ndarr
     pts.append((width - 1.0, row(track, width - 1.0)))
     kinds.append(seg_kind.get(track, SegKind.WALL))
     tracks.append(track)
-    pts = np.array(pts)
-    # events in one column are ordered by column boundary, not by their exact u
-    pts[:, 0] = np.maximum.accumulate(np.clip(pts[:, 0], 0.0, width - 1.0))
-    kinds = np.array(kinds, dtype=int)
+    # events in one column are ordered by column boundary, not by their exact u: the
+    # columns clipped to the image and made non-decreasing (np.clip, np.maximum.accumulate
+    # on a dozen finite Python floats)
+    xs, run, hi = [], -np.inf, width - 1.0
+    for x, _ in pts:
+        x = min(max(x, 0.0), hi)
+        run = x if x > run else run
+        xs.append(run)
+    ys = [y for _, y in pts]
     # two events at one point leave a zero-length segment: drop it
-    keep = np.ones(len(kinds), bool)
-    keep[np.all(np.abs(np.diff(pts, axis=0)) < 1e-9, axis=1)] = False
-    if not keep.all() and keep.any():
-        pts = np.vstack([pts[:1], pts[1:][keep]])
-        kinds, tracks = kinds[keep], [t for t, k in zip(tracks, keep) if k]
+    keep = [not (abs(xs[i + 1] - xs[i]) < 1e-9 and abs(ys[i + 1] - ys[i]) < 1e-9)
+            for i in range(len(kinds))]
+    if not all(keep) and any(keep):
+        at = [0] + [i + 1 for i, k in enumerate(keep) if k]
+        xs, ys = [xs[i] for i in at], [ys[i] for i in at]
+        kinds = [s for s, k in zip(kinds, keep) if k]
+        tracks = [t for t, k in zip(tracks, keep) if k]
+    pts = np.array([xs, ys], float).T.copy()
+    kinds = np.array(kinds, dtype=int)
     return pts, kinds, tracks
 
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from findme_core.geometry.camera import Camera
 from findme_core.single.search import SegKind
-from findme_core.single.support import sample_bilinear
+from findme_core.single.support import sample_bilinear_xy
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,9 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
     Args:
         image_lab: (H, W, 3) Lab image (``appearance.to_lab``: uint8; float32 works too).
         polyline: (M, 2) vertices; kinds: (M - 1,) SegKind.
-        cache: optional dict reused across the hypotheses of one image.
+        cache: optional dict reused across the hypotheses of one image: key -> shift, and
+            ``_short(key, a, b)`` -> None for a segment (a, b) measured too short to tell
+            (the same segment of another hypothesis is then not measured again).
         keys: optional cache key per segment, e.g. the id of the image line it lies on: the
             band under a line is a property of the line, so each line is measured once
             (default: the segment's rounded end points).
@@ -80,12 +82,13 @@ def snap_polyline(image_lab: np.ndarray, camera: Camera, polyline: np.ndarray,
             continue
         (ax, ay), (bx, by) = P[s], P[s + 1]
         key = keys[s] if keys is not None else (round(ax), round(ay), round(bx), round(by))
-        if cache is not None and key in cache:
-            shift = cache[key]
+        short = _short(key, P[s], P[s + 1])
+        if cache is not None and (key in cache or short in cache):
+            shift = cache[key] if key in cache else None
         else:
             shift = segment_shifts(image_lab, camera, [(poly[s], poly[s + 1])], down, p)[0]
-            if cache is not None and shift is not None:
-                cache[key] = shift
+            if cache is not None:
+                cache[key if shift is not None else short] = shift
         if shift is None:  # too short to measure: its corners follow the neighbours
             continue
         ux, uy = bx - ax, by - ay
@@ -121,7 +124,8 @@ def prefetch(image_lab: np.ndarray, camera: Camera, polylines, p: SnapParams,
     """Fill ``cache`` (as ``snap_polyline`` fills it) with the shift of every WALL segment
     of ``polylines`` [(polyline (M, 2), kinds (M - 1,), keys (M - 1,))] not in it yet, all
     measured in one remap; a key's segment is its first one, as one by one. Then
-    ``snap_polyline`` with the same cache and keys gives what it gives without this."""
+    ``snap_polyline`` with the same cache and keys gives what it gives without this (and
+    the cache holds what it would hold)."""
     down = _down(camera)
     wall = int(SegKind.WALL)
     todo: dict = {}
@@ -132,7 +136,16 @@ def prefetch(image_lab: np.ndarray, camera: Camera, polylines, p: SnapParams,
                 todo[keys[k]] = (poly[k], poly[k + 1])
     for key, shift in zip(todo, segment_shifts(image_lab, camera, list(todo.values()), down, p)):
         if shift is not None:   # as snap_polyline: a segment too short to tell is not kept
-            cache[key] = shift  # (a longer one of the same line, later, may tell)
+            cache[key] = shift  # for its line (a longer one of the same line, later, may
+        else:                   # tell), only for itself
+            a, b = todo[key]
+            cache[_short(key, a.tolist(), b.tolist())] = None
+
+
+def _short(key, a, b) -> tuple:
+    """The cache key saying that the segment a-b ([x, y] lists) of line ``key`` is too short
+    to tell (no line key is a tuple starting with this string)."""
+    return ("too short", key, *a, *b)
 
 
 def _row_at(q, d, u):
@@ -149,13 +162,12 @@ def _intersect(p, d, q, e):
 
 
 def _median0(x: np.ndarray) -> np.ndarray:
-    """np.median(x, axis=0), by one partition (same values, less overhead)."""
+    """np.median(x, axis=0) of x without NaN, by one sort (the same order statistics, so the
+    same values; numpy sorts faster than it partitions each of many short columns)."""
     n = x.shape[0]
     k = n // 2
-    if n % 2:
-        return np.partition(x, k, axis=0)[k]
-    q = np.partition(x, (k - 1, k), axis=0)
-    return (q[k - 1] + q[k]) / 2
+    q = np.sort(x, axis=0)
+    return q[k] if n % 2 else (q[k - 1] + q[k]) / 2
 
 
 def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
@@ -169,52 +181,65 @@ def segment_shifts(lab, camera, segments, down, p: SnapParams) -> list:
         per segment the shift in pixels (0 = keep) or None (too little of it to tell).
     """
     H, W = lab.shape[:2]
+    out: list = [None] * len(segments)
+    # every segment's columns at once, elementwise as one segment at a time: column i of a
+    # segment with n columns lies at t = (i + 0.5) / n of it
+    a = np.array([q for q, _ in segments], float).reshape(-1, 2)
+    d = np.array([r for _, r in segments], float).reshape(-1, 2) - a
+    n = np.array([int(math.hypot(x, y) // p.step_px) for x, y in d.tolist()], int)
+    n = np.where(n < 4, 0, n)                     # too short: no columns
+    if not n.any():
+        return out
+    seg = np.repeat(np.arange(len(n)), n)
+    i = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+    t = (i + 0.5) / n[seg]
+    base = a[seg] + t[:, None] * d[seg]
+    inside = ((base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0)
+              & (base[:, 1] <= H - 1))
+    seg, base = seg[inside], base[inside]
+    ok = np.bincount(seg, minlength=len(n)) >= 4
+    if not ok.any():
+        return out
+    seg, base = seg[ok[seg]], base[ok[seg]]
     s = _offsets(p)
     horizon = camera.horizon_line()
-    out: list = [None] * len(segments)
-    picked = []                       # (segment, its column samples (n_in, S, 2), dep)
-    for j, (a, b) in enumerate(segments):
-        d = b - a
-        n_cols = int(math.hypot(d[0], d[1]) // p.step_px)
-        if n_cols < 4:
-            continue
-        t = (np.arange(n_cols) + 0.5) / n_cols
-        base = a[None, :] + t[:, None] * d[None, :]
-        inside = ((base[:, 0] >= 0) & (base[:, 0] <= W - 1) & (base[:, 1] >= 0)
-                  & (base[:, 1] <= H - 1))
-        base = base[inside]
-        if len(base) < 4:
-            continue
-        dep = np.maximum(_depression(horizon, base), 1.0)
-        pts = base[:, None, :] + (s[None, :, None] * dep[:, None, None]) * down[None, None, :]
-        # a column of samples is a straight run: inside the image iff both its ends are
-        ends = pts[:, [0, -1]]
-        cols = ((ends[..., 0] >= 0) & (ends[..., 0] <= W - 1) & (ends[..., 1] >= 0)
-                & (ends[..., 1] <= H - 1)).all(1)
-        if int(cols.sum()) < 4:
-            continue
-        picked.append((j, pts[cols], dep[cols]))
-    if not picked:
+    bounds = np.searchsorted(seg, np.arange(len(n) + 1))
+    # the depression one segment at a time: the same matrix product as before
+    dep = np.concatenate([np.zeros(0)] + [_depression(horizon, base[bounds[j]:bounds[j + 1]])
+                                          for j in np.nonzero(ok)[0].tolist()])
+    dep = np.maximum(dep, 1.0)
+    # a column of samples is a straight run: inside the image iff both its ends are (each
+    # sample at base + (s * dep) * down, as before; columns and rows apart: numpy is slowest
+    # on a last axis of 2)
+    dx, dy = float(down[0]), float(down[1])
+    e = s[[0, -1]][None, :] * dep[:, None]                                 # (M, 2)
+    ex, ey = base[:, :1] + e * dx, base[:, 1:] + e * dy
+    cols = ((ex >= 0) & (ex <= W - 1) & (ey >= 0) & (ey <= H - 1)).all(1)
+    ok = np.bincount(seg[cols], minlength=len(n)) >= 4
+    keep = cols & ok[seg]
+    if not keep.any():
         return out
+    seg, dep, base = seg[keep], dep[keep], base[keep]
+    sd = s[None, :] * dep[:, None]                                         # (M, S)
     # every segment's samples in one remap (bilinear per sample: the same values as one
-    # remap per segment)
-    # (every sample lies in the image: the border mode plays no part)
-    prof_all = sample_bilinear(lab, np.concatenate([q for _, q, _ in picked]))
-    at = 0
-    for j, q, dep in picked:
-        n_in = len(q)
-        out[j] = _shift_from_profile(prof_all[at:at + n_in].astype(np.float32), s, dep, p)
-        at += n_in
+    # remap per segment; every sample lies in the image: the border mode plays no part)
+    prof_all = sample_bilinear_xy((lab,), base[:, :1] + sd * dx, base[:, 1:] + sd * dy)[0]
+    bounds = np.searchsorted(seg, np.arange(len(n) + 1)).tolist()
+    fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])   # where the floor is sampled
+    start = int(np.searchsorted(s, 0.0))                    # the line's offset
+    for j in np.nonzero(ok)[0].tolist():
+        lo, hi = bounds[j], bounds[j + 1]
+        out[j] = _shift_from_profile(prof_all[lo:hi].astype(np.float32), s, dep[lo:hi], p,
+                                     fb, start)
     return out
 
 
-def _shift_from_profile(prof, s, dep, p: SnapParams) -> float:
+def _shift_from_profile(prof, s, dep, p: SnapParams, fb, start: int) -> float:
     """The shift from a segment's (n_in, S, 3) colour samples at offsets s (S,) and its
-    columns' depressions dep (n_in,)."""
+    columns' depressions dep (n_in,); fb (S,): the offsets of the floor band; the line is
+    at offset index ``start``."""
     prof = _median0(prof) if p.robust else prof.mean(0)    # (S, 3) average profile
-    fb = (s >= p.floor_band[0]) & (s <= p.floor_band[1])
     floor = _median0(prof[fb])
-    start = int(np.searchsorted(s, 0.0))
     settle = _band_end(prof, s, start, floor, p)
     if settle is None:
         settle = _settling(prof, s, start, floor, p)
@@ -241,12 +266,14 @@ def _settling(prof, s, start: int, floor, p: SnapParams) -> int | None:
     within ``settle_tol`` of the floor's colour for ``settle_len``, within ``max_rel``; None
     when it never does."""
     diff = prof - floor
-    far = np.sqrt((diff * diff).sum(1)) > p.settle_tol
+    dd = diff * diff   # |diff|^2 as (dd0 + dd1) + dd2, as (diff * diff).sum(1) adds it
+    far = (np.sqrt(dd[:, 0] + dd[:, 1] + dd[:, 2]) > p.settle_tol).tolist()
     win = max(1, int(round(p.settle_len / p.s_step)))
-    cf = np.concatenate([[0], np.cumsum(far)])
-    ks = np.arange(start, len(s) - win)
-    hit = np.nonzero((cf[ks + win] - cf[ks] == 0) & (s[ks] <= p.max_rel))[0]
-    return int(ks[hit[0]]) if len(hit) else None
+    within = (s <= p.max_rel).tolist()
+    for k in range(start, len(s) - win):     # the first clean window, a dozen at most
+        if within[k] and not any(far[k:k + win]):
+            return k
+    return None
 
 
 def _band_end(prof, s, start: int, floor, p: SnapParams) -> int | None:
@@ -263,8 +290,9 @@ def _band_end(prof, s, start: int, floor, p: SnapParams) -> int | None:
         ``settle_tol`` within ``max_rel``.
     """
     step = np.sqrt(((prof[1:] - prof[:-1]) ** 2).sum(1))   # (S - 1,) sample to sample
+    flat = (step < p.band_tol).tolist()   # compared as numpy compares, then Python bools
     i = start + 1
-    while i < len(step) and step[i] < p.band_tol:
+    while i < len(flat) and flat[i]:
         i += 1
     if i >= len(step) or i - start < 3 or step[i] < p.settle_tol or s[i + 1] > p.max_rel:
         return None

@@ -44,14 +44,20 @@ def sample_bilinear(arr: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def sample_bilinear_many(arrs, pts: np.ndarray) -> list:
     """``[sample_bilinear(arr, pts) for arr in arrs]``, the remap maps made once."""
-    shape = pts.shape[:-1]
     flat = pts.reshape(-1, 2)
-    m = len(flat)
+    return sample_bilinear_xy(arrs, flat[:, 0], flat[:, 1], pts.shape[:-1])
+
+
+def sample_bilinear_xy(arrs, x: np.ndarray, y: np.ndarray, shape=None) -> list:
+    """``sample_bilinear_many`` at the pixel positions (x, y) given as two arrays of one
+    shape (any; the samples' shape unless ``shape`` is given; + (C,) for (H, W, C))."""
+    shape = x.shape if shape is None else shape
+    m = x.size
     cols = 1024  # cv2.remap maps must stay under SHRT_MAX columns
     rows = max(1, -(-m // cols))
     mx = np.zeros(rows * cols, np.float32)
     my = np.zeros(rows * cols, np.float32)
-    mx[:m], my[:m] = flat[:, 0], flat[:, 1]
+    mx[:m], my[:m] = x.reshape(-1), y.reshape(-1)
     mx, my = mx.reshape(rows, cols), my.reshape(rows, cols)
     outs = []
     for arr in arrs:
