@@ -161,6 +161,7 @@ def main(argv=None) -> int:
             print(_line(rid, how, rr), flush=True)
     for how in HOW:
         print(_line("pooled", how, rows))
+    print(_found_ratio_loro(rows))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
@@ -168,6 +169,28 @@ def main(argv=None) -> int:
 
 
 HOW = ("walls", "photos", "turn walls", "turn photos")
+
+
+def _found_ratio_loro(rows) -> str:
+    """``relocalise.FOUND_RATIO`` checked leave one room out on the turns found with the
+    plan's photos: each room gets the largest ratio (0.5-1.0, step 0.05) under which no
+    answer of the other rooms would be stated wrong; its answers stated under it."""
+    done = [(r["room"], r["turn photos"]) for r in rows
+            if "turn photos" in r and "error" not in r["turn photos"]]
+    grid = np.round(np.arange(0.5, 1.0001, 0.05), 2)
+    said = lambda d, t: d["score"] > 0 and d["ambiguity"] < t  # noqa: E731
+    parts, right, wrong = [], 0, 0
+    for room in sorted({r for r, _ in done}):
+        train = [d for r, d in done if r != room]
+        ok = [t for t in grid if not any(said(d, t) and not d["ok"] for d in train)]
+        t = max(ok) if ok else 0.0
+        mine = [d for r, d in done if r == room]
+        rr = sum(said(d, t) and d["ok"] for d in mine)
+        ww = sum(said(d, t) and not d["ok"] for d in mine)
+        right, wrong = right + rr, wrong + ww
+        parts.append(f"{room} {t:g}: {rr} / {ww}")
+    return (f"found ratio {relocalise.FOUND_RATIO:g}, leave one room out (ratio: stated right "
+            f"/ wrong): {', '.join(parts)}; in all {right} / {wrong}")
 
 
 def _line(name, how, rows) -> str:
