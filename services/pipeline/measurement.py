@@ -52,7 +52,7 @@ class _Photos:
         self.limit = limit
         self.frames: OrderedDict[int, tuple] = OrderedDict()
         self.hsets: OrderedDict[int, object] = OrderedDict()
-        self.scenes: OrderedDict[int, tuple] = OrderedDict()
+        self.scenes: OrderedDict[int, Held] = OrderedDict()
         self.agreed: OrderedDict[int, tuple] = OrderedDict()
         self.waiting: dict[int, tuple[object, float]] = {}   # n -> (Selection, since)
 
@@ -223,8 +223,6 @@ class MeasurementHandler(Handler):
         try:
             poly, kinds = boundary_under(frame, new[0], sc.height if held.metric else None, by,
                                          sc.polyline, sc.kinds)
-            if poly is None:
-                raise HypothesisError(kinds)
             scene = scene_of(*new, sc.height, sc.height_sigma, poly, kinds)
         except FindmeError:   # it stays under its own gravity, whose sigma its answers carry
             self.not_regravitated += 1

@@ -22,6 +22,7 @@ from dataclasses import replace
 from typing import NamedTuple
 
 import schemas
+from findme_core.errors import HypothesisError
 from findme_core.geometry.provenance import Provenance, tilt_cov
 from findme_core.single.scene import Scene, boundary_sigma_px
 from findme_core.single.segments import WORK_SIZE
@@ -67,11 +68,18 @@ def boundary_under(frame, cam, height: float | None, by: int | None, polyline, k
     """((M, 2) polyline, (M - 1,) kinds) of a photo under ``cam``'s (agreed) gravity: the
     user's as it is; an automatic choice found again in ``frame`` (its Frame message, or None
     when it is gone; ``height``: camera height in metres, None when not known), as the
-    hypotheses service found it; or (None, the reason) when there is none."""
+    hypotheses service found it.
+
+    Raises:
+        FindmeError: there is none (the frame is gone or unreadable, or no boundary under
+            that gravity), with the reason.
+    """
     if by == schemas.SELECTED_BY_USER:
         return polyline, kinds
     if frame is None:
-        return None, "its frame is no longer on the bus"
+        raise HypothesisError("its frame is no longer on the bus")
     photo = decode_photo(frame.image.data, f"frame {frame.index}", reduce_to=WORK_SIZE)
     h, why = best_again(photo.image, photo.scale, cam, height)
-    return (None, why) if h is None else (h.polyline, h.kinds)
+    if h is None:
+        raise HypothesisError(why)
+    return h.polyline, h.kinds
