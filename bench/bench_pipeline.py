@@ -43,7 +43,6 @@ import cv2  # noqa: E402
 
 import schemas  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
-from findme.evaluation.views import view_inputs  # noqa: E402
 from findme_core.motion import photometric as motion_photometric  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
 from findme_core.motion.pair import photo_lines, prepare  # noqa: E402

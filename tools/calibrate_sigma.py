@@ -29,7 +29,6 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from findme.evaluation.views import SIGMA_PARTS  # noqa: E402
-from findme.evaluation.views import SIGMA_PARTS  # noqa: E402
 from findme_core.single.scene import BOUNDARY_SIGMA_WORK_PX  # noqa: E402
 from findme_core.single.vanishing import GravityParams  # noqa: E402
 

@@ -34,7 +34,6 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from findme_core.single import hypotheses as H  # noqa: E402
 from findme_core.single.ranking import FEATURES  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
-from findme.evaluation.views import view_inputs  # noqa: E402
 
 SUBSETS = ("zind-level", "zind-level-lowfloor", "zind-tilted", "zind-pairs-level",
            "zind-pairs-tilted", "tum-cabinet", "zind-rooms")

@@ -32,7 +32,6 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from findme.evaluation.rooms import room_spots  # noqa: E402
-from findme.evaluation.rooms import room_spots  # noqa: E402
 from findme_core.plan import fuse, relocalise, session  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from tools.plan_report import cached_photos  # noqa: E402 (the same --cache files)

@@ -28,7 +28,6 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from findme.evaluation.rooms import room_photos, room_prediction  # noqa: E402
-from findme.evaluation.rooms import room_photos, room_prediction  # noqa: E402
 from findme_core.plan import floorplan  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_io.plan_svg import plan_svg  # noqa: E402

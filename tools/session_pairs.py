@@ -26,7 +26,6 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from findme.evaluation.rooms import room_spots  # noqa: E402
-from findme.evaluation.rooms import room_spots  # noqa: E402
 from findme_core.motion import features, methods as motion, photometric as motion_photometric  # noqa: E402
 from findme_core.plan import fuse, session
 from findme_core.errors import FindmeError  # noqa: E402

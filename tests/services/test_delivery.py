@@ -9,7 +9,6 @@ import pytest
 
 import schemas
 from findme.cli.status import service_statuses
-from findme.cli.status import service_statuses
 from findme_core.synth.render import Pose, Room, render
 from services.runtime import bus
 from tests.cli.conftest import run_findme
