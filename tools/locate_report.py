@@ -16,7 +16,8 @@ v's pose in o's frame from the room's ``poses_planar``. Success: within 0.25 m a
 the returned poses (best first; a symmetric room gives several) is right, and the
 ambiguity (runner-up score / best score), and what ``findme locate-in`` says
 (``relocalise.verdict``): the pose stated (right or wrong), or the candidates given (the
-right one among them or not). --cache keeps each room's analysed photos.
+right one among them or not). Its last lines check ``relocalise.FOUND_RATIO`` and
+``relocalise.FOUND_SIGMA`` leave one room out. --cache keeps each room's analysed photos.
 """
 
 from __future__ import annotations
@@ -77,7 +78,9 @@ def _errors(cands, truth) -> dict:
              abs(math.degrees(float(fuse.wrap(c[2] - yaw_t))))) for c in cands]
     ok = [e <= 0.25 and y <= 5.0 for e, y in errs]
     return {"t_m": errs[0][0], "yaw_deg": errs[0][1], "ok": ok[0], "any_ok": any(ok),
-            "candidates": len(cands)}
+            "candidates": len(cands), "dx_m": float(cands[0][0] - t_t[0]),
+            "dz_m": float(cands[0][1] - t_t[1]),
+            "dyaw_deg": math.degrees(float(fuse.wrap(cands[0][2] - yaw_t)))}
 
 
 def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
@@ -161,6 +164,7 @@ def main(argv=None) -> int:
     for how in HOW:
         print(_line("pooled", how, rows))
     print(_found_ratio_loro(rows))
+    print(_found_sigma_loro(rows))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
@@ -190,6 +194,30 @@ def _found_ratio_loro(rows) -> str:
         parts.append(f"{room} {t:g}: {rr} / {ww}")
     return (f"found ratio {relocalise.FOUND_RATIO:g}, leave one room out (ratio: stated right "
             f"/ wrong): {', '.join(parts)}; in all {right} / {wrong}")
+
+
+def _found_sigma_loro(rows) -> str:
+    """``relocalise.FOUND_SIGMA`` against the stated poses (turns found with the plan's
+    photos): the RMS errors in sample (x and z pooled; yaw) and the coverage (within 1 / 2 / 3
+    sigma) when each room is scored with the RMS of the other rooms' errors."""
+    done = [(r["room"], r["turn photos"]) for r in rows
+            if "turn photos" in r and "error" not in r["turn photos"] and r["turn photos"]["found"]]
+    if not done:
+        return "found sigma: no pose stated"
+    xz = lambda ds: np.array([e for d in ds for e in (d["dx_m"], d["dz_m"])])  # noqa: E731
+    yaw = lambda ds: np.array([d["dyaw_deg"] for d in ds])  # noqa: E731
+    rms = lambda e: float(np.sqrt(np.mean(e ** 2)))  # noqa: E731
+    zx, zy = [], []
+    for room in sorted({r for r, _ in done}):
+        train, mine = [d for r, d in done if r != room], [d for r, d in done if r == room]
+        if train:
+            zx += list(np.abs(xz(mine)) / rms(xz(train)))
+            zy += list(np.abs(yaw(mine)) / rms(yaw(train)))
+    cov = lambda z: " / ".join(f"{np.mean(np.array(z) <= k):.2f}" for k in (1, 2, 3))  # noqa: E731
+    ds = [d for _, d in done]
+    return (f"found sigma {relocalise.FOUND_SIGMA}: in sample RMS x, z {rms(xz(ds)):.3f} m, yaw "
+            f"{rms(yaw(ds)):.2f} deg (n {len(ds)}); leave one room out within 1 / 2 / 3 sigma: "
+            f"x, z {cov(zx)}, yaw {cov(zy)}")
 
 
 def _line(name, how, rows) -> str:

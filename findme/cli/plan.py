@@ -178,6 +178,9 @@ def cmd_locate_in(args) -> int:
     best = poses[0]
     amb = (poses[1]["score"] / best["score"] if len(poses) > 1 and best["score"] > 0 else 0.0)
     found, why = relocalise.verdict(scores, bool(args.photos), turn=len(photos) > 1)
+    if found:     # a stated pose carries its 1-sigma (``relocalise.FOUND_SIGMA``)
+        best = {**best, "sigma_xz_m": relocalise.FOUND_SIGMA[0],
+                "sigma_yaw_deg": relocalise.FOUND_SIGMA[1]}
     out = {"pose": best, "alternatives": poses[1:], "ambiguity": round(amb, 3),
            "found": found, **({"reason": why} if why else {})}
     if len(photos) > 1:
@@ -188,7 +191,8 @@ def cmd_locate_in(args) -> int:
         return 0
     where = [_where(q, len(photos) > 1) for q in poses]
     if found:
-        print(f"you are at {where[0]}")
+        sx, sy = relocalise.FOUND_SIGMA
+        print(f"you are at {_where(best, len(photos) > 1, (sx, sy))}")
     else:
         print(f"cannot tell where you are: {why}. {len(poses)} place(s) fit, best first:")
         for k, q in enumerate(poses):
@@ -200,9 +204,11 @@ def cmd_locate_in(args) -> int:
     return 0
 
 
-def _where(q: dict, many: bool) -> str:
-    """A found pose as the user reads it (``many``: which photo of a turn it is)."""
-    return (f"x {q['x_m']:+.2f} z {q['z_m']:+.2f}, facing {q['yaw_deg']:+.1f} deg"
+def _where(q: dict, many: bool, sigma=None) -> str:
+    """A found pose as the user reads it (``many``: which photo of a turn it is; ``sigma``:
+    (metres on x and z, degrees) of a stated pose)."""
+    sx, sy = ("", "") if sigma is None else (f" ± {sigma[0]:.2f} m", f" ± {sigma[1]:.1f}")
+    return (f"x {q['x_m']:+.2f}{sx}, z {q['z_m']:+.2f}{sx}, facing {q['yaw_deg']:+.1f}{sy} deg"
             + (f" in {q['photo']}" if many else ""))
 
 

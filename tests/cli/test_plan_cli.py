@@ -151,8 +151,13 @@ def test_a_turn_at_a_new_place_is_found_together(session_on_disk, turn_on_disk):
         t, y = _err(out["photos"][p.name], want)
         assert t < 0.15 and y < 3.0, (p.name, out["photos"][p.name], want)
     assert out["found"] and "reason" not in out      # a turn with the plan's photos: stated
+    # with its 1-sigma, which holds here too
+    sx, sy = out["pose"]["sigma_xz_m"], out["pose"]["sigma_yaw_deg"]
+    t, y = _err(out["pose"], truth[0])
+    assert t < 3 * sx * math.sqrt(2) and y < 3 * sy, (out["pose"], truth[0])
     text = run_findme("locate-in", plan_path, *turn, "--photos", *paths, timeout=300).stdout
-    assert text.startswith("you are at x ")
+    assert text.startswith("you are at x ") and f"± {sx:.2f} m" in text, text
+    assert all("sigma_xz_m" not in q for q in out["alternatives"])
     walls = as_json(run_findme("locate-in", plan_path, *turn, "--json"))
     errs = [_err(q, truth[0]) for q in [walls["pose"], *walls["alternatives"]]]
     assert any(t < 0.2 and y < 3.0 for t, y in errs), (walls, truth[0])
