@@ -7,7 +7,9 @@ re-ranked candidate's features and its floor pixel error (scored like shared/eva
 then fit the re-ranking weights w to minimise the expected top-1 error under the model's
 softmax over each view's candidates (sum_c softmax(w . f / T)_c error_c), with an L2 pull
 towards the starting weights. The search's own costs (ranking.SEARCH_WEIGHTS) are not
-fitted: the candidate pool stays fixed, so there is no feedback loop.
+fitted: the candidate pool stays fixed, so there is no feedback loop. By default every fit
+(in sample, and each held-out fold) is ``shipped_procedure``, the one behind
+ranking.RANK_WEIGHTS: the smooth fit from the search's weights, then ``far`` from its grid.
 
 Held-out accuracy is reported by leave-one-group-out cross-validation (ZInD: one room per
 group; TUM: blocks of 6 frames), so the figures are not in-sample. Only the dev split is
@@ -132,6 +134,21 @@ def grid_choice(data, w0, name, values, cap=0.15):
     return best
 
 
+#: ``far``'s grid (``ranking.RANK_WEIGHTS``: chosen after the smooth fit, the others fixed).
+FAR_GRID = (0.0, -4.0, -8.0, -12.0, -16.0, -24.0, -32.0)
+
+
+def shipped_procedure(train, free):
+    """The procedure behind ``ranking.RANK_WEIGHTS``, from scratch on ``train``: the smooth
+    fit from the search's own weights (``fit``, pulled towards them), then ``far`` chosen
+    from ``FAR_GRID`` with the other weights fixed (``grid_choice``: ``far`` acts only on
+    implausible candidates, where the smooth fit is flat). A fold of the leave-one-group-out
+    runs exactly this on the other groups."""
+    from findme_core.single.ranking import SEARCH_WEIGHTS
+    w = fit(train, SEARCH_WEIGHTS.vector(), free)
+    return grid_choice(train, w, "far", FAR_GRID) if free[FEATURES.index("far")] else w
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dataset")
@@ -141,9 +158,10 @@ def main(argv=None):
                     help="fit only these weights (default: all but support), e.g. far")
     ap.add_argument("--loro-out", metavar="FOLDS.json",
                     help="write each leave-one-group-out fold's weights ({group: {name: w}}), "
-                         "each fitted from the search's own weights (ranking.SEARCH_WEIGHTS, "
-                         "not pulled towards the current in-sample fit) on the other groups: "
-                         "tools/loro_eval.py runs the pipeline on each group with its fold's")
+                         "each by the shipped weights' own procedure (shipped_procedure: "
+                         "the smooth fit from ranking.SEARCH_WEIGHTS, then far from its grid) "
+                         "on the other groups: tools/loro_eval.py runs the pipeline on each "
+                         "group with its fold's")
     ap.add_argument("--grid", metavar="NAME=V1,V2,...",
                     help="instead of fitting, choose one weight from these values (e.g. "
                          "far=0,-4,-8,-12,-16,-24), each held-out fold choosing on its own")
@@ -162,7 +180,8 @@ def main(argv=None):
     if unknown:
         ap.error(f"unknown weight(s) {', '.join(sorted(unknown))}; choose among {', '.join(FEATURES)}")
     free = np.array([f in names for f in FEATURES])
-    fitter = fit
+    # the shipped weights' procedure; --free: a smooth fit of some weights from the current
+    fitter = fit if a.free else (lambda train, w0, free: shipped_procedure(train, free))
     if a.grid:
         name, _, vals = a.grid.partition("=")
         if name not in FEATURES or not vals:
@@ -188,11 +207,11 @@ def main(argv=None):
                     held[v] = top1([data[v]], wg)[0]
         w_new = fitter([data[v] for v in vids], w, free)
         if a.loro_out:
-            from findme_core.single.ranking import SEARCH_WEIGHTS
-            w0 = SEARCH_WEIGHTS.vector()
-            folds = {g: dict(zip(FEATURES, fitter([data[v] for v in vids if group_of(v) != g],
-                                                  w0, free).tolist())) for g in groups}
+            folds = {g: dict(zip(FEATURES, shipped_procedure(
+                [data[v] for v in vids if group_of(v) != g], free).tolist())) for g in groups}
             json.dump(folds, open(a.loro_out, "w"), indent=1)
+            print("  folds (shipped_procedure, leave one group out), far per fold:",
+                  ", ".join(f"{g} {folds[g]['far']:g}" for g in groups))
         print("top-1 median pixel error per subset "
               "(current weights | held-out fit | in-sample fit | best candidate)")
         for s in SUBSETS:

@@ -104,8 +104,9 @@ def section(split: Path, ours_scored: dict, loro_scored: dict, ours_preds: dict,
         "\"out\": each room with the constants fitted without it, so the gap between the two is "
         "what a room never seen loses.", "",
         "**Ranking weights** (`tools/fit_ranker.py --loro-out`, then `tools/loro_eval.py`: every "
-        "view, pair and room predicted with the weights of its own fold, each fitted from the "
-        "search's own weights; KITTI is never fitted on):", "",
+        "view, pair and room predicted with the weights of its own fold, each by the shipped "
+        "weights' own procedure on the other rooms: the smooth fit from the search's own "
+        "weights, then `far` from its grid; KITTI is never fitted on):", "",
         *loro_rows(ours_scored, loro_scored), "",
         "`fit_ranker`'s own top-1 per subset (current weights | held-out fit | in-sample fit | "
         "best candidate):", "", "```", *ranker, "```", "",
