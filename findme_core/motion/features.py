@@ -16,9 +16,8 @@ centre of the top-left pixel, OpenCV's keypoint convention). Descriptors are uin
 
 Matching: k = 2 nearest neighbours both ways, Lowe's ratio test (the best match must be
 clearly better than the second best) and a mutual (cross) check. Geometric verification
-is done where the geometry is known: by the gravity-aware RANSAC of ``methods``.
-
-Lifting the matched pixels to 3D is ``lifting``.
+is done where the geometry is known: by the gravity-aware RANSAC of ``methods``. Lifting
+the matched pixels to 3D is ``lifting``.
 
 Pure: numpy and OpenCV in, arrays out; no I/O, clocks or environment.
 """
@@ -152,13 +151,19 @@ def _detector(p: FeatureParams):
     return cv2.SIFT_create(nfeatures=n, contrastThreshold=p.sift_contrast)
 
 
-def _spread(kps, width: int, height: int, n: int, grid) -> list:
-    """At most ``n`` keypoints: the strongest n / cells of each grid cell, then the
-    strongest of the rest."""
-    if len(kps) <= n:
-        return list(kps)
+def _pixels(kps) -> np.ndarray:
+    """(N, 2) float64 positions (u, v) of OpenCV keypoints ((0, 2) for none)."""
+    return np.asarray(cv2.KeyPoint_convert(kps), float).reshape(-1, 2)
+
+
+def _spread(kps, width: int, height: int, n: int, grid) -> np.ndarray:
+    """(K,) ascending indices into ``kps`` of at most ``n`` keypoints: the strongest
+    n / cells of each grid cell, then the strongest of the rest (all of them without a
+    ``grid`` or when there are no more than ``n``)."""
+    if not grid or len(kps) <= n:
+        return np.arange(len(kps))
     resp = np.array([k.response for k in kps])
-    xy = np.array([k.pt for k in kps])
+    xy = _pixels(kps)
     gx, gy = grid
     cell = (np.minimum((xy[:, 0] * gx / width).astype(int), gx - 1) * gy
             + np.minimum((xy[:, 1] * gy / height).astype(int), gy - 1))
@@ -172,7 +177,7 @@ def _spread(kps, width: int, height: int, n: int, grid) -> list:
     # CPU's sort kernel: AVX-512 and AVX2 machines kept different keypoints)
     rest = rest[np.argsort(-resp[rest], kind="stable")][:max(0, n - int(keep.sum()))]
     keep[rest] = True
-    return [kps[i] for i in np.flatnonzero(keep)]
+    return np.flatnonzero(keep)
 
 
 def detect(image: np.ndarray, params: FeatureParams = FeatureParams()) -> Features:
@@ -180,18 +185,22 @@ def detect(image: np.ndarray, params: FeatureParams = FeatureParams()) -> Featur
     grey = _grey(image)
     H, W = grey.shape
     det = _detector(params)
-    if params.grid:
-        kps = _spread(det.detect(grey, None), W, H, params.n_features, params.grid)
+    if params.grid and params.detector == "sift":
+        # SIFT describes at the octaves of the keypoints it is given: describe the kept ones
+        found = det.detect(grey, None)
+        kps = [found[i] for i in _spread(found, W, H, params.n_features, params.grid)]
         kps, desc = det.compute(grey, kps) if kps else ((), None)
+        rows = np.arange(len(kps))
     else:
+        # ORB describes each keypoint on its own: the kept ones' rows, one pyramid built
         kps, desc = det.detectAndCompute(grey, None)
+        rows = _spread(kps, W, H, params.n_features, params.grid)
     if desc is None or not kps:
         dim, dt = (32, np.uint8) if params.detector == "orb" else (128, np.float32)
         return Features(np.zeros((0, 2)), np.zeros((0, dim), dt), np.zeros(0), params.detector,
                         W, H)
-    pix = np.array([k.pt for k in kps], dtype=float).reshape(-1, 2)
-    sizes = np.array([k.size for k in kps], dtype=float)
-    return Features(pix, desc, sizes, params.detector, W, H)
+    sizes = np.array([kps[i].size for i in rows.tolist()], dtype=float)
+    return Features(_pixels(kps)[rows], desc[rows], sizes, params.detector, W, H)
 
 
 def _knn(bf, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
