@@ -33,6 +33,7 @@ from findme_core.errors import InputError
 
 DETECTORS = ("orb", "sift")
 MATCHERS = ("auto", "brute", "lsh")
+_LSH = dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1)   # FLANN LSH
 
 
 @dataclass(frozen=True)
@@ -203,17 +204,19 @@ def detect(image: np.ndarray, params: FeatureParams = FeatureParams()) -> Featur
     return Features(_pixels(kps)[rows], desc[rows], sizes, params.detector, W, H)
 
 
-def _knn(bf, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N1, 2) indices and distances of the two nearest neighbours in d2 of each row of d1
-    (second column inf / -1 when d2 has one row)."""
-    idx = np.full((len(d1), 2), -1, int)
-    dist = np.full((len(d1), 2), np.inf)
-    found = bf.knnMatch(d1, d2, k=2)
-    for j in range(2):   # (LSH may find fewer than 2)
-        rows = [i for i, pair in enumerate(found) if len(pair) > j]
-        idx[rows, j] = [found[i][j].trainIdx for i in rows]
-        dist[rows, j] = [found[i][j].distance for i in rows]
-    return idx, dist
+def _nearest(query: np.ndarray, train: np.ndarray, k: int, lsh: bool, binary: bool):
+    """(Nq, k) int indices into ``train`` (>= k rows) of the k nearest neighbours of each
+    row of ``query``, and their (Nq, k) float distances, nearest first (-1 / inf where LSH
+    found fewer). LSH: FLANN's index over ``train`` as ``cv2.FlannBasedMatcher`` builds it,
+    hash tables from OpenCV's RNG (the caller seeds it); else exact, finding all k."""
+    if lsh:
+        idx, dist = cv2.flann_Index(train, _LSH).knnSearch(query, k, params=dict(checks=32))
+        idx = idx.astype(int).reshape(len(query), k)
+        return idx, np.where(idx >= 0, dist.reshape(len(query), k), np.inf)
+    found = cv2.BFMatcher(cv2.NORM_HAMMING if binary else cv2.NORM_L2).knnMatch(query, train, k)
+    ms = [m for pair in found for m in pair]
+    return (np.array([m.trainIdx for m in ms], int).reshape(-1, k),
+            np.array([m.distance for m in ms], float).reshape(-1, k))
 
 
 def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -> Matches:
@@ -233,13 +236,10 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
     binary = fa.detector == "orb"
     if params.matcher == "lsh" and not binary:
         raise InputError(f"the lsh matcher needs binary descriptors (orb), not {fa.detector}")
-    if params.matcher == "lsh" or (params.matcher == "auto" and binary):
+    lsh = params.matcher == "lsh" or (params.matcher == "auto" and binary)
+    if lsh:
         cv2.setRNGSeed(0)   # LSH hash tables come from OpenCV's (thread-local) RNG: repeatable
-        bf = cv2.FlannBasedMatcher(dict(algorithm=6, table_number=6, key_size=12,
-                                        multi_probe_level=1), dict(checks=32))
-    else:
-        bf = cv2.BFMatcher(cv2.NORM_HAMMING if binary else cv2.NORM_L2)
-    idx, dist = _knn(bf, fa.descriptors, fb.descriptors)
+    idx, dist = _nearest(fa.descriptors, fb.descriptors, 2, lsh, binary)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(dist[:, 1] > 0, dist[:, 0] / dist[:, 1], 1.0)
     ia = np.flatnonzero((idx[:, 0] >= 0) & (ratio < params.ratio))
@@ -247,9 +247,8 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
     if params.mutual and len(ia):
         cand = np.unique(ib)
         back = np.full(len(fb), -1)
-        for m in bf.match(fb.descriptors[cand], fa.descriptors):   # (LSH may skip a query)
-            back[cand[m.queryIdx]] = m.trainIdx
-        keep = back[ib] == ia
+        back[cand] = _nearest(fb.descriptors[cand], fa.descriptors, 1, lsh, binary)[0][:, 0]
+        keep = back[ib] == ia   # (-1: LSH found no match back)
         ia, ib = ia[keep], ib[keep]
     if len(ia) == 0:
         return empty
