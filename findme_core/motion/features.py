@@ -16,9 +16,8 @@ centre of the top-left pixel, OpenCV's keypoint convention). Descriptors are uin
 
 Matching: k = 2 nearest neighbours both ways, Lowe's ratio test (the best match must be
 clearly better than the second best) and a mutual (cross) check. Geometric verification
-is done where the geometry is known: by the gravity-aware RANSAC of ``methods``.
-
-Lifting the matched pixels to 3D is ``lifting``.
+is done where the geometry is known: by the gravity-aware RANSAC of ``methods``. Lifting
+the matched pixels to 3D is ``lifting``.
 
 Pure: numpy and OpenCV in, arrays out; no I/O, clocks or environment.
 """
@@ -34,6 +33,7 @@ from findme_core.errors import InputError
 
 DETECTORS = ("orb", "sift")
 MATCHERS = ("auto", "brute", "lsh")
+_LSH = dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1)   # FLANN LSH
 
 
 @dataclass(frozen=True)
@@ -152,13 +152,19 @@ def _detector(p: FeatureParams):
     return cv2.SIFT_create(nfeatures=n, contrastThreshold=p.sift_contrast)
 
 
-def _spread(kps, width: int, height: int, n: int, grid) -> list:
-    """At most ``n`` keypoints: the strongest n / cells of each grid cell, then the
-    strongest of the rest."""
-    if len(kps) <= n:
-        return list(kps)
+def _pixels(kps) -> np.ndarray:
+    """(N, 2) float64 positions (u, v) of OpenCV keypoints ((0, 2) for none)."""
+    return np.asarray(cv2.KeyPoint_convert(kps), float).reshape(-1, 2)
+
+
+def _spread(kps, width: int, height: int, n: int, grid) -> np.ndarray:
+    """(K,) ascending indices into ``kps`` of at most ``n`` keypoints: the strongest
+    n / cells of each grid cell, then the strongest of the rest (all of them without a
+    ``grid`` or when there are no more than ``n``)."""
+    if not grid or len(kps) <= n:
+        return np.arange(len(kps))
     resp = np.array([k.response for k in kps])
-    xy = np.array([k.pt for k in kps])
+    xy = _pixels(kps)
     gx, gy = grid
     cell = (np.minimum((xy[:, 0] * gx / width).astype(int), gx - 1) * gy
             + np.minimum((xy[:, 1] * gy / height).astype(int), gy - 1))
@@ -172,7 +178,7 @@ def _spread(kps, width: int, height: int, n: int, grid) -> list:
     # CPU's sort kernel: AVX-512 and AVX2 machines kept different keypoints)
     rest = rest[np.argsort(-resp[rest], kind="stable")][:max(0, n - int(keep.sum()))]
     keep[rest] = True
-    return [kps[i] for i in np.flatnonzero(keep)]
+    return np.flatnonzero(keep)
 
 
 def detect(image: np.ndarray, params: FeatureParams = FeatureParams()) -> Features:
@@ -180,31 +186,37 @@ def detect(image: np.ndarray, params: FeatureParams = FeatureParams()) -> Featur
     grey = _grey(image)
     H, W = grey.shape
     det = _detector(params)
-    if params.grid:
-        kps = _spread(det.detect(grey, None), W, H, params.n_features, params.grid)
+    if params.grid and params.detector == "sift":
+        # SIFT describes at the octaves of the keypoints it is given: describe the kept ones
+        found = det.detect(grey, None)
+        kps = [found[i] for i in _spread(found, W, H, params.n_features, params.grid)]
         kps, desc = det.compute(grey, kps) if kps else ((), None)
+        rows = np.arange(len(kps))
     else:
+        # ORB describes each keypoint on its own: the kept ones' rows, one pyramid built
         kps, desc = det.detectAndCompute(grey, None)
+        rows = _spread(kps, W, H, params.n_features, params.grid)
     if desc is None or not kps:
         dim, dt = (32, np.uint8) if params.detector == "orb" else (128, np.float32)
         return Features(np.zeros((0, 2)), np.zeros((0, dim), dt), np.zeros(0), params.detector,
                         W, H)
-    pix = np.array([k.pt for k in kps], dtype=float).reshape(-1, 2)
-    sizes = np.array([k.size for k in kps], dtype=float)
-    return Features(pix, desc, sizes, params.detector, W, H)
+    sizes = np.array([kps[i].size for i in rows.tolist()], dtype=float)
+    return Features(_pixels(kps)[rows], desc[rows], sizes, params.detector, W, H)
 
 
-def _knn(bf, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N1, 2) indices and distances of the two nearest neighbours in d2 of each row of d1
-    (second column inf / -1 when d2 has one row)."""
-    idx = np.full((len(d1), 2), -1, int)
-    dist = np.full((len(d1), 2), np.inf)
-    found = bf.knnMatch(d1, d2, k=2)
-    for j in range(2):   # (LSH may find fewer than 2)
-        rows = [i for i, pair in enumerate(found) if len(pair) > j]
-        idx[rows, j] = [found[i][j].trainIdx for i in rows]
-        dist[rows, j] = [found[i][j].distance for i in rows]
-    return idx, dist
+def _nearest(query: np.ndarray, train: np.ndarray, k: int, lsh: bool, binary: bool):
+    """(Nq, k) int indices into ``train`` (>= k rows) of the k nearest neighbours of each
+    row of ``query``, and their (Nq, k) float distances, nearest first (-1 / inf where LSH
+    found fewer). LSH: FLANN's index over ``train`` as ``cv2.FlannBasedMatcher`` builds it,
+    hash tables from OpenCV's RNG (the caller seeds it); else exact, finding all k."""
+    if lsh:
+        idx, dist = cv2.flann_Index(train, _LSH).knnSearch(query, k, params=dict(checks=32))
+        idx = idx.astype(int).reshape(len(query), k)
+        return idx, np.where(idx >= 0, dist.reshape(len(query), k), np.inf)
+    found = cv2.BFMatcher(cv2.NORM_HAMMING if binary else cv2.NORM_L2).knnMatch(query, train, k)
+    ms = [m for pair in found for m in pair]
+    return (np.array([m.trainIdx for m in ms], int).reshape(-1, k),
+            np.array([m.distance for m in ms], float).reshape(-1, k))
 
 
 def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -> Matches:
@@ -224,13 +236,10 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
     binary = fa.detector == "orb"
     if params.matcher == "lsh" and not binary:
         raise InputError(f"the lsh matcher needs binary descriptors (orb), not {fa.detector}")
-    if params.matcher == "lsh" or (params.matcher == "auto" and binary):
+    lsh = params.matcher == "lsh" or (params.matcher == "auto" and binary)
+    if lsh:
         cv2.setRNGSeed(0)   # LSH hash tables come from OpenCV's (thread-local) RNG: repeatable
-        bf = cv2.FlannBasedMatcher(dict(algorithm=6, table_number=6, key_size=12,
-                                        multi_probe_level=1), dict(checks=32))
-    else:
-        bf = cv2.BFMatcher(cv2.NORM_HAMMING if binary else cv2.NORM_L2)
-    idx, dist = _knn(bf, fa.descriptors, fb.descriptors)
+    idx, dist = _nearest(fa.descriptors, fb.descriptors, 2, lsh, binary)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(dist[:, 1] > 0, dist[:, 0] / dist[:, 1], 1.0)
     ia = np.flatnonzero((idx[:, 0] >= 0) & (ratio < params.ratio))
@@ -238,9 +247,8 @@ def match(fa: Features, fb: Features, params: FeatureParams = FeatureParams()) -
     if params.mutual and len(ia):
         cand = np.unique(ib)
         back = np.full(len(fb), -1)
-        for m in bf.match(fb.descriptors[cand], fa.descriptors):   # (LSH may skip a query)
-            back[cand[m.queryIdx]] = m.trainIdx
-        keep = back[ib] == ia
+        back[cand] = _nearest(fb.descriptors[cand], fa.descriptors, 1, lsh, binary)[0][:, 0]
+        keep = back[ib] == ia   # (-1: LSH found no match back)
         ia, ib = ia[keep], ib[keep]
     if len(ia) == 0:
         return empty

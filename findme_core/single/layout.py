@@ -165,6 +165,7 @@ def from_hypothesis(camera: Camera, height: float, polyline, kinds=None, rank: i
 def _simplify(poly, kinds, eps: float):
     """The polyline with each run of consecutive WALL segments reduced by Douglas-Peucker
     (``eps`` pixels; a boundary traced column by column becomes its few straight lines)."""
+    kinds = np.asarray(kinds).tolist()   # Python ints: a numpy int against SegKind is slow
     out_p, out_k, s = [poly[0]], [], 0
     while s < len(kinds):
         if kinds[s] != SegKind.WALL:
@@ -190,6 +191,7 @@ def _walls(poly, kinds, q, params: LayoutParams):
     """Wall segments (K, 2, 2) and their end kinds (K, 2) from the WALL segments, merging
     nearly collinear neighbours."""
     walls, ends = [], []
+    kinds = np.asarray(kinds).tolist()   # Python ints: a numpy int against SegKind is slow
     for s, k in enumerate(kinds):
         if k != SegKind.WALL:
             continue

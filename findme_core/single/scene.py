@@ -133,33 +133,34 @@ class Scene:
         self._pieces_sideways = self._build(poly + np.array([self._shift_px, 0.0]))
 
     def _build(self, poly, cam: Camera | None = None):
-        """Pieces: (az0, az1, kind, normal (2,), offset) with n . (x, z) = offset on the wall."""
+        """Pieces, one per floor or wall segment (P of them, in order): (P,) azimuths
+        az0 <= az1 it covers, (P,) SegKind, (P, 2) wall normal n and (P,) offset with
+        n . (x, z) = offset on the wall (zeros for a segment without a wall)."""
         cam = self.camera if cam is None else cam
         R = cam.R_level_from_cam
         r = cam.rays_cam(poly) @ R.T
         az = np.arctan2(r[:, 0], r[:, 2])
-        pieces = []
-        for s, kind in enumerate(self.kinds):
-            if kind == SegKind.STEP:
-                continue
-            a0, a1 = az[s], az[s + 1]
-            normal, offset = np.zeros(2), 0.0
-            if kind == SegKind.WALL:
-                if r[s, 1] <= 0 or r[s + 1, 1] <= 0:
-                    raise HypothesisError(
-                        f"boundary segment {s} from {poly[s].round(1).tolist()} to "
-                        f"{poly[s + 1].round(1).tolist()} reaches the horizon: not a floor line")
-                q0 = self.height / r[s, 1] * r[s, [0, 2]]   # eq. 2 on each vertex
-                q1 = self.height / r[s + 1, 1] * r[s + 1, [0, 2]]
-                d = q1 - q0
-                if np.hypot(*d) < 1e-9:
-                    continue
-                normal = np.array([-d[1], d[0]]) / np.hypot(*d)
-                offset = float(normal @ q0)
-            pieces.append((min(a0, a1), max(a0, a1), int(kind), normal, offset))
-        if not pieces:
+        wall = self.kinds == SegKind.WALL
+        horizon = np.flatnonzero(wall & ((r[:-1, 1] <= 0) | (r[1:, 1] <= 0)))
+        if len(horizon):
+            s = horizon[0]
+            raise HypothesisError(
+                f"boundary segment {s} from {poly[s].round(1).tolist()} to "
+                f"{poly[s + 1].round(1).tolist()} reaches the horizon: not a floor line")
+        with np.errstate(divide="ignore", invalid="ignore"):   # (vertices of no wall)
+            q = (self.height / r[:, 1])[:, None] * r[:, [0, 2]]   # eq. 2 on each vertex
+        d = q[1:] - q[:-1]
+        length = np.hypot(d[:, 0], d[:, 1])
+        wall &= ~(length < 1e-9)                   # a wall of no length: no piece
+        normal, offset = np.zeros((len(wall), 2)), np.zeros(len(wall))
+        normal[wall] = np.column_stack([-d[wall, 1], d[wall, 0]]) / length[wall, None]
+        offset[wall] = normal[wall, 0] * q[:-1][wall, 0] + normal[wall, 1] * q[:-1][wall, 1]
+        keep = wall | ((self.kinds != SegKind.STEP) & (self.kinds != SegKind.WALL))
+        if not keep.any():
             raise HypothesisError("the boundary has no floor or wall segment")
-        return pieces
+        a0, a1 = az[:-1][keep], az[1:][keep]
+        return (np.minimum(a0, a1), np.maximum(a0, a1), self.kinds[keep].astype(int),
+                normal[keep], offset[keep])
 
     # ------------------------------------------------------------------ queries
     def _solve(self, pieces, rays):
@@ -167,11 +168,7 @@ class Scene:
         failure reason); the point is t * ray. Surfaces: 1 floor, 2 wall, 0 none."""
         n = len(rays)
         az = np.arctan2(rays[:, 0], rays[:, 2])
-        a0 = np.array([p[0] for p in pieces])
-        a1 = np.array([p[1] for p in pieces])
-        kind = np.array([p[2] for p in pieces])
-        normal = np.array([p[3] for p in pieces])
-        offset = np.array([p[4] for p in pieces])
+        a0, a1, kind, normal, offset = pieces
         inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
         # outside every interval: the nearest end piece (walls extend past the image)
         gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
