@@ -81,7 +81,11 @@ class Agreement:
 def rot2(yaw, p) -> np.ndarray:
     """R(yaw) p for C yaws (C,) and points (S, 2) or (C, S, 2): (C, S, 2)."""
     c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    return np.stack([c * p[..., 0] + s * p[..., 1], -s * p[..., 0] + c * p[..., 1]], -1)
+    x, z = p[..., 0], p[..., 1]
+    out = np.empty(np.broadcast_shapes(c.shape, x.shape) + (2,))   # filled, not stacked
+    out[..., 0] = c * x + s * z
+    out[..., 1] = -s * x + c * z
+    return out
 
 
 def _lookup(L: Layout, az: np.ndarray):
@@ -191,32 +195,61 @@ def translations(la: Layout, lb: Layout, yaw: float, directions=None,
     a corner of B on a corner of A, or (given unit ``directions`` (D, 2) of the baseline,
     e.g. from the features) one wall of B on one of A along a direction; with ``single``,
     also one wall on one wall by the shortest move (the position along the wall is then
-    unknown: a degenerate pair, which the caller reports)."""
-    (na, ca), (nb, cb) = (_longest(*_lines(L), p.max_walls) for L in (la, lb))
-    out = [np.zeros((0, 2))]
-    if len(na) and len(nb):
-        nbr = rot2(np.array([yaw]), nb)[0]
-        ia, ib = np.nonzero(na @ nbr.T > np.cos(np.radians(p.parallel_deg)))
-        n, rhs = na[ia], ca[ia] - cb[ib]            # n . t = c_A - c_B (same wall)
-        i, j = np.triu_indices(len(n), 1)
-        det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]
-        ok = np.abs(det) > np.sin(np.radians(p.min_angle_deg))
-        i, j, det = i[ok], j[ok], det[ok]
-        out.append(np.column_stack([(rhs[i] * n[j, 1] - rhs[j] * n[i, 1]) / det,
-                                    (n[i, 0] * rhs[j] - n[j, 0] * rhs[i]) / det]))
-        if single:
-            out.append(rhs[:, None] * n)
-        if directions is not None and len(directions):
-            d = np.asarray(directions, float).reshape(-1, 2)
-            nd = n @ d.T                                   # (P, D)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = rhs[:, None] / nd
-            ok = (np.abs(nd) > 0.3) & (s > 0)
-            out.append(s[ok][:, None] * d[np.nonzero(ok)[1]])
-    qa, qb = la.corners[:p.max_walls], lb.corners[:p.max_walls]
-    if len(qa) and len(qb):
-        out.append((qa[:, None] - rot2(np.array([yaw]), qb)[0][None]).reshape(-1, 2))
-    return np.vstack(out)
+    unknown: a degenerate pair, which the caller reports). ``Translations`` for many yaws."""
+    return Translations(la, lb, p)(yaw, directions, single)
+
+
+class Translations:
+    """``translations`` of one layout pair at a few yaws: each photo's longest walls and
+    corners taken once, and per yaw the same-wall pairs and the translations that need no
+    direction kept (calls with and without directions share them); the same arithmetic,
+    the same numbers. ``Translations(la, lb, p)(yaw, directions, single)``."""
+
+    def __init__(self, la: Layout, lb: Layout, p: RegisterParams = RegisterParams()):
+        self.walls = [_longest(*_lines(L), p.max_walls) for L in (la, lb)]
+        self.corners = la.corners[:p.max_walls], lb.corners[:p.max_walls]
+        self.p, self.memo = p, {}
+
+    def _at(self, yaw: float):
+        """(normals n (P, 2) and offsets c_A - c_B (P,) of the same-wall pairs, or None
+        without walls in both; two-wall translations (N, 2); corner translations (Q, 2))."""
+        key = float(yaw)
+        if key not in self.memo:
+            (na, ca), (nb, cb) = self.walls
+            qa, qb = self.corners
+            pairs, two, corner = None, np.zeros((0, 2)), np.zeros((0, 2))
+            if len(na) and len(nb):
+                nbr = rot2(np.array([key]), nb)[0]
+                ia, ib = np.nonzero(na @ nbr.T > np.cos(np.radians(self.p.parallel_deg)))
+                n, rhs = na[ia], ca[ia] - cb[ib]            # n . t = c_A - c_B (same wall)
+                i, j = np.triu_indices(len(n), 1)
+                det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]
+                ok = np.abs(det) > np.sin(np.radians(self.p.min_angle_deg))
+                i, j, det = i[ok], j[ok], det[ok]
+                pairs = (n, rhs)
+                two = np.column_stack([(rhs[i] * n[j, 1] - rhs[j] * n[i, 1]) / det,
+                                       (n[i, 0] * rhs[j] - n[j, 0] * rhs[i]) / det])
+            if len(qa) and len(qb):
+                corner = (qa[:, None] - rot2(np.array([key]), qb)[0][None]).reshape(-1, 2)
+            self.memo[key] = pairs, two, corner
+        return self.memo[key]
+
+    def __call__(self, yaw: float, directions=None, single: bool = False) -> np.ndarray:
+        pairs, two, corner = self._at(yaw)
+        out = [np.zeros((0, 2)), two]
+        if pairs is not None:
+            n, rhs = pairs
+            if single:
+                out.append(rhs[:, None] * n)
+            if directions is not None and len(directions):
+                d = np.asarray(directions, float).reshape(-1, 2)
+                nd = n @ d.T                                   # (P, D)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    s = rhs[:, None] / nd
+                ok = (np.abs(nd) > 0.3) & (s > 0)
+                out.append(s[ok][:, None] * d[np.nonzero(ok)[1]])
+        out.append(corner)
+        return np.vstack(out)
 
 
 def _associate(dst: Layout, src: Layout, yaw: float, t, into_a: bool, gate: float):
