@@ -154,18 +154,45 @@ def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a . (t x R b) / rms(|t x R b|, |t x a|): (M,) for one motion, (C, M) for C yaws (C,)
     and baselines (C, 3)."""
     # by components, (C, M) each (the arithmetic of _rotate, _cross and _dot, without their
-    # strided (C, M, 3) arrays)
+    # strided (C, M, 3) arrays), in place: the same operations in the same order, without a
+    # new array per operation (RANSAC scores ~200 candidates x all matches at once)
     T = np.atleast_2d(t)
     tx, ty, tz = T[:, 0, None], T[:, 1, None], T[:, 2, None]
     y1 = np.atleast_1d(yaw)
     c, s = np.cos(y1)[:, None], np.sin(y1)[:, None]
     ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
     bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
-    rx, rz = c * bx + s * bz, c * bz - s * bx            # R_y(yaw) b; its y is b's
-    n1x, n1y, n1z = ty * rz - tz * by, tz * rx - tx * rz, tx * by - ty * rx
-    n2x, n2y, n2z = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
-    den = np.sqrt(0.5 * ((n1x * n1x + n1y * n1y + n1z * n1z) + (n2x * n2x + n2y * n2y + n2z * n2z)))
-    r = (ax * n1x + ay * n1y + az * n1z) / np.maximum(den, 1e-12)
+    mul = np.multiply
+    w, rx, rz, n1x, n1y = np.empty((5, max(len(y1), len(T)), len(a)))   # w: scratch
+    mul(c, bx, out=rx)
+    rx += mul(s, bz, out=w)                                   # R_y(yaw) b; its y is b's
+    mul(c, bz, out=rz)
+    rz -= mul(s, bx, out=w)
+    mul(ty, rz, out=n1x)
+    n1x -= mul(tz, by, out=w)                                 # n1 = t x R b
+    mul(tz, rx, out=n1y)
+    n1y -= mul(tx, rz, out=w)
+    n1z = mul(tx, by, out=rz)
+    n1z -= mul(ty, rx, out=w)
+    num = mul(ax, n1x, out=rx)                                # a . n1
+    num += mul(ay, n1y, out=w)
+    num += mul(az, n1z, out=w)
+    q1 = mul(n1x, n1x, out=n1x)                               # |n1|^2
+    q1 += mul(n1y, n1y, out=w)
+    q1 += mul(n1z, n1z, out=w)
+    n2 = mul(ty, az, out=n1y)                                 # n2 = t x a
+    n2 -= mul(tz, ay, out=w)
+    q2 = mul(n2, n2, out=n1z)                                 # |n2|^2
+    mul(tz, ax, out=n2)
+    n2 -= mul(tx, az, out=w)
+    q2 += mul(n2, n2, out=w)
+    mul(tx, ay, out=n2)
+    n2 -= mul(ty, ax, out=w)
+    q2 += mul(n2, n2, out=w)
+    q1 += q2
+    q1 *= 0.5
+    den = np.maximum(np.sqrt(q1, out=q1), 1e-12, out=q1)   # rms(|t x R b|, |t x a|)
+    r = np.divide(num, den, out=num)
     return r[0] if np.ndim(yaw) == 0 else r
 
 
