@@ -278,8 +278,15 @@ def known_yaw_terms(a, Rb, m, T, pix: float, ab=None, far=None):
     for unit vectors, and the depths of ``depths``. a, Rb: (M, 3) unit bearings of A and of B
     turned into A's level frame; ab = a . Rb (M,) and the no-parallax mask (M,) when known."""
     num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
-    r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / pix
     ab = _dot(a, Rb) if ab is None else ab
-    det = np.maximum(1.0 - ab * ab, 1e-12)
-    front = ((at - ab * bt) / det > 0) & ((ab * at - bt) / det > 0)
+    # the depths' signs: their common divisor max(1 - ab^2, 1e-12) is positive
+    front = (at - ab * bt > 0) & (ab * at - bt > 0)
+    # r = |num| / sqrt(max(0.5 (2 - at^2 - bt^2), 1e-12)) / pix, in place
+    q = np.subtract(2.0, np.multiply(at, at, out=at), out=at)
+    q -= np.multiply(bt, bt, out=bt)
+    q *= 0.5
+    q = np.sqrt(np.maximum(q, 1e-12, out=q), out=q)
+    r = np.abs(num, out=num)
+    r /= q
+    r /= pix
     return r, front, (_norm(m) / pix < 1.0) if far is None else far
