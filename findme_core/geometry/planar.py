@@ -236,24 +236,30 @@ def _cross_norm(x, y, z, rays):
     return _norm3(y * rz - z * ry, z * rx - x * rz, x * ry - y * rx)
 
 
-def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float):
+def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float, dist=None):
     """hypot(1, each point's sigma (N,) along its own ray, seen across the observed ray of
-    the other photo, in pixels): (C, N)."""
+    the other photo, in pixels): (C, N). ``dist``: the points' distances (C, N) from the other
+    camera (``transfer_residuals``), computed when None."""
     y1 = np.atleast_1d(yaw)
     u = pts / np.maximum(_norm(pts), 1e-12)[:, None]
     own = _turn(y1, u[:, 0], u[:, 1], u[:, 2], into_b)
-    dist = np.maximum(_norm3(*_moved(y1, t, pts, into_b)), 1e-9)
+    if dist is None:
+        dist = np.maximum(_norm3(*_moved(y1, t, pts, into_b)), 1e-9)
     return np.hypot(1.0, sig * _cross_norm(*own, rays) / dist / pix)
 
 
-def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None):
+def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None,
+                       max_spread=None):
     """Lifted points (N, 3) of one photo moved into the other: angle to the observed rays
-    (N, 3) in pixels over their ``_spread`` (computed when None); 1000 for a point behind
-    the camera. (N,) for one motion, (C, N) for C."""
+    (N, 3) in pixels over their ``_spread`` (computed when None, then capped at
+    ``max_spread`` if given); 1000 for a point behind the camera. (N,) for one motion,
+    (C, N) for C."""
     y1 = np.atleast_1d(yaw)
     qx, qy, qz = _moved(y1, t, pts, into_b)
     dist = np.maximum(_norm3(qx, qy, qz), 1e-9)
-    spread = _spread(y1, t, pts, sig, rays, into_b, pix) if spread is None else spread
+    if spread is None:
+        spread = _spread(y1, t, pts, sig, rays, into_b, pix, dist)
+        spread = spread if max_spread is None else np.minimum(spread, max_spread)
     sin_ray = _cross_norm(qx, qy, qz, rays) / dist
     front = qx * rays[:, 0] + qy * rays[:, 1] + qz * rays[:, 2]
     r = np.where(front > 0, sin_ray / pix / spread, 1000.0)

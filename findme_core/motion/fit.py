@@ -163,8 +163,7 @@ class Fit:
             i = np.flatnonzero(L.valid)
             if len(i):
                 x = (L.points[i], L.sigma[i], rays[i], into_b)
-                sp = np.minimum(_spread(yaw, t3, *x, P.pix), 3.0)
-                rt = transfer_residuals(yaw, t3, *x, P.pix, sp)
+                rt = transfer_residuals(yaw, t3, *x, P.pix, max_spread=3.0)
                 f = L.floor[i]
                 floor += msac(rt[:, f], thr)
                 wall += msac(rt[:, ~f], thr)
