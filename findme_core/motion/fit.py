@@ -117,13 +117,15 @@ class YawScale:
         s, sg = [], []
         for (c, v, vc, rs), u in zip(self._terms(yaw), use):
             i = np.flatnonzero(e_in & u)
+            if len(i) == 0:   # no lifted inlier in this photo
+                continue
             tv = v[i] @ t
             den = np.maximum(1.0 - tv ** 2, 1e-9)
             si = (c[i] @ t - tv * vc[i]) / den
             rel = np.hypot(rs[i], 2.0 * self.P.pix / np.sqrt(den))
             s.append(si)
             sg.append(rel * np.abs(si) + 1e-3)
-        return _consensus(np.concatenate(s), np.concatenate(sg))
+        return _consensus(np.concatenate(s), np.concatenate(sg)) if s else None
 
 
 class Fit:
