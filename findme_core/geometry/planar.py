@@ -154,18 +154,45 @@ def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a . (t x R b) / rms(|t x R b|, |t x a|): (M,) for one motion, (C, M) for C yaws (C,)
     and baselines (C, 3)."""
     # by components, (C, M) each (the arithmetic of _rotate, _cross and _dot, without their
-    # strided (C, M, 3) arrays)
+    # strided (C, M, 3) arrays), in place: the same operations in the same order, without a
+    # new array per operation (RANSAC scores ~200 candidates x all matches at once)
     T = np.atleast_2d(t)
     tx, ty, tz = T[:, 0, None], T[:, 1, None], T[:, 2, None]
     y1 = np.atleast_1d(yaw)
     c, s = np.cos(y1)[:, None], np.sin(y1)[:, None]
     ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
     bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
-    rx, rz = c * bx + s * bz, c * bz - s * bx            # R_y(yaw) b; its y is b's
-    n1x, n1y, n1z = ty * rz - tz * by, tz * rx - tx * rz, tx * by - ty * rx
-    n2x, n2y, n2z = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
-    den = np.sqrt(0.5 * ((n1x * n1x + n1y * n1y + n1z * n1z) + (n2x * n2x + n2y * n2y + n2z * n2z)))
-    r = (ax * n1x + ay * n1y + az * n1z) / np.maximum(den, 1e-12)
+    mul = np.multiply
+    w, rx, rz, n1x, n1y = np.empty((5, max(len(y1), len(T)), len(a)))   # w: scratch
+    mul(c, bx, out=rx)
+    rx += mul(s, bz, out=w)                                   # R_y(yaw) b; its y is b's
+    mul(c, bz, out=rz)
+    rz -= mul(s, bx, out=w)
+    mul(ty, rz, out=n1x)
+    n1x -= mul(tz, by, out=w)                                 # n1 = t x R b
+    mul(tz, rx, out=n1y)
+    n1y -= mul(tx, rz, out=w)
+    n1z = mul(tx, by, out=rz)
+    n1z -= mul(ty, rx, out=w)
+    num = mul(ax, n1x, out=rx)                                # a . n1
+    num += mul(ay, n1y, out=w)
+    num += mul(az, n1z, out=w)
+    q1 = mul(n1x, n1x, out=n1x)                               # |n1|^2
+    q1 += mul(n1y, n1y, out=w)
+    q1 += mul(n1z, n1z, out=w)
+    n2 = mul(ty, az, out=n1y)                                 # n2 = t x a
+    n2 -= mul(tz, ay, out=w)
+    q2 = mul(n2, n2, out=n1z)                                 # |n2|^2
+    mul(tz, ax, out=n2)
+    n2 -= mul(tx, az, out=w)
+    q2 += mul(n2, n2, out=w)
+    mul(tx, ay, out=n2)
+    n2 -= mul(ty, ax, out=w)
+    q2 += mul(n2, n2, out=w)
+    q1 += q2
+    q1 *= 0.5
+    den = np.maximum(np.sqrt(q1, out=q1), 1e-12, out=q1)   # rms(|t x R b|, |t x a|)
+    r = np.divide(num, den, out=num)
     return r[0] if np.ndim(yaw) == 0 else r
 
 
@@ -209,24 +236,30 @@ def _cross_norm(x, y, z, rays):
     return _norm3(y * rz - z * ry, z * rx - x * rz, x * ry - y * rx)
 
 
-def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float):
+def _spread(yaw, t, pts, sig, rays, into_b: bool, pix: float, dist=None):
     """hypot(1, each point's sigma (N,) along its own ray, seen across the observed ray of
-    the other photo, in pixels): (C, N)."""
+    the other photo, in pixels): (C, N). ``dist``: the points' distances (C, N) from the other
+    camera (``transfer_residuals``), computed when None."""
     y1 = np.atleast_1d(yaw)
     u = pts / np.maximum(_norm(pts), 1e-12)[:, None]
     own = _turn(y1, u[:, 0], u[:, 1], u[:, 2], into_b)
-    dist = np.maximum(_norm3(*_moved(y1, t, pts, into_b)), 1e-9)
+    if dist is None:
+        dist = np.maximum(_norm3(*_moved(y1, t, pts, into_b)), 1e-9)
     return np.hypot(1.0, sig * _cross_norm(*own, rays) / dist / pix)
 
 
-def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None):
+def transfer_residuals(yaw, t, pts, sig, rays, into_b: bool, pix: float, spread=None,
+                       max_spread=None):
     """Lifted points (N, 3) of one photo moved into the other: angle to the observed rays
-    (N, 3) in pixels over their ``_spread`` (computed when None); 1000 for a point behind
-    the camera. (N,) for one motion, (C, N) for C."""
+    (N, 3) in pixels over their ``_spread`` (computed when None, then capped at
+    ``max_spread`` if given); 1000 for a point behind the camera. (N,) for one motion,
+    (C, N) for C."""
     y1 = np.atleast_1d(yaw)
     qx, qy, qz = _moved(y1, t, pts, into_b)
     dist = np.maximum(_norm3(qx, qy, qz), 1e-9)
-    spread = _spread(y1, t, pts, sig, rays, into_b, pix) if spread is None else spread
+    if spread is None:
+        spread = _spread(y1, t, pts, sig, rays, into_b, pix, dist)
+        spread = spread if max_spread is None else np.minimum(spread, max_spread)
     sin_ray = _cross_norm(qx, qy, qz, rays) / dist
     front = qx * rays[:, 0] + qy * rays[:, 1] + qz * rays[:, 2]
     r = np.where(front > 0, sin_ray / pix / spread, 1000.0)
@@ -251,8 +284,15 @@ def known_yaw_terms(a, Rb, m, T, pix: float, ab=None, far=None):
     for unit vectors, and the depths of ``depths``. a, Rb: (M, 3) unit bearings of A and of B
     turned into A's level frame; ab = a . Rb (M,) and the no-parallax mask (M,) when known."""
     num, at, bt = T @ m.T, T @ a.T, T @ Rb.T
-    r = np.abs(num) / np.sqrt(np.maximum(0.5 * (2.0 - at ** 2 - bt ** 2), 1e-12)) / pix
     ab = _dot(a, Rb) if ab is None else ab
-    det = np.maximum(1.0 - ab * ab, 1e-12)
-    front = ((at - ab * bt) / det > 0) & ((ab * at - bt) / det > 0)
+    # the depths' signs: their common divisor max(1 - ab^2, 1e-12) is positive
+    front = (at - ab * bt > 0) & (ab * at - bt > 0)
+    # r = |num| / sqrt(max(0.5 (2 - at^2 - bt^2), 1e-12)) / pix, in place
+    q = np.subtract(2.0, np.multiply(at, at, out=at), out=at)
+    q -= np.multiply(bt, bt, out=bt)
+    q *= 0.5
+    q = np.sqrt(np.maximum(q, 1e-12, out=q), out=q)
+    r = np.abs(num, out=num)
+    r /= q
+    r /= pix
     return r, front, (_norm(m) / pix < 1.0) if far is None else far

@@ -22,7 +22,8 @@ def samples(rng, n: int, k: int, count: int) -> np.ndarray:
 
 def levenberg_marquardt(resid, p, n_prior: int = 0, iters: int = 8, c: float = 2.5):
     """LM with a forward-difference Jacobian (``resid`` maps (C, k) parameters to (C, R)
-    residuals); Cauchy loss (scale c) on all residuals but the last ``n_prior`` (Gaussian
+    residuals, each row from its own parameters alone: a step is evaluated with its Jacobian
+    in one call); Cauchy loss (scale c) on all residuals but the last ``n_prior`` (Gaussian
     priors). Returns the parameters and their covariance, inflated by the robust chi^2 per
     degree of freedom when > 1."""
     k, h = len(p), 1e-7
@@ -44,11 +45,14 @@ def levenberg_marquardt(resid, p, n_prior: int = 0, iters: int = 8, c: float = 2
     for _ in range(iters):
         w = weights(r)
         H, g = J.T @ (w[:, None] * J), J.T @ (w * r)
+        now = cost(r)
         while lam < 1e8:
             dp = -np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-12), g)
-            if cost(resid((p + dp)[None])[0]) < cost(r):
-                p, lam = p + dp, lam * 0.3
-                r, J = eval_jac(p)
+            # a step is tried with its Jacobian (one call of ``resid``, rows independent):
+            # nearly all steps are taken
+            r1, J1 = eval_jac(p + dp)
+            if cost(r1) < now:
+                p, lam, r, J = p + dp, lam * 0.3, r1, J1
                 break
             lam *= 10.0
         if lam >= 1e8 or np.max(np.abs(dp)) < 1e-8:

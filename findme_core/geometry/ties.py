@@ -26,6 +26,8 @@ rounding. NaN never wins a comparison; an all-NaN input gives 0.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 #: Relative and absolute tolerance of a tie: ~4500 ulps of the larger value, 100 times the
@@ -53,9 +55,13 @@ def argmax(values, rtol: float = RTOL, atol: float = ATOL, axis: int | None = No
         axis: None: over the flattened values (an int); else along that axis (an int array,
             like ``np.argmax(values, axis)``).
     """
-    if axis is None:
+    if axis is None:   # the same test on a flat array, with Python floats (no array ops)
         v = _vals(values)
-        return int(argmax(v, rtol, atol, axis=0))
+        best = float(np.fmax.reduce(v))   # NaN ignored; all NaN: NaN, and 0 is returned
+        if best != best:
+            return 0
+        tol = 0.0 if math.isinf(best) else atol + rtol * abs(best)
+        return int(np.argmax(v >= best - tol))
     v = np.asarray(values, float)
     if v.shape[axis] == 0:
         raise ValueError("no values to choose from")
@@ -94,6 +100,8 @@ def order(values, descending: bool = True, rtol: float = RTOL, atol=ATOL) -> np.
         tol = np.maximum(at[:-1], at[1:]) + rtol * np.maximum(np.abs(s[:-1]), np.abs(s[1:]))
         gap = np.diff(s) > tol
     gap |= np.isinf(s[1:]) & ~np.isinf(s[:-1])
+    if gap.all():   # no ties: the sorted order
+        return idx
     group = np.concatenate([[0], np.cumsum(gap)])
     return idx[np.lexsort((idx, group))]
 

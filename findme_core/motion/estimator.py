@@ -159,6 +159,7 @@ class Registration:
         if free is not None:   # with equal heights (assumed, not measured), its direction
             # may rise or fall: uneven ground, a hand-held phone
             dirs.append((free[0], free[1][None], free[2][None], self.planar))
+        walls = self._layout_pairs()
         scale = YawScale(self.P, self.turned)   # ``_scale`` with its per-yaw terms kept
         wall_only = (uses[1][0] & ~uses[0][0]) | (uses[1][1] & ~uses[0][1])
         for y, T, inl, free_dir in dirs:
@@ -172,27 +173,31 @@ class Registration:
                         if free_dir:
                             add(y, s * t)
             d2 = T[:, [0, 2]] / np.maximum(np.linalg.norm(T[:, [0, 2]], axis=1, keepdims=True), 1e-12)
-            for la, lb in self._layout_pairs():
-                add(y, register.translations(la, lb, y, d2, self.rp))
+            for pair in walls:
+                add(y, pair(y, d2))
         # matches lifted in one photo only, placed in the other by their height
         corr = one_sided.correspondences(self.P, self.p.lift_min_elev_deg)
         for y in yaws:
             add(y, one_sided.at_yaw(corr, y))
-        for la, lb in self._layout_pairs():   # the walls alone (one wall: one direction)
+        for pair in walls:   # the walls alone (one wall: one direction)
             for y in yaws:
-                add(y, register.translations(la, lb, y, None, self.rp, single=not self.feats))
+                add(y, pair(y, None, single=not self.feats))
         if not cy:
             return np.zeros(0), np.zeros((0, 3))
         return np.array(cy), np.vstack(ct)
 
     def _layout_pairs(self):
-        """The layout pairs that propose translations: every pair of the candidate
-        hypotheses, up to ``gen_layouts`` of each photo (the chosen ones first)."""
+        """The layout pairs that propose translations (``register.Translations``): every
+        pair of the candidate hypotheses, up to ``gen_layouts`` of each photo (the chosen
+        ones first)."""
         k = self.p.gen_layouts
-        return [(la, lb) for la in self.la[:k] for lb in self.lb[:k]]
+        return [register.Translations(la, lb, self.rp)
+                for la in self.la[:k] for lb in self.lb[:k]]
 
     def _t3(self, t2):
-        return np.column_stack([t2[:, 0], np.full(len(t2), self.dy), t2[:, 1]])
+        t3 = np.empty((len(t2), 3))   # filled: ~50 calls a pair, mostly of a few rows
+        t3[:, 0], t3[:, 1], t3[:, 2] = t2[:, 0], self.dy, t2[:, 1]
+        return t3
 
     # ------------------------------------------------------------------ answer
     def run(self) -> PlanarMotion:

@@ -211,7 +211,8 @@ def _scale(P: MotionInputs, yaw, t, e_in, use) -> float | None:
 def _consensus(s, sg) -> float | None:
     """The weighted mean of the scales s (K,) (sigmas sg) that agree with the best supported
     one (``_scale``); None without a positive one."""
-    s, sg = s[s > 0], sg[s > 0]
+    pos = s > 0
+    s, sg = s[pos], sg[pos]
     if len(s) == 0:
         return None
     score = np.maximum(0.0, 1.0 - ((s[None, :] - s[:, None]) / (2.5 * sg[None, :])) ** 2).sum(1)

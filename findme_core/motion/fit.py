@@ -117,13 +117,15 @@ class YawScale:
         s, sg = [], []
         for (c, v, vc, rs), u in zip(self._terms(yaw), use):
             i = np.flatnonzero(e_in & u)
+            if len(i) == 0:   # no lifted inlier in this photo
+                continue
             tv = v[i] @ t
             den = np.maximum(1.0 - tv ** 2, 1e-9)
             si = (c[i] @ t - tv * vc[i]) / den
             rel = np.hypot(rs[i], 2.0 * self.P.pix / np.sqrt(den))
             s.append(si)
             sg.append(rel * np.abs(si) + 1e-3)
-        return _consensus(np.concatenate(s), np.concatenate(sg))
+        return _consensus(np.concatenate(s), np.concatenate(sg)) if s else None
 
 
 class Fit:
@@ -163,8 +165,7 @@ class Fit:
             i = np.flatnonzero(L.valid)
             if len(i):
                 x = (L.points[i], L.sigma[i], rays[i], into_b)
-                sp = np.minimum(_spread(yaw, t3, *x, P.pix), 3.0)
-                rt = transfer_residuals(yaw, t3, *x, P.pix, sp)
+                rt = transfer_residuals(yaw, t3, *x, P.pix, max_spread=3.0)
                 f = L.floor[i]
                 floor += msac(rt[:, f], thr)
                 wall += msac(rt[:, ~f], thr)

@@ -70,14 +70,15 @@ def _modes(t, sig, gate: float, k: int, min_support: float, sep_m: float):
     """The k best-supported distinct translations among the votes t (N, 2) (support: MSAC
     of the other votes' distances over their sigma); (K, 2), support (K,)."""
     dx, dz = t[:, None, 0] - t[None, :, 0], t[:, None, 1] - t[None, :, 1]
-    d = np.sqrt(dx * dx + dz * dz) / (gate * sig[None])   # (the norm over the pair axis)
-    support = np.maximum(0.0, 1.0 - d ** 2).sum(1)
-    keep = []
+    dist = np.sqrt(dx * dx + dz * dz)   # (N, N) metres (the norm over the pair axis)
+    support = np.maximum(0.0, 1.0 - (dist / (gate * sig[None])) ** 2).sum(1)
+    keep, far = [], np.ones(len(t), bool)   # far: farther than sep_m from every kept mode
     for i in np.argsort(-support, kind="stable"):
         if support[i] < min_support or len(keep) == k:
             break
-        if all(np.linalg.norm(t[i] - t[j]) > sep_m for j in keep):
+        if far[i]:
             keep.append(i)
+            far &= dist[i] > sep_m
     keep = np.array(keep, int)
     return t[keep], support[keep]
 

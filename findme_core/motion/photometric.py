@@ -151,16 +151,21 @@ def _one_way(src: Surface, dst: Surface, yaw, t, into_b: bool, p: PhotometricPar
     z = g[2]
     front = z > 1e-9
     zs = np.where(front, z, 1.0)
-    u = cam.fx * g[0] / zs + cam.cx
-    v = cam.fy * g[1] / zs + cam.cy
+    u = np.multiply(cam.fx, g[0])   # fx x / z + cx, in place
+    u /= zs
+    u += cam.cx
+    v = np.multiply(cam.fy, g[1])
+    v /= zs
+    v += cam.cy
     h, w = dst.image.shape
     seen = front & (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
-    if dst.layout is not None:   # not hidden behind dst's walls
+    if dst.layout is not None:   # not hidden behind dst's walls: the samples seen so far
         L = dst.layout
-        az = np.arctan2(g[3], g[4])
-        j, near = L.scan.nearest(az)
+        i = np.nonzero(seen)
+        x, zl = g[3][i], g[4][i]
+        j, near = L.scan.nearest(np.arctan2(x, zl))
         bound = L.range * 1.1 + p.hidden_m
-        seen &= near & (g[3] * g[3] + g[4] * g[4] <= (bound * bound)[j])
+        seen[i] = near & (x * x + zl * zl <= (bound * bound)[j])
     # looked up everywhere (cheaper than choosing where); only the seen samples count
     m = cv2.remap(dst.image, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)

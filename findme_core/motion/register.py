@@ -80,8 +80,17 @@ class Agreement:
 
 def rot2(yaw, p) -> np.ndarray:
     """R(yaw) p for C yaws (C,) and points (S, 2) or (C, S, 2): (C, S, 2)."""
+    x, z = _turned(yaw, p[..., 0], p[..., 1])
+    out = np.empty(x.shape + (2,))   # filled, not stacked
+    out[..., 0], out[..., 1] = x, z
+    return out
+
+
+def _turned(yaw, x, z):
+    """``rot2`` by components: R(yaw) (x, z) for C yaws (C,) and coordinates x, z that
+    broadcast against (C, 1); returns (x, z), (C, S) each."""
     c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    return np.stack([c * p[..., 0] + s * p[..., 1], -s * p[..., 0] + c * p[..., 1]], -1)
+    return c * x + s * z, -s * x + c * z
 
 
 def _lookup(L: Layout, az: np.ndarray):
@@ -94,17 +103,24 @@ def _lookup(L: Layout, az: np.ndarray):
 
 def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
     """src's WALL samples moved into dst for C motions. Returns (normalised residual e
-    (C, S), agrees (C, S), violates (C, S), dst sample index (C, S), src sample index (S,))."""
+    (C, S), agrees (C, S), violates (C, S), dst sample index (C, S), src sample index (S,),
+    combined sigma (C, S), metres)."""
     k = np.flatnonzero(src.kind == SegKind.WALL)
-    p = src.points[k]
-    q = rot2(yaw, p) + t[:, None] if into_a else rot2(-yaw, p[None] - t[:, None])
-    az, rho = np.arctan2(q[..., 0], q[..., 1]), np.hypot(q[..., 0], q[..., 1])
+    px, pz = src.points[k, 0], src.points[k, 1]
+    if into_a:   # R(yaw) p + t, by components
+        qx, qz = _turned(yaw, px, pz)
+        qx += t[:, 0, None]
+        qz += t[:, 1, None]
+    else:        # R(-yaw) (p - t)
+        qx, qz = _turned(-yaw, px - t[:, 0, None], pz - t[:, 1, None])
+    az, rho = np.arctan2(qx, qz), np.hypot(qx, qz)
     j, near = _lookup(dst, az)
     kind = dst.kind[j]
-    e = (rho - dst.range[j]) / np.hypot(dst.sigma[j], src.sigma[k])
+    sig = np.hypot(dst.sigma[j], src.sigma[k])
+    e = (rho - dst.range[j]) / sig
     agree = near & (kind == SegKind.WALL) & (np.abs(e) < gate)
     bound = (kind == SegKind.WALL) | (kind == SegKind.OPEN)
-    return e, agree, near & bound & (e < -gate), j, k
+    return e, agree, near & bound & (e < -gate), j, k, sig
 
 
 def _camera_outside(dst: Layout, yaw, t, into_a: bool, gate: float) -> np.ndarray:
@@ -124,8 +140,8 @@ def scores(la: Layout, lb: Layout, yaw, t, p: RegisterParams = RegisterParams())
     yaw, t = np.atleast_1d(yaw), np.atleast_2d(t)
     total = np.zeros(len(yaw))
     for dst, src, into_a in ((la, lb, True), (lb, la, False)):
-        e, agree, viol, j, k = _one_way(dst, src, yaw, t, into_a, p.gate)
-        w = np.minimum(1.0, (p.sigma_ref / np.hypot(dst.sigma[j], src.sigma[k])) ** 2)
+        e, agree, viol, _, _, sig = _one_way(dst, src, yaw, t, into_a, p.gate)
+        w = np.minimum(1.0, (p.sigma_ref / sig) ** 2)
         total += p.weight * np.sum(np.where(agree, (1.0 - (e / p.gate) ** 2) * w, 0.0), 1) \
             - p.violation * viol.sum(1) \
             - p.outside * _camera_outside(dst, yaw, t, into_a, p.gate)
@@ -191,39 +207,68 @@ def translations(la: Layout, lb: Layout, yaw: float, directions=None,
     a corner of B on a corner of A, or (given unit ``directions`` (D, 2) of the baseline,
     e.g. from the features) one wall of B on one of A along a direction; with ``single``,
     also one wall on one wall by the shortest move (the position along the wall is then
-    unknown: a degenerate pair, which the caller reports)."""
-    (na, ca), (nb, cb) = (_longest(*_lines(L), p.max_walls) for L in (la, lb))
-    out = [np.zeros((0, 2))]
-    if len(na) and len(nb):
-        nbr = rot2(np.array([yaw]), nb)[0]
-        ia, ib = np.nonzero(na @ nbr.T > np.cos(np.radians(p.parallel_deg)))
-        n, rhs = na[ia], ca[ia] - cb[ib]            # n . t = c_A - c_B (same wall)
-        i, j = np.triu_indices(len(n), 1)
-        det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]
-        ok = np.abs(det) > np.sin(np.radians(p.min_angle_deg))
-        i, j, det = i[ok], j[ok], det[ok]
-        out.append(np.column_stack([(rhs[i] * n[j, 1] - rhs[j] * n[i, 1]) / det,
-                                    (n[i, 0] * rhs[j] - n[j, 0] * rhs[i]) / det]))
-        if single:
-            out.append(rhs[:, None] * n)
-        if directions is not None and len(directions):
-            d = np.asarray(directions, float).reshape(-1, 2)
-            nd = n @ d.T                                   # (P, D)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = rhs[:, None] / nd
-            ok = (np.abs(nd) > 0.3) & (s > 0)
-            out.append(s[ok][:, None] * d[np.nonzero(ok)[1]])
-    qa, qb = la.corners[:p.max_walls], lb.corners[:p.max_walls]
-    if len(qa) and len(qb):
-        out.append((qa[:, None] - rot2(np.array([yaw]), qb)[0][None]).reshape(-1, 2))
-    return np.vstack(out)
+    unknown: a degenerate pair, which the caller reports). ``Translations`` for many yaws."""
+    return Translations(la, lb, p)(yaw, directions, single)
+
+
+class Translations:
+    """``translations`` of one layout pair at a few yaws: each photo's longest walls and
+    corners taken once, and per yaw the same-wall pairs and the translations that need no
+    direction kept (calls with and without directions share them); the same arithmetic,
+    the same numbers. ``Translations(la, lb, p)(yaw, directions, single)``."""
+
+    def __init__(self, la: Layout, lb: Layout, p: RegisterParams = RegisterParams()):
+        self.walls = [_longest(*_lines(L), p.max_walls) for L in (la, lb)]
+        self.corners = la.corners[:p.max_walls], lb.corners[:p.max_walls]
+        self.p, self.memo = p, {}
+
+    def _at(self, yaw: float):
+        """(normals n (P, 2) and offsets c_A - c_B (P,) of the same-wall pairs, or None
+        without walls in both; two-wall translations (N, 2); corner translations (Q, 2))."""
+        key = float(yaw)
+        if key not in self.memo:
+            (na, ca), (nb, cb) = self.walls
+            qa, qb = self.corners
+            pairs, two, corner = None, np.zeros((0, 2)), np.zeros((0, 2))
+            if len(na) and len(nb):
+                nbr = rot2(np.array([key]), nb)[0]
+                ia, ib = np.nonzero(na @ nbr.T > np.cos(np.radians(self.p.parallel_deg)))
+                n, rhs = na[ia], ca[ia] - cb[ib]            # n . t = c_A - c_B (same wall)
+                i, j = np.triu_indices(len(n), 1)
+                det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]
+                ok = np.abs(det) > np.sin(np.radians(self.p.min_angle_deg))
+                i, j, det = i[ok], j[ok], det[ok]
+                pairs = (n, rhs)
+                two = np.column_stack([(rhs[i] * n[j, 1] - rhs[j] * n[i, 1]) / det,
+                                       (n[i, 0] * rhs[j] - n[j, 0] * rhs[i]) / det])
+            if len(qa) and len(qb):
+                corner = (qa[:, None] - rot2(np.array([key]), qb)[0][None]).reshape(-1, 2)
+            self.memo[key] = pairs, two, corner
+        return self.memo[key]
+
+    def __call__(self, yaw: float, directions=None, single: bool = False) -> np.ndarray:
+        pairs, two, corner = self._at(yaw)
+        out = [np.zeros((0, 2)), two]
+        if pairs is not None:
+            n, rhs = pairs
+            if single:
+                out.append(rhs[:, None] * n)
+            if directions is not None and len(directions):
+                d = np.asarray(directions, float).reshape(-1, 2)
+                nd = n @ d.T                                   # (P, D)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    s = rhs[:, None] / nd
+                ok = (np.abs(nd) > 0.3) & (s > 0)
+                out.append(s[ok][:, None] * d[np.nonzero(ok)[1]])
+        out.append(corner)
+        return np.vstack(out)
 
 
 def _associate(dst: Layout, src: Layout, yaw: float, t, into_a: bool, gate: float):
     """src's samples that agree with dst under one motion, each with the dst wall nearest to
     it (point to segment): (src sample indices (S,), dst wall indices (S,), moved points
     (S, 2), combined sigma (S,))."""
-    _, agree, _, j, k = _one_way(dst, src, np.array([yaw]), t, into_a, gate)
+    _, agree, _, _, k, sig = _one_way(dst, src, np.array([yaw]), t, into_a, gate)
     a = agree[0]
     if not a.any() or len(dst.walls) == 0:
         return np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2)), np.zeros(0)
@@ -234,8 +279,7 @@ def _associate(dst: Layout, src: Layout, yaw: float, t, into_a: bool, gate: floa
                 / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0.0, 1.0)
     dist = np.linalg.norm(q[:, None] - (w0[None] + u[..., None] * d[None]), axis=2)
     # a sample nearest a corner is as near to both walls: the first wall, on every machine
-    return (k[a], ties.argmin(dist, axis=1), q,
-            np.hypot(dst.sigma[j[0][a]], src.sigma[k[a]]))
+    return k[a], ties.argmin(dist, axis=1), q, sig[0][a]
 
 
 def residual_terms(la: Layout, lb: Layout, yaw: float, t, p: RegisterParams = RegisterParams()):
