@@ -162,6 +162,11 @@ def main(argv=None):
                          "the smooth fit from ranking.SEARCH_WEIGHTS, then far from its grid) "
                          "on the other groups: tools/loro_eval.py runs the pipeline on each "
                          "group with its fold's")
+    ap.add_argument("--refit-out", metavar="FOLDS.json",
+                    help="write the shipped procedure refitted on every group, as folds for "
+                         "tools/loro_eval.py ({group: {name: w}}, every group the same): the "
+                         "in-sample counterpart of --loro-out, whose gap to it is the held-out "
+                         "loss and whose gap to the shipped weights is theirs")
     ap.add_argument("--grid", metavar="NAME=V1,V2,...",
                     help="instead of fitting, choose one weight from these values (e.g. "
                          "far=0,-4,-8,-12,-16,-24), each held-out fold choosing on its own")
@@ -212,6 +217,9 @@ def main(argv=None):
             json.dump(folds, open(a.loro_out, "w"), indent=1)
             print("  folds (shipped_procedure, leave one group out), far per fold:",
                   ", ".join(f"{g} {folds[g]['far']:g}" for g in groups))
+        if a.refit_out:
+            w_all = dict(zip(FEATURES, shipped_procedure([data[v] for v in vids], free).tolist()))
+            json.dump({g: w_all for g in groups}, open(a.refit_out, "w"), indent=1)
         print("top-1 median pixel error per subset "
               "(current weights | held-out fit | in-sample fit | best candidate)")
         for s in SUBSETS:

@@ -221,6 +221,7 @@ def main(argv=None):
         locate = json.loads((t / "locate.json").read_text())
         trust_tools = results_trust.run(a.split, t)
         loro = _score(a.split, scorer, trust_tools["loro"])
+        refit = _score(a.split, scorer, trust_tools["refit"])
         ours_preds = json.loads((t / "ours.json").read_text())
         nograv_preds = json.loads((t / "nograv.json").read_text())
         ours = _score(a.split, scorer, t / "ours.json")
@@ -305,7 +306,8 @@ def main(argv=None):
         "the plan's photos and a clear best: `relocalise.verdict`); otherwise it says it cannot "
         "tell and gives its candidates, best first.", "",
         *_locate_rows(locate), "",
-        *results_trust.section(a.split, ours, loro, ours_preds, nograv_preds, trust_tools),
+        *results_trust.section(a.split, ours, refit, loro, ours_preds, nograv_preds,
+                               trust_tools),
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text("\n".join(lines) + "\n")
