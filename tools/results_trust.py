@@ -39,7 +39,13 @@ def loro_rows(ours: dict, refit: dict, loro: dict) -> list[str]:
     weights' procedure run again on every dev room: ``fit_ranker --refit-out``) and "out"
     (each room with that procedure run without it). refit -> out is what a room never seen
     loses; in -> refit is what the shipped weights gain over their own procedure today."""
-    three = lambda f, *d: " / ".join(f(x) for x in d)  # noqa: E731
+    def three(f, *d) -> str:
+        return " / ".join(f(x) for x in d)
+
+    def pct(kind):       # a 3D points' relative error median, or "–"
+        return lambda q: ("–" if not q.get(kind) or not q[kind].get("rel_err_pct_n")
+                          else f"{q[kind]['rel_err_pct_median']:.2f} %")
+
     rows = ["| subset | top-1 in / refit / out | wall 3D in / refit / out | "
             "floor 3D in / refit / out |", "|---|---|---|---|"]
     for s in SINGLE:
@@ -47,11 +53,8 @@ def loro_rows(ours: dict, refit: dict, loro: dict) -> list[str]:
         if not d[0].get("single_image"):
             continue
         p = [x.get("points_3d", {}) for x in d]
-        w = lambda k: lambda q: ("–" if not q.get(k) or not q[k].get("rel_err_pct_n")  # noqa: E731
-                                 else f"{q[k]['rel_err_pct_median']:.2f} %")
-        rows.append(f"| {s} | "
-                    f"{three(lambda x: _cell(x.get('single_image', {}).get('pixel_error_top1')), *d)}"
-                    f" | {three(w('wall'), *p)} | {three(w('floor'), *p)} |")
+        top1 = three(lambda x: _cell(x.get("single_image", {}).get("pixel_error_top1")), *d)
+        rows.append(f"| {s} | {top1} | {three(pct('wall'), *p)} | {three(pct('floor'), *p)} |")
     rows += ["", "| subset | pairs | answered in / refit / out | translation median in / refit "
              "/ out | yaw median in / refit / out | success in / refit / out |",
              "|---|---|---|---|---|---|"]
