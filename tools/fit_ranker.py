@@ -186,6 +186,7 @@ def main(argv=None):
         ap.error(f"unknown weight(s) {', '.join(sorted(unknown))}; choose among {', '.join(FEATURES)}")
     free = np.array([f in names for f in FEATURES])
     # the shipped weights' procedure; --free: a smooth fit of some weights from the current
+    shipped = not (a.free or a.grid)
     fitter = fit if a.free else (lambda train, w0, free: shipped_procedure(train, free))
     if a.grid:
         name, _, vals = a.grid.partition("=")
@@ -201,25 +202,26 @@ def main(argv=None):
     oracle = {vid: (e.min() if len(e) else 1.0) for vid, (f, e) in data.items()}
     if True:
         groups = sorted({group_of(v) for v in vids})
-        held = {}
+        held, fold_w = {}, {}
         for g in groups:
             train = [data[v] for v in vids if group_of(v) != g]
-            wg = fitter(train, w, free)
+            wg = fold_w[g] = fitter(train, w, free)
             if a.grid:
                 print(f"  fold {g}: {name} = {wg[FEATURES.index(name)]:g}")
             for v in vids:
                 if group_of(v) == g:
                     held[v] = top1([data[v]], wg)[0]
         w_new = fitter([data[v] for v in vids], w, free)
-        if a.loro_out:
-            folds = {g: dict(zip(FEATURES, shipped_procedure(
-                [data[v] for v in vids if group_of(v) != g], free).tolist())) for g in groups}
+        if a.loro_out:   # the held-out fits above when they were the shipped procedure
+            folds = {g: dict(zip(FEATURES, (fold_w[g] if shipped else shipped_procedure(
+                [data[v] for v in vids if group_of(v) != g], free)).tolist())) for g in groups}
             json.dump(folds, open(a.loro_out, "w"), indent=1)
             print("  folds (shipped_procedure, leave one group out), far per fold:",
                   ", ".join(f"{g} {folds[g]['far']:g}" for g in groups))
         if a.refit_out:
-            w_all = dict(zip(FEATURES, shipped_procedure([data[v] for v in vids], free).tolist()))
-            json.dump({g: w_all for g in groups}, open(a.refit_out, "w"), indent=1)
+            w_all = w_new if shipped else shipped_procedure([data[v] for v in vids], free)
+            json.dump({g: dict(zip(FEATURES, w_all.tolist())) for g in groups},
+                      open(a.refit_out, "w"), indent=1)
         print("top-1 median pixel error per subset "
               "(current weights | held-out fit | in-sample fit | best candidate)")
         for s in SUBSETS:

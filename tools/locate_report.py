@@ -174,12 +174,17 @@ def main(argv=None) -> int:
 HOW = ("walls", "photos", "turn walls", "turn photos")
 
 
+def _turns_found_with_photos(rows) -> list[tuple[str, dict]]:
+    """(room, the "turn photos" answer) of every photo its turn was found for."""
+    return [(r["room"], r["turn photos"]) for r in rows
+            if "turn photos" in r and "error" not in r["turn photos"]]
+
+
 def _found_ratio_loro(rows) -> str:
     """``relocalise.FOUND_RATIO`` checked leave one room out on the turns found with the
     plan's photos: each room gets the largest ratio (0.5-1.0, step 0.05) under which no
     answer of the other rooms would be stated wrong; its answers stated under it."""
-    done = [(r["room"], r["turn photos"]) for r in rows
-            if "turn photos" in r and "error" not in r["turn photos"]]
+    done = _turns_found_with_photos(rows)
     grid = np.round(np.arange(0.5, 1.0001, 0.05), 2)
     said = lambda d, t: d["score"] > 0 and d["ambiguity"] < t  # noqa: E731
     parts, right, wrong = [], 0, 0
@@ -200,8 +205,7 @@ def _found_sigma_loro(rows) -> str:
     """``relocalise.FOUND_SIGMA`` against the stated poses (turns found with the plan's
     photos): the RMS errors in sample (x and z pooled; yaw) and the coverage (within 1 / 2 / 3
     sigma) when each room is scored with the RMS of the other rooms' errors."""
-    done = [(r["room"], r["turn photos"]) for r in rows
-            if "turn photos" in r and "error" not in r["turn photos"] and r["turn photos"]["found"]]
+    done = [(room, d) for room, d in _turns_found_with_photos(rows) if d["found"]]
     if not done:
         return "found sigma: no pose stated"
     xz = lambda ds: np.array([e for d in ds for e in (d["dx_m"], d["dz_m"])])  # noqa: E731

@@ -189,14 +189,12 @@ def cmd_locate_in(args) -> int:
     if args.json:
         print(json.dumps(out))
         return 0
-    where = [_where(q, len(photos) > 1) for q in poses]
     if found:
-        sx, sy = relocalise.FOUND_SIGMA
-        print(f"you are at {_where(best, len(photos) > 1, (sx, sy))}")
+        print(f"you are at {_where(best, len(photos) > 1, relocalise.FOUND_SIGMA)}")
     else:
         print(f"cannot tell where you are: {why}. {len(poses)} place(s) fit, best first:")
         for k, q in enumerate(poses):
-            print(f"  {k + 1}. {where[k]}, score {q['score']:.1f}"
+            print(f"  {k + 1}. {_where(q, len(photos) > 1)}, score {q['score']:.1f}"
                   + (f" ({q['agreeing']} wall samples agree)" if "agreeing" in q else ""))
     lost = [n for n, c in zip(names, cands[0]) if not np.isfinite(c[0])]
     if lost:
