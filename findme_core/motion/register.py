@@ -24,6 +24,9 @@ from findme_core.geometry import ties
 from findme_core.single.layout import Layout
 from findme_core.single.search import SegKind
 
+# plain ints: numpy compares an array with an IntEnum member through Python (several us)
+_WALL, _OPEN = int(SegKind.WALL), int(SegKind.OPEN)
+
 
 @dataclass(frozen=True)
 class RegisterParams:
@@ -105,7 +108,7 @@ def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
     """src's WALL samples moved into dst for C motions. Returns (normalised residual e
     (C, S), agrees (C, S), violates (C, S), dst sample index (C, S), src sample index (S,),
     combined sigma (C, S), metres)."""
-    k = np.flatnonzero(src.kind == SegKind.WALL)
+    k = np.flatnonzero(src.kind == _WALL)
     px, pz = src.points[k, 0], src.points[k, 1]
     if into_a:   # R(yaw) p + t, by components
         qx, qz = _turned(yaw, px, pz)
@@ -118,8 +121,8 @@ def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
     kind = dst.kind[j]
     sig = np.hypot(dst.sigma[j], src.sigma[k])
     e = (rho - dst.range[j]) / sig
-    agree = near & (kind == SegKind.WALL) & (np.abs(e) < gate)
-    bound = (kind == SegKind.WALL) | (kind == SegKind.OPEN)
+    agree = near & (kind == _WALL) & (np.abs(e) < gate)
+    bound = (kind == _WALL) | (kind == _OPEN)
     return e, agree, near & bound & (e < -gate), j, k, sig
 
 
@@ -129,7 +132,7 @@ def _camera_outside(dst: Layout, yaw, t, into_a: bool, gate: float) -> np.ndarra
     c = t if into_a else rot2(-yaw, -t[:, None])[:, 0]
     az, rho = np.arctan2(c[:, 0], c[:, 1]), np.hypot(c[:, 0], c[:, 1])
     j, near = _lookup(dst, az)
-    wall = dst.kind[j] == SegKind.WALL
+    wall = dst.kind[j] == _WALL
     return near & wall & (rho > dst.range[j] + gate * dst.sigma[j])
 
 
