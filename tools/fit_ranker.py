@@ -200,43 +200,42 @@ def main(argv=None):
         res = list(ex.map(candidates, [(view_dir, v, w) for v in vids], chunksize=4))
     data = {vid: (f, e) for vid, f, e in res}
     oracle = {vid: (e.min() if len(e) else 1.0) for vid, (f, e) in data.items()}
-    if True:
-        groups = sorted({group_of(v) for v in vids})
-        held, fold_w = {}, {}
-        for g in groups:
-            train = [data[v] for v in vids if group_of(v) != g]
-            wg = fold_w[g] = fitter(train, w, free)
-            if a.grid:
-                print(f"  fold {g}: {name} = {wg[FEATURES.index(name)]:g}")
-            for v in vids:
-                if group_of(v) == g:
-                    held[v] = top1([data[v]], wg)[0]
-        w_new = fitter([data[v] for v in vids], w, free)
-        if a.loro_out:   # the held-out fits above when they were the shipped procedure
-            folds = {g: dict(zip(FEATURES, (fold_w[g] if shipped else shipped_procedure(
-                [data[v] for v in vids if group_of(v) != g], free)).tolist())) for g in groups}
-            json.dump(folds, open(a.loro_out, "w"), indent=1)
-            print("  folds (shipped_procedure, leave one group out), far per fold:",
-                  ", ".join(f"{g} {folds[g]['far']:g}" for g in groups))
-        if a.refit_out:
-            w_all = w_new if shipped else shipped_procedure([data[v] for v in vids], free)
-            json.dump({g: dict(zip(FEATURES, w_all.tolist())) for g in groups},
-                      open(a.refit_out, "w"), indent=1)
-        print("top-1 median pixel error per subset "
-              "(current weights | held-out fit | in-sample fit | best candidate)")
+    groups = sorted({group_of(v) for v in vids})
+    held, fold_w = {}, {}
+    for g in groups:
+        train = [data[v] for v in vids if group_of(v) != g]
+        wg = fold_w[g] = fitter(train, w, free)
+        if a.grid:
+            print(f"  fold {g}: {name} = {wg[FEATURES.index(name)]:g}")
+        for v in vids:
+            if group_of(v) == g:
+                held[v] = top1([data[v]], wg)[0]
+    w_new = fitter([data[v] for v in vids], w, free)
+    if a.loro_out:   # the held-out fits above when they were the shipped procedure
+        folds = {g: dict(zip(FEATURES, (fold_w[g] if shipped else shipped_procedure(
+            [data[v] for v in vids if group_of(v) != g], free)).tolist())) for g in groups}
+        json.dump(folds, open(a.loro_out, "w"), indent=1)
+        print("  folds (shipped_procedure, leave one group out), far per fold:",
+              ", ".join(f"{g} {folds[g]['far']:g}" for g in groups))
+    if a.refit_out:
+        w_all = w_new if shipped else shipped_procedure([data[v] for v in vids], free)
+        json.dump({g: dict(zip(FEATURES, w_all.tolist())) for g in groups},
+                  open(a.refit_out, "w"), indent=1)
+    print("top-1 median pixel error per subset "
+          "(current weights | held-out fit | in-sample fit | best candidate)")
+    for s in SUBSETS:
+        vs = [v for v in vids if subset_of[v] == s]
+        cur = np.median(top1([data[v] for v in vs], w))
+        ho = np.median([held[v] for v in vs])
+        ins = np.median(top1([data[v] for v in vs], w_new))
+        orc = np.median([oracle[v] for v in vs])
+        print(f"  {s:22s} {100 * cur:6.2f}% | {100 * ho:6.2f}% | {100 * ins:6.2f}% | {100 * orc:6.2f}%")
+    print("  weights:", json.dumps(dict(zip(FEATURES, np.round(w_new, 5).tolist()))))
+    w = w_new
+    if a.show:
         for s in SUBSETS:
             vs = [v for v in vids if subset_of[v] == s]
-            cur = np.median(top1([data[v] for v in vs], w))
-            ho = np.median([held[v] for v in vs])
-            ins = np.median(top1([data[v] for v in vs], w_new))
-            orc = np.median([oracle[v] for v in vs])
-            print(f"  {s:22s} {100 * cur:6.2f}% | {100 * ho:6.2f}% | {100 * ins:6.2f}% | {100 * orc:6.2f}%")
-        print("  weights:", json.dumps(dict(zip(FEATURES, np.round(w_new, 5).tolist()))))
-        w = w_new
-        if a.show:
-            for s in SUBSETS:
-                vs = [v for v in vids if subset_of[v] == s]
-                print(s, "held-out errors:", " ".join(f"{v}:{100 * held[v]:.1f}" for v in vs))
+            print(s, "held-out errors:", " ".join(f"{v}:{100 * held[v]:.1f}" for v in vs))
     if a.out:
         json.dump(dict(zip(FEATURES, w.tolist())), open(a.out, "w"), indent=1)
 
