@@ -102,7 +102,7 @@ def analyse_view(args):
     alts = [_scene(cam, h, prov, x.polyline, x.kinds) for x in hs.hypotheses[:K]]
     alts += [None] * (K - len(alts))     # fewer hypotheses: the missing ones answer nothing
     shifted = [_scene(cam, h, prov, top.polyline + (0.0, d * scale), top.kinds) for d in SHIFTS]
-    out = {"points": {}, "features": _view_features(image, cam, prov, hs)}
+    out = {"points": {}, "features": _view_features(image, cam)}
     for kind, px in queries.items():
         if not px or alts[0] is None:
             continue
@@ -123,12 +123,12 @@ def analyse_view(args):
     return vid, out
 
 
-def _view_features(image, cam, prov, hs):
+def _view_features(image, cam):
     """The top candidate's ranking features at the working size, and the score gaps."""
     small, c2, _ = work_image(image, cam, WORK_SIZE)
     dbg: dict = {}
     try:
-        hypotheses.generate(small, c2, 10, debug=dbg, segments=None)
+        hypotheses.generate(small, c2, 10, debug=dbg)
     except FindmeError:
         return None
     ranked = dbg.get("ranked") or []

@@ -21,11 +21,7 @@ import cv2
 import numpy as np
 
 from findme_core.geometry.camera import Camera
-from findme_core.single.layout import Layout
-from findme_core.single.search import SegKind
-
-# plain ints: numpy compares an array with an IntEnum member through Python (several us)
-_WALL = int(SegKind.WALL)
+from findme_core.single.layout import KIND_WALL, Layout
 
 
 @dataclass(frozen=True)
@@ -113,7 +109,7 @@ def _placed(cam: Camera, img: np.ndarray, layout: Layout | None,
     with np.errstate(divide="ignore", invalid="ignore"):
         d_floor = np.where(r[:, 1] > 1e-6, layout.height * horiz / r[:, 1], np.inf)
         floor = near & (d_floor < rng) & np.isfinite(d_floor)
-        wall = near & ~floor & (kind == _WALL) & np.isfinite(rng)
+        wall = near & ~floor & (kind == KIND_WALL) & np.isfinite(rng)
         scale = np.where(floor, layout.height / r[:, 1], np.where(wall, rng / horiz, np.nan))
     keep = np.flatnonzero(floor | wall)
     pts = scale[keep, None] * r[keep]

@@ -21,11 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from findme_core.geometry import ties
-from findme_core.single.layout import Layout
-from findme_core.single.search import SegKind
-
-# plain ints: numpy compares an array with an IntEnum member through Python (several us)
-_WALL, _OPEN = int(SegKind.WALL), int(SegKind.OPEN)
+from findme_core.single.layout import KIND_WALL, KIND_OPEN, Layout
 
 
 @dataclass(frozen=True)
@@ -108,7 +104,7 @@ def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
     """src's WALL samples moved into dst for C motions. Returns (normalised residual e
     (C, S), agrees (C, S), violates (C, S), dst sample index (C, S), src sample index (S,),
     combined sigma (C, S), metres)."""
-    k = np.flatnonzero(src.kind == _WALL)
+    k = np.flatnonzero(src.kind == KIND_WALL)
     px, pz = src.points[k, 0], src.points[k, 1]
     if into_a:   # R(yaw) p + t, by components
         qx, qz = _turned(yaw, px, pz)
@@ -121,8 +117,8 @@ def _one_way(dst: Layout, src: Layout, yaw, t, into_a: bool, gate: float):
     kind = dst.kind[j]
     sig = np.hypot(dst.sigma[j], src.sigma[k])
     e = (rho - dst.range[j]) / sig
-    agree = near & (kind == _WALL) & (np.abs(e) < gate)
-    bound = (kind == _WALL) | (kind == _OPEN)
+    agree = near & (kind == KIND_WALL) & (np.abs(e) < gate)
+    bound = (kind == KIND_WALL) | (kind == KIND_OPEN)
     return e, agree, near & bound & (e < -gate), j, k, sig
 
 
@@ -132,7 +128,7 @@ def _camera_outside(dst: Layout, yaw, t, into_a: bool, gate: float) -> np.ndarra
     c = t if into_a else rot2(-yaw, -t[:, None])[:, 0]
     az, rho = np.arctan2(c[:, 0], c[:, 1]), np.hypot(c[:, 0], c[:, 1])
     j, near = _lookup(dst, az)
-    wall = dst.kind[j] == _WALL
+    wall = dst.kind[j] == KIND_WALL
     return near & wall & (rho > dst.range[j] + gate * dst.sigma[j])
 
 

@@ -31,9 +31,10 @@ from findme_core.geometry.camera import Camera
 from findme_core.geometry.scan import Scan
 from findme_core.single.search import SegKind
 
-# plain ints: numpy compares an array with an IntEnum member through Python (several us)
-_WALL, _STEP = int(SegKind.WALL), int(SegKind.STEP)
-_OPEN, _NONE = int(SegKind.OPEN), int(SegKind.NONE)
+#: ``SegKind`` values as plain ints, for comparing ``Layout.kind`` arrays (here and in the
+#: modules that read layouts): numpy compares an array with an IntEnum member through Python
+KIND_WALL, KIND_STEP = int(SegKind.WALL), int(SegKind.STEP)
+KIND_OPEN, KIND_NONE = int(SegKind.OPEN), int(SegKind.NONE)
 
 
 class End(IntEnum):
@@ -124,7 +125,7 @@ class Layout:
 
     @property
     def n_wall_samples(self) -> int:
-        return int(np.count_nonzero(self.kind == _WALL))
+        return int(np.count_nonzero(self.kind == KIND_WALL))
 
 
 def floor_xz(camera: Camera, h: float, pixels) -> tuple[np.ndarray, np.ndarray]:
@@ -241,13 +242,13 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
     u = np.arange(0.0, W - 1.0 + 1e-9, params.step_px)
     seg = np.clip(np.searchsorted(poly[1:, 0], u, side="left"), 0, len(kinds) - 1)
     kind = kinds[seg].copy()
-    step = kind == _STEP   # a sample falling on a step's 0.5-px width: skip it
+    step = kind == KIND_STEP   # a sample falling on a step's 0.5-px width: skip it
     v = np.interp(u, poly[:, 0], poly[:, 1])
-    rows = np.where(kind == _OPEN, -0.5, np.where(kind == _NONE, H - 0.5, v))
+    rows = np.where(kind == KIND_OPEN, -0.5, np.where(kind == KIND_NONE, H - 0.5, v))
     r, q = floor_xz(camera, h, np.column_stack([u, rows]))
     az = np.arctan2(r[:, 0], r[:, 2])
     rng = np.hypot(q[:, 0], q[:, 1])
-    rng = np.where(np.isfinite(rng), rng, np.where(kind == _NONE, np.inf, np.inf))
+    rng = np.where(np.isfinite(rng), rng, np.inf)
     # 1-sigma: the depression angle off by the boundary and gravity errors moves the floor
     # point by (h^2 + d^2) / h per radian; the height error scales it
     dep = np.hypot(params.boundary_px / np.hypot(camera.fx, camera.fy) * np.sqrt(2),
@@ -255,7 +256,7 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
     sigma = np.hypot((h * h + rng ** 2) / h * dep, params.height_rel * rng)
     wall = np.full(len(u), -1)
     if len(walls):
-        w = np.flatnonzero(kind == _WALL)
+        w = np.flatnonzero(kind == KIND_WALL)
         pts = q[w]
         a, b = walls[:, 0], walls[:, 1]
         d = b - a
@@ -263,7 +264,7 @@ def _scan(camera: Camera, h: float, poly, kinds, walls, params: LayoutParams):
                     / np.maximum(np.einsum("kj,kj->k", d, d), 1e-12), 0, 1)
         dist = np.linalg.norm(pts[:, None] - (a[None] + t[..., None] * d[None]), axis=2)
         wall[w] = ties.argmin(dist, axis=1)   # a sample at a corner: the first wall
-    keep = ~step & ((kind != _WALL) | np.isfinite(rng))
+    keep = ~step & ((kind != KIND_WALL) | np.isfinite(rng))
     o = np.argsort(az[keep], kind="stable")
     return az[keep][o], rng[keep][o], kind[keep][o], sigma[keep][o], wall[keep][o]
 
