@@ -88,8 +88,10 @@ def cmd_serve(args) -> int:
     if args.service == "capture" and (not args.photos or not args.session):
         raise InputError("capture needs --session and at least one photo")
     stop = stop_on_signal()
-    session = open_bus(args)
     handler = make_handler(args.service, args)
+    if handler.background:   # before the bus: its threads inherit the policy
+        background_scheduling()
+    session = open_bus(args)
     if handler.nice and hasattr(os, "nice"):
         os.nice(handler.nice)
     svc = Service(handler, session, instance=args.instance, **service_options(args)).start()
@@ -103,6 +105,21 @@ def cmd_serve(args) -> int:
         svc.stop()
         session.close()
     end_service_process(code)
+
+
+def background_scheduling() -> bool:
+    """Put this process's threads, and those it starts from now on, under Linux's
+    SCHED_BATCH policy (``Handler.background``); False where the OS has no such policy or
+    refuses it (said in the log: the service runs as it is)."""
+    if not hasattr(os, "SCHED_BATCH"):
+        return False
+    try:
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+    except OSError as e:
+        logging.getLogger("findme.services").warning(
+            "cannot run as background work (SCHED_BATCH: %s); running as is", e.strerror)
+        return False
+    return True
 
 
 def _serve_capture(args, session, svc) -> int:

@@ -92,7 +92,7 @@ class MapperHandler(Handler):
               Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection))
     shard = True
-    nice = 19   # floor plans are background work: poses and measurements go first
+    nice, background = 19, True   # background work (``Handler``): poses and measurements first
     # a plan of many photos takes seconds while the photos keep coming: room for a session's
     # messages meanwhile (still bounded by the bytes a session may have waiting), and a
     # plan may come late rather than a photo be left out

@@ -52,6 +52,7 @@ class RecorderHandler(Handler):
     """Writes every message of every session to ``<out>/<session>.mcap``."""
 
     name = "recorder"
+    background = True    # not on the way from a photo to its pose (``Handler.background``)
     inputs = (Input(f"{bus.ROOT}/*/**", None),)
     queue_depth = 4096        # a session's burst waits here (64 MB a session at most)
     drain_on_stop = True

@@ -88,6 +88,11 @@ class Handler:
     #: served in its own process (``findme serve``), run at this lower CPU priority
     #: (``os.nice``): background work (the mapper's floor plans) yields to the phones' poses
     nice = 0
+    #: served in its own process, off the path from a photo to its pose (the store, the
+    #: recorder, the floor plans): run under Linux's SCHED_BATCH policy (applied by
+    #: ``findme serve`` before the bus starts its threads), so that the message that wakes
+    #: it waits for the running photo's scheduler slice instead of preempting it
+    background = False
     #: backlog(session) -> messages of that session received and not handled yet (set by
     #: Service). None (a test driving the handler) = nothing is known to be waiting.
     backlog = None

@@ -41,6 +41,7 @@ _NO_LATCH = {"frame", "error"}
 
 class StoreHandler(Handler):
     name = "store"
+    background = True    # not on the way from a photo to its pose (``Handler.background``)
     inline = True              # on_message is a dict insert: done in Zenoh's callback
     report_overload = False
     cache_keys = ("findme/*/**",)

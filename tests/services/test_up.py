@@ -42,6 +42,16 @@ def _niceness(pid: int) -> int:
         return int(f.read().rsplit(")", 1)[1].split()[16])
 
 
+def _policies(pid: int) -> set[int]:
+    """The scheduling policies of all a process's threads (/proc/<pid>/task/*/stat, field
+    41), the Zenoh runtime's included."""
+    out = set()
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        with open(f"/proc/{pid}/task/{tid}/stat") as f:
+            out.add(int(f.read().rsplit(")", 1)[1].split()[38]))
+    return out
+
+
 def test_up_serves_send_and_stops_on_sigterm(tmp_path):
     ep, up = _up(tmp_path)
     try:
@@ -54,6 +64,15 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
         want = {"odometry1": 0, "odometry2": 0, "selection": 0, "measurement": 0,
                 "hypotheses1": 10, "hypotheses2": 10, "mapper": 19}
         assert {k: nice[k] for k in want} == {k: min(base + v, 19) for k, v in want.items()}
+        # off the way from a photo to its pose, every thread SCHED_BATCH (set before the bus
+        # starts its threads): their wake-ups wait for the running photo's slice
+        pids = {x.split(" started (pid=")[0].split()[-1]: int(x.split("pid=")[1].split(")")[0])
+                for x in up.lines if " started (pid=" in x}
+        batch = {"store", "recorder", "mapper"}
+        base_policy = _policies(pids["router"])   # the test's own (normal unless CI says not)
+        assert {k: _policies(p) for k, p in pids.items()} == {
+            k: {os.SCHED_BATCH} if k in batch else base_policy for k in pids}
+        assert len(pids) == 10
         # the hint names the command as it was run (here: this Python -m findme.cli)
         _wait(up, f"send photos with: {sys.executable} -m findme.cli send --connect {ep}\n")
         p = run_findme("send", "--connect", ep, "--session", "up-1", check=False)
