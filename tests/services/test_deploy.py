@@ -205,6 +205,28 @@ def test_app_https_serves_the_page_with_the_generated_certificate(tmp_path):
         assert app.wait(30) == 0
 
 
+def test_background_services_ask_for_batch_scheduling_and_survive_a_refusal(monkeypatch, caplog):
+    import os
+
+    from findme.cli import serve
+    from services.registry import make_handler
+    args = build_parser().parse_args(["serve", "store"])
+    assert {n for n in ("store", "recorder", "mapper", "measurement", "odometry", "selection",
+                        "hypotheses") if make_handler(n, args).background} == \
+        {"store", "recorder", "mapper"}
+    calls = []
+    monkeypatch.setattr(os, "sched_setscheduler", lambda pid, pol, prm: calls.append((pid, pol)))
+    assert serve.background_scheduling() and calls == [(0, os.SCHED_BATCH)]   # this thread on
+
+    def refuse(*_):
+        raise PermissionError(1, "Operation not permitted")
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    assert not serve.background_scheduling()
+    assert "cannot run as background work (SCHED_BATCH: Operation not permitted)" in caplog.text
+    monkeypatch.delattr(os, "SCHED_BATCH")      # an OS without the policy: nothing asked
+    assert not serve.background_scheduling()
+
+
 def test_up_without_the_mapper():
     from findme.cli.up import processes
     names = [n for n, _ in processes(build_parser().parse_args(["up", "--no-mapper"]))]
