@@ -36,20 +36,22 @@ def _wait(proc, text, timeout=90):
             "".join(proc.lines)[-3000:]
 
 
+def _stat(path: str) -> list[str]:
+    """The fields of a /proc/.../stat file after the command name (field 3 on)."""
+    with open(path) as f:
+        return f.read().rsplit(")", 1)[1].split()
+
+
 def _niceness(pid: int) -> int:
     """A process's nice value (/proc/<pid>/stat, field 19)."""
-    with open(f"/proc/{pid}/stat") as f:
-        return int(f.read().rsplit(")", 1)[1].split()[16])
+    return int(_stat(f"/proc/{pid}/stat")[16])
 
 
 def _policies(pid: int) -> set[int]:
     """The scheduling policies of all a process's threads (/proc/<pid>/task/*/stat, field
     41), the Zenoh runtime's included."""
-    out = set()
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        with open(f"/proc/{pid}/task/{tid}/stat") as f:
-            out.add(int(f.read().rsplit(")", 1)[1].split()[38]))
-    return out
+    return {int(_stat(f"/proc/{pid}/task/{tid}/stat")[38])
+            for tid in os.listdir(f"/proc/{pid}/task")}
 
 
 def test_up_serves_send_and_stops_on_sigterm(tmp_path):
@@ -58,16 +60,15 @@ def test_up_serves_send_and_stops_on_sigterm(tmp_path):
         _wait(up, "| ready: 9 services")
         # CPU priorities on a saturated machine: the stages after the first go first, the
         # floor plans last (``Handler.nice``, applied by ``findme serve``)
-        nice = {x.split(" started (pid=")[0].split()[-1]: _niceness(
-            int(x.split("pid=")[1].split(")")[0])) for x in up.lines if " started (pid=" in x}
+        pids = {x.split(" started (pid=")[0].split()[-1]: int(x.split("pid=")[1].split(")")[0])
+                for x in up.lines if " started (pid=" in x}
+        nice = {k: _niceness(p) for k, p in pids.items()}
         base = nice["router"]          # this test's own niceness (0 unless CI runs niced)
         want = {"odometry1": 0, "odometry2": 0, "selection": 0, "measurement": 0,
                 "hypotheses1": 10, "hypotheses2": 10, "mapper": 19}
         assert {k: nice[k] for k in want} == {k: min(base + v, 19) for k, v in want.items()}
         # off the way from a photo to its pose, every thread SCHED_BATCH (set before the bus
         # starts its threads): their wake-ups wait for the running photo's slice
-        pids = {x.split(" started (pid=")[0].split()[-1]: int(x.split("pid=")[1].split(")")[0])
-                for x in up.lines if " started (pid=" in x}
         batch = {"store", "recorder", "mapper"}
         base_policy = _policies(pids["router"])   # the test's own (normal unless CI says not)
         assert {k: _policies(p) for k, p in pids.items()} == {
