@@ -43,8 +43,10 @@ photo if some never are.
 The compute bound (``--scenario peak``, or ``--bound``): the same photos through the
 pipeline's handlers in this process, one after another, as ``bench_pipeline.py`` drives
 them (hypotheses, selection, measurement, odometry, encode, recording: thread CPU per
-photo); photos/s the machine's cores could pose = cores x 1000 / mean ms. Measured before
-the deployment starts, in the same run.
+photo); photos/s the machine's cores could pose = cores x 1000 / mean ms. Measured just
+before the deployment starts and again just after it stops, in the same run; the ratio is
+against the mean of the two (this machine's speed drifts by 10-30 % within minutes: a bound
+measured on one side only moved the ratio by as much), and both are printed.
 """
 
 from __future__ import annotations
@@ -102,6 +104,14 @@ def compute_bound(pool, repeat: int = 2) -> dict:
     return {"ms_per_photo_mean": float(np.mean(ms)), "ms_per_photo_median": float(np.median(ms)),
             "ms_per_photo_p90": float(np.percentile(ms, 90)), "cores": cores,
             "photos_per_s": cores * 1e3 / float(np.mean(ms))}
+
+
+def bracketed(before: dict, after: dict) -> dict:
+    """The compute bound of a run measured just ``before`` and just ``after`` it
+    (``compute_bound``): the mean of the two means (ms CPU per photo), with both kept."""
+    ms = (before["ms_per_photo_mean"] + after["ms_per_photo_mean"]) / 2
+    return {**before, "ms_per_photo_mean": ms, "photos_per_s": before["cores"] * 1e3 / ms,
+            "before": before, "after": after}
 
 
 def run(workers, phones, seconds, pool, fps=2.0, extra=(), odometry=1, mapper=True,
@@ -266,11 +276,19 @@ def report(r, bound=None) -> str:
                     f"{100 * r['delivered'] / max(cpu_s, 1e-9) * bound['ms_per_photo_mean'] / 1e3:.0f} %"
                     " of it)")
         share = r["posed_per_s"] / bound["photos_per_s"]
+        sides = ""
+        if "after" in bound:
+            b, a = bound["before"], bound["after"]
+            shares = sorted(r["posed_per_s"] / x["photos_per_s"] for x in (b, a))
+            sides = (f", the mean of {b['ms_per_photo_mean']:.1f} before and "
+                     f"{a['ms_per_photo_mean']:.1f} after the run (medians "
+                     f"{b['ms_per_photo_median']:.1f} / {a['ms_per_photo_median']:.1f})")
         out += ["", f"compute bound (pipeline handlers in one process, same photos, same run): "
-                    f"{bound['ms_per_photo_mean']:.1f} ms CPU per photo mean (median "
-                    f"{bound['ms_per_photo_median']:.1f}, p90 {bound['ms_per_photo_p90']:.1f}) "
+                    f"{bound['ms_per_photo_mean']:.1f} ms CPU per photo mean{sides} "
                     f"-> {bound['photos_per_s']:.1f} photos/s on {bound['cores']} cores; "
-                    f"posed {r['posed_per_s']:.1f}/s = {100 * share:.0f} % of it"]
+                    f"posed {r['posed_per_s']:.1f}/s = {100 * share:.0f} % of it"
+                    + (f" ({100 * shares[0]:.0f}-{100 * shares[1]:.0f} % against either side)"
+                       if sides else "")]
     return "\n".join(out)
 
 
@@ -344,7 +362,15 @@ def main() -> None:
                             mapper=mapper, gateway=gateway, session_s=session_s,
                             sample_s=args.sample)
                     rows.append(r)
-                    print(report(r, bound), flush=True)
+                    if bound is None:
+                        print(report(r), flush=True)
+        if bound is not None:   # the machine's speed after the runs, then their reports
+            after = out["bound_after"] = compute_bound(pool)
+            print(f"compute bound after the runs: {after['ms_per_photo_mean']:.1f} ms CPU per "
+                  f"photo (mean)", flush=True)
+            bound = out["bound"] = bracketed(bound, after)
+            for r in rows:
+                print(report(r, bound), flush=True)
         out["runs"] = rows
         if len(rows) > 1:
             print(table(rows))
