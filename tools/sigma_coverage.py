@@ -2,6 +2,7 @@
 quantity, in sample and leave-one-room-out.
 
     python tools/sigma_coverage.py DATASET_DIR PREDICTIONS.json [--json OUT.json] [--markdown]
+        [--widened]
 
 For each quantity the normalised error z = |error| / sigma of every answered item, and the
 share within 1, 2 and 3 sigma (a Gaussian: 0.68 / 0.95 / 0.997; the goal: 0.60-0.80 within 1,
@@ -20,6 +21,16 @@ OTHER rooms (ZInD: one room per group; TUM: blocks of 6 frames; KITTI: one group
 of their items lie within 1 sigma, and the left-out room is scored with it: the coverage a
 room never used for fitting gets. "in" is the coverage as stated (in sample: the constants
 were fitted on these rooms). Reads the dataset's ground truth: a tool, not the product.
+
+``--widened`` asks what one constant could do if the 3-sigma goal came first: each room
+scored with the factor that puts at least 97 % of the OTHER rooms' items within 3 sigma (and
+at least 68 % within 1), with how much wider that makes the sigma (the median factor of the
+folds over the stated sigma's). Measured 2026-11-29 on the dev split (dataset's gravity):
+within 3 sigma then reaches 0.94-0.97 for the point and distance rows, but within 1 sigma
+becomes 0.89-0.96 (goal <= 0.80), and for ZInD wall points and every TUM row the sigmas
+4.9-8.5x wider (wall points 7.1x, TUM non-floor points 8.5x). The
+errors are two populations (right boundary: centimetres; wrong boundary: metres), which no
+one Gaussian sigma describes: the goal needs the wrong boundaries told apart, not a constant.
 """
 
 from __future__ import annotations
@@ -175,6 +186,23 @@ def coverage(z: np.ndarray) -> tuple[float, float, float]:
     return tuple(float(np.mean(z <= k)) for k in (1.0, 2.0, 3.0))
 
 
+def widened(items: list) -> tuple[np.ndarray, float]:
+    """z of every item under the factor fitted on the other groups so that >= 97 % of
+    their items lie within 3 sigma and >= 68 % within 1 (``--widened``), and the median
+    factor of the folds."""
+    groups = np.array([i[0] for i in items])
+    z = np.array([i[1] / i[2] for i in items], float)
+    out, factors = np.empty_like(z), []
+    for g in np.unique(groups):
+        held = groups == g
+        train = z[~held]
+        c = (max(float(np.quantile(train, 0.68)), float(np.quantile(train, 0.97)) / 3.0)
+             if len(train) >= 5 else 1.0)
+        out[held] = z[held] / max(c, 1e-9)
+        factors.append(c)
+    return out, float(np.median(factors))
+
+
 def loro(items: list) -> np.ndarray:
     """z of every item with its sigma scaled by the factor fitted on the other groups (68 %
     within 1 there): what a constant fitted without the item's room gives it."""
@@ -276,9 +304,20 @@ def main(argv=None) -> int:
     ap.add_argument("predictions")
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--widened", action="store_true",
+                    help="also: a constant chosen for >= 97 %% within 3 sigma, left out")
     a = ap.parse_args(argv)
-    res = report(a.dataset, json.load(open(a.predictions)))
+    preds = json.load(open(a.predictions))
+    res = report(a.dataset, preds)
     print(table(res, a.markdown))
+    if a.widened:
+        print("\na constant chosen for >= 97 % within 3 sigma on the other rooms, left out:")
+        for k, items in sorted(collect(a.dataset, preds).items()):
+            if len(items) >= 10:
+                z, f = widened(items)
+                c = coverage(z)
+                print(f"{k:34s} {len(z):5d}  within 1 / 2 / 3 sigma {c[0]:.2f} / {c[1]:.2f} / "
+                      f"{c[2]:.2f}   sigma x {f:.2f}")
     if a.json:
         json.dump(res, open(a.json, "w"), indent=1)
     return 0
