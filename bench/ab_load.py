@@ -1,0 +1,110 @@
+"""Is a change faster in the deployment? ``bench_load.py`` runs of two code trees (or two
+environments) alternated in pairs, in both orders, with the paired differences.
+
+    python bench/ab_load.py --base REV [--pairs 4] [--scenario peak] [--env-b K=V ...]
+    python bench/ab_load.py --env-b MALLOC_TRIM_THRESHOLD_=268435456   # same code, B's env
+
+A is the code at ``--base`` (a temporary git worktree; default: this tree), B this tree.
+Each run is the whole ``bench_load.py --scenario S`` of its tree, with ``PYTHONPATH`` set
+to that tree so that the services ``findme up`` would start import it too, and B's runs
+with ``--env-b`` added to their environment. Pairs alternate AB, BA, AB, ...: this
+machine's speed drifts over minutes (the same code gave 9.5-14.4 posed/s in one morning),
+so only differences within a pair, and their signs over several pairs, say anything.
+
+Prints per run: posed/s, the share of the compute bound measured in that run, photos posed
+per CPU second, unaccounted; then per figure B - A per pair, their mean, median and
+standard error, and how many pairs B won. Run on a quiet machine: nothing else of yours.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+FIGURES = ("posed_per_s", "share_of_bound", "posed_per_cpu_s")
+
+
+def figures(result: dict) -> dict:
+    """The comparable figures of one ``bench_load --json`` result (its first run)."""
+    r = result["runs"][0]
+    every = next(b for b in r["breakdown"] if b["process"] == "ALL")
+    cpu_s = every["cpu_ms"] * r["offered"] / 1e3
+    bound = result.get("bound")
+    return {"posed_per_s": r["posed_per_s"],
+            "share_of_bound": r["posed_per_s"] / bound["photos_per_s"] if bound else None,
+            "posed_per_cpu_s": r["delivered"] / max(cpu_s, 1e-9),
+            "unaccounted": r["unaccounted"]}
+
+
+def one_run(tree: Path, scenario: str, env: dict, out: Path) -> dict:
+    """One ``bench_load`` run of ``tree``; its figures."""
+    e = {**os.environ, **env, "PYTHONPATH": str(tree)}
+    subprocess.run([sys.executable, str(tree / "bench" / "bench_load.py"), "--scenario",
+                    scenario, "--json", str(out)], env=e, check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return figures(json.loads(out.read_text()))
+
+
+def paired(a: list[dict], b: list[dict]) -> list[str]:
+    """Lines: per figure, B - A of each pair, mean, median, standard error, B's wins."""
+    out = []
+    for k in FIGURES:
+        d = [y[k] - x[k] for x, y in zip(a, b) if x[k] is not None and y[k] is not None]
+        if not d:
+            continue
+        se = statistics.stdev(d) / len(d) ** 0.5 if len(d) > 1 else float("nan")
+        out.append(f"{k:16s} B - A per pair: {' '.join(f'{v:+.3f}' for v in d)}   mean "
+                   f"{statistics.fmean(d):+.3f} (standard error {se:.3f}), median "
+                   f"{statistics.median(d):+.3f}; B higher in {sum(v > 0 for v in d)} of {len(d)}")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--base", help="A: this git revision (default: this tree, for --env-b)")
+    ap.add_argument("--pairs", type=int, default=4)
+    ap.add_argument("--scenario", default="peak", choices=("peak", "steady", "gateway"))
+    ap.add_argument("--env-b", nargs="*", default=[], metavar="K=V",
+                    help="environment variables of B's runs only")
+    a = ap.parse_args(argv)
+    env_b = dict(kv.split("=", 1) for kv in a.env_b)
+    if not a.base and not env_b:
+        ap.error("nothing to compare: give --base REV, --env-b K=V, or both")
+    with tempfile.TemporaryDirectory(prefix="ab-load-") as tmp:
+        base = HERE
+        if a.base:
+            base = Path(tmp) / "base"
+            subprocess.run(["git", "-C", str(HERE), "worktree", "add", "--detach", str(base),
+                            a.base], check=True, capture_output=True)
+        try:
+            runs: dict = {"A": [], "B": []}
+            for i in range(a.pairs):
+                order = ("A", "B") if i % 2 == 0 else ("B", "A")
+                for side in order:
+                    tree, env = (base, {}) if side == "A" else (HERE, env_b)
+                    f = one_run(tree, a.scenario, env, Path(tmp) / f"{side}{i}.json")
+                    runs[side].append(f)
+                    share = ("-" if f["share_of_bound"] is None
+                             else f"{100 * f['share_of_bound']:.0f} %")
+                    print(f"pair {i + 1} {side}: posed {f['posed_per_s']:.1f}/s, {share} of "
+                          f"the bound, {f['posed_per_cpu_s']:.2f} posed per CPU s, "
+                          f"{f['unaccounted']} unaccounted", flush=True)
+        finally:
+            if a.base:
+                subprocess.run(["git", "-C", str(HERE), "worktree", "remove", "--force",
+                                str(base)], check=False, capture_output=True)
+    print(f"A: {a.base or 'this tree'}; B: this tree"
+          + (f" with {' '.join(a.env_b)}" if env_b else ""))
+    print("\n".join(paired(runs["A"], runs["B"])))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,25 @@
+"""bench/ab_load.py's arithmetic: the figures of a bench_load result and the paired
+differences (the runs themselves are a benchmark, not a test)."""
+
+from bench.ab_load import figures, paired
+
+
+def _result(posed_per_s, delivered, cpu_ms, offered=100, bound=20.0):
+    run = {"posed_per_s": posed_per_s, "delivered": delivered, "offered": offered,
+           "unaccounted": 0, "breakdown": [{"process": "h0", "cpu_ms": 1.0},
+                                          {"process": "ALL", "cpu_ms": cpu_ms}]}
+    return {"runs": [run], **({"bound": {"photos_per_s": bound}} if bound else {})}
+
+
+def test_figures_are_per_cpu_second_and_against_the_runs_bound():
+    f = figures(_result(10.0, 50, 40.0))      # 100 photos x 40 ms = 4 CPU s for 50 posed
+    assert f["posed_per_cpu_s"] == 12.5 and f["share_of_bound"] == 0.5
+    assert figures(_result(10.0, 50, 40.0, bound=None))["share_of_bound"] is None
+
+
+def test_paired_differences_are_b_minus_a_per_pair_with_the_wins_counted():
+    a = [figures(_result(p, 50, 40.0)) for p in (10.0, 12.0, 11.0)]
+    b = [figures(_result(p, 50, 40.0)) for p in (11.0, 11.5, 13.0)]
+    line = next(x for x in paired(a, b) if x.startswith("posed_per_s"))
+    assert "+1.000 -0.500 +2.000" in line and "B higher in 2 of 3" in line
+    assert "median +1.000" in line
