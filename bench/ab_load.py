@@ -28,6 +28,8 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(HERE))
+from bench.common import EVAL_DIR  # noqa: E402
 FIGURES = ("posed_per_s", "share_of_bound", "posed_per_cpu_s")
 
 
@@ -45,11 +47,14 @@ def figures(result: dict) -> dict:
 
 def one_run(tree: Path, scenario: str, env: dict, out: Path) -> dict:
     """One ``bench_load`` run of ``tree``; its figures."""
-    e = {**os.environ, **env, "PYTHONPATH": str(tree)}
-    subprocess.run([sys.executable, str(tree / "bench" / "bench_load.py"), "--scenario",
-                    scenario, "--json", str(out)], env=e, check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return figures(json.loads(out.read_text()))
+    # both trees read the same photos: a worktree elsewhere would not find ../shared and
+    # fall back to rendered ones, which cost twice as much
+    e = {**os.environ, "FINDME_EVAL_DIR": str(EVAL_DIR), **env, "PYTHONPATH": str(tree)}
+    r = subprocess.run([sys.executable, str(tree / "bench" / "bench_load.py"), "--scenario",
+                        scenario, "--json", str(out)], env=e, check=True, text=True,
+                       stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    first = r.stdout.splitlines()[0] if r.stdout else ""
+    return {**figures(json.loads(out.read_text())), "photos": first.split(",")[0]}
 
 
 def paired(a: list[dict], b: list[dict]) -> list[str]:
@@ -100,7 +105,10 @@ def main(argv=None) -> int:
             if a.base:
                 subprocess.run(["git", "-C", str(HERE), "worktree", "remove", "--force",
                                 str(base)], check=False, capture_output=True)
-    print(f"A: {a.base or 'this tree'}; B: this tree"
+    pools = {f["photos"] for side in runs.values() for f in side}
+    if len(pools) > 1:
+        print(f"NOT COMPARABLE: the runs sent different photos ({'; '.join(sorted(pools))})")
+    print(f"A: {a.base or 'this tree'}; B: this tree; photos: {'; '.join(sorted(pools))}"
           + (f" with {' '.join(a.env_b)}" if env_b else ""))
     print("\n".join(paired(runs["A"], runs["B"])))
     return 0
