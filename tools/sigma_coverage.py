@@ -282,9 +282,10 @@ def table(res: dict, markdown: bool = False) -> str:
     return "\n".join(rows)
 
 
-def report(dataset: str, preds: dict) -> dict:
+def report(dataset: str, preds: dict, collected: dict | None = None) -> dict:
+    """{quantity: coverage figures} of ``collect(dataset, preds)`` (or of ``collected``)."""
     res = {}
-    for k, items in collect(dataset, preds).items():
+    for k, items in (collect(dataset, preds) if collected is None else collected).items():
         z = np.array([i[1] / i[2] for i in items], float)
         err = np.array([i[1] for i in items], float)
         sig = np.array([i[2] for i in items], float)
@@ -307,12 +308,12 @@ def main(argv=None) -> int:
     ap.add_argument("--widened", action="store_true",
                     help="also: a constant chosen for >= 97 %% within 3 sigma, left out")
     a = ap.parse_args(argv)
-    preds = json.load(open(a.predictions))
-    res = report(a.dataset, preds)
+    collected = collect(a.dataset, json.load(open(a.predictions)))
+    res = report(a.dataset, {}, collected)
     print(table(res, a.markdown))
     if a.widened:
         print("\na constant chosen for >= 97 % within 3 sigma on the other rooms, left out:")
-        for k, items in sorted(collect(a.dataset, preds).items()):
+        for k, items in sorted(collected.items()):
             if len(items) >= 10:
                 z, f = widened(items)
                 c = coverage(z)
