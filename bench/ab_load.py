@@ -30,14 +30,15 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(HERE))
 from bench.common import EVAL_DIR  # noqa: E402
+from bench.load_rig import cpu_seconds  # noqa: E402
+
 FIGURES = ("posed_per_s", "share_of_bound", "posed_per_cpu_s")
 
 
 def figures(result: dict) -> dict:
     """The comparable figures of one ``bench_load --json`` result (its first run)."""
     r = result["runs"][0]
-    every = next(b for b in r["breakdown"] if b["process"] == "ALL")
-    cpu_s = every["cpu_ms"] * r["offered"] / 1e3
+    cpu_s = cpu_seconds(r)
     bound = result.get("bound")
     return {"posed_per_s": r["posed_per_s"],
             "share_of_bound": r["posed_per_s"] / bound["photos_per_s"] if bound else None,

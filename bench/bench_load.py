@@ -66,7 +66,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import schemas  # noqa: E402
 from findme_core.synth.render import Pose, Room, render  # noqa: E402
 from bench.load_rig import (UP_SERVICES, Deployment, Ledger, Sampler, breakdown,  # noqa: E402
-                            breakdown_table, drive, drive_pages, photos, tum_walk)
+                            breakdown_table, cpu_seconds, drive, drive_pages, photos,
+                            tum_walk)
 from findme_io.convert import make_frame  # noqa: E402
 from services.runtime import bus  # noqa: E402
 
@@ -265,8 +266,7 @@ def rss_table(r) -> str:
 def report(r, bound=None) -> str:
     out = [table([r]), "", "Per process, per photo offered:", breakdown_table(r["breakdown"]),
            "", rss_table(r)]
-    all_cpu = next(b["cpu_ms"] for b in r["breakdown"] if b["process"] == "ALL")
-    cpu_s = all_cpu * r["offered"] / 1e3
+    cpu_s = cpu_seconds(r)
     out += ["", f"the deployment used {cpu_s:.0f} CPU s in {r['done_s']:.0f} s "
                 f"({cpu_s / max(r['done_s'], 1e-9):.2f} of {os.cpu_count()} cores: the rest went "
                 f"to other work on the machine); posed {r['delivered'] / max(cpu_s, 1e-9):.2f} "

@@ -505,6 +505,13 @@ def breakdown(start: dict, end: dict, photos: int) -> list[dict]:
     return rows + [total]
 
 
+def cpu_seconds(run: dict) -> float:
+    """CPU seconds all the deployment's processes used in a ``bench_load`` run (its
+    breakdown's ALL row, per photo offered, times the photos offered)."""
+    every = next(b for b in run["breakdown"] if b["process"] == "ALL")
+    return every["cpu_ms"] * run["offered"] / 1e3
+
+
 def breakdown_table(rows: list[dict]) -> str:
     head = ("| process | CPU ms/photo | handler CPU | tick CPU | other CPU | msgs in / out | "
             "kB in / out | decodes (ms, Mpx) | probes | protobuf ms | bus queries (wall ms) | "

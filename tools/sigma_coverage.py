@@ -186,35 +186,34 @@ def coverage(z: np.ndarray) -> tuple[float, float, float]:
     return tuple(float(np.mean(z <= k)) for k in (1.0, 2.0, 3.0))
 
 
-def widened(items: list) -> tuple[np.ndarray, float]:
-    """z of every item under the factor fitted on the other groups so that >= 97 % of
-    their items lie within 3 sigma and >= 68 % within 1 (``--widened``), and the median
-    factor of the folds."""
+def _left_out(items: list, factor) -> tuple[np.ndarray, list[float]]:
+    """z = |error| / sigma of every item, its sigma scaled by ``factor(z of the other
+    groups' items)`` (1 when they are fewer than 5); and each group's factor."""
     groups = np.array([i[0] for i in items])
     z = np.array([i[1] / i[2] for i in items], float)
     out, factors = np.empty_like(z), []
     for g in np.unique(groups):
         held = groups == g
         train = z[~held]
-        c = (max(float(np.quantile(train, 0.68)), float(np.quantile(train, 0.97)) / 3.0)
-             if len(train) >= 5 else 1.0)
+        c = factor(train) if len(train) >= 5 else 1.0
         out[held] = z[held] / max(c, 1e-9)
         factors.append(c)
-    return out, float(np.median(factors))
+    return out, factors
+
+
+def widened(items: list) -> tuple[np.ndarray, float]:
+    """z of every item under the factor fitted on the other groups so that >= 97 % of
+    their items lie within 3 sigma and >= 68 % within 1 (``--widened``), and the median
+    factor of the folds."""
+    z, factors = _left_out(items, lambda t: max(float(np.quantile(t, 0.68)),
+                                                float(np.quantile(t, 0.97)) / 3.0))
+    return z, float(np.median(factors))
 
 
 def loro(items: list) -> np.ndarray:
     """z of every item with its sigma scaled by the factor fitted on the other groups (68 %
     within 1 there): what a constant fitted without the item's room gives it."""
-    groups = np.array([i[0] for i in items])
-    z = np.array([i[1] / i[2] for i in items], float)
-    out = np.empty_like(z)
-    for g in np.unique(groups):
-        held = groups == g
-        train = z[~held]
-        c = float(np.quantile(train, 0.68)) if len(train) >= 5 else 1.0
-        out[held] = z[held] / max(c, 1e-9)
-    return out
+    return _left_out(items, lambda t: float(np.quantile(t, 0.68)))[0]
 
 
 #: the scale grid of ``fit_model`` and its target coverage within 1 and 3 sigma
