@@ -89,11 +89,13 @@ def cmd_serve(args) -> int:
         raise InputError("capture needs --session and at least one photo")
     stop = stop_on_signal()
     handler = make_handler(args.service, args)
-    if handler.background:   # before the bus: its threads inherit the policy
+    # before the bus: the threads it starts (Zenoh's runtime) inherit the policy and the
+    # niceness (Linux keeps both per thread: set after, they would hold only this one)
+    if handler.background:
         background_scheduling()
-    session = open_bus(args)
     if handler.nice and hasattr(os, "nice"):
         os.nice(handler.nice)
+    session = open_bus(args)
     svc = Service(handler, session, instance=args.instance, **service_options(args)).start()
     code = 0
     try:
