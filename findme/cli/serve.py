@@ -89,13 +89,16 @@ def cmd_serve(args) -> int:
         raise InputError("capture needs --session and at least one photo")
     stop = stop_on_signal()
     handler = make_handler(args.service, args)
-    # before the bus: the threads it starts (Zenoh's runtime) inherit the policy and the
-    # niceness (Linux keeps both per thread: set after, they would hold only this one)
-    if handler.background:
+    if handler.background:   # before the bus: its threads inherit the policy
         background_scheduling()
+    session = open_bus(args)
+    # after the bus (Linux keeps a niceness per thread): this thread and the service's,
+    # which do the work, yield the CPU; Zenoh's I/O threads keep their priority, so that a
+    # niced subscriber still takes its messages off the link promptly (the router does
+    # not wait on it) and its intake counts and refuses at once. With the bus niced too:
+    # bench/ab_load.py --pairs 4, peak: -0.49 posed/s (standard error 0.43), lower in 3 of 4
     if handler.nice and hasattr(os, "nice"):
         os.nice(handler.nice)
-    session = open_bus(args)
     svc = Service(handler, session, instance=args.instance, **service_options(args)).start()
     code = 0
     try:
