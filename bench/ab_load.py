@@ -12,8 +12,8 @@ machine's speed drifts over minutes (the same code gave 9.5-14.4 posed/s in one 
 so only differences within a pair, and their signs over several pairs, say anything.
 
 Prints per run: posed/s, the share of the compute bound measured in that run, photos posed
-per CPU second, unaccounted; then per figure B - A per pair, their mean, median and
-standard error, and how many pairs B won. Run on a quiet machine: nothing else of yours.
+per CPU second, photo -> pose p50 and p99, unaccounted; then per figure B - A per pair,
+their mean, median and standard error, and how many pairs B won. Run on a quiet machine: nothing else of yours.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ sys.path.insert(0, str(HERE))
 from bench.common import EVAL_DIR  # noqa: E402
 from bench.load_rig import cpu_seconds  # noqa: E402
 
-FIGURES = ("posed_per_s", "share_of_bound", "posed_per_cpu_s")
+FIGURES = ("posed_per_s", "share_of_bound", "posed_per_cpu_s", "pose_p50_s", "pose_p99_s")
 
 
 def figures(result: dict) -> dict:
@@ -43,6 +43,7 @@ def figures(result: dict) -> dict:
     return {"posed_per_s": r["posed_per_s"],
             "share_of_bound": r["posed_per_s"] / bound["photos_per_s"] if bound else None,
             "posed_per_cpu_s": r["delivered"] / max(cpu_s, 1e-9),
+            "pose_p50_s": r["p50_ms"] / 1e3, "pose_p99_s": r["p99_ms"] / 1e3,
             "unaccounted": r["unaccounted"]}
 
 
@@ -101,7 +102,8 @@ def main(argv=None) -> int:
                              else f"{100 * f['share_of_bound']:.0f} %")
                     print(f"pair {i + 1} {side}: posed {f['posed_per_s']:.1f}/s, {share} of "
                           f"the bound, {f['posed_per_cpu_s']:.2f} posed per CPU s, "
-                          f"{f['unaccounted']} unaccounted", flush=True)
+                          f"photo -> pose p50 / p99 {f['pose_p50_s']:.1f} / "
+                          f"{f['pose_p99_s']:.1f} s, {f['unaccounted']} unaccounted", flush=True)
         finally:
             if a.base:
                 subprocess.run(["git", "-C", str(HERE), "worktree", "remove", "--force",

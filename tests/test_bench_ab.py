@@ -6,7 +6,7 @@ from bench.ab_load import figures, paired
 
 def _result(posed_per_s, delivered, cpu_ms, offered=100, bound=20.0):
     run = {"posed_per_s": posed_per_s, "delivered": delivered, "offered": offered,
-           "unaccounted": 0, "breakdown": [{"process": "h0", "cpu_ms": 1.0},
+           "unaccounted": 0, "p50_ms": 1500.0, "p99_ms": 4000.0, "breakdown": [{"process": "h0", "cpu_ms": 1.0},
                                           {"process": "ALL", "cpu_ms": cpu_ms}]}
     return {"runs": [run], **({"bound": {"photos_per_s": bound}} if bound else {})}
 
@@ -14,6 +14,7 @@ def _result(posed_per_s, delivered, cpu_ms, offered=100, bound=20.0):
 def test_figures_are_per_cpu_second_and_against_the_runs_bound():
     f = figures(_result(10.0, 50, 40.0))      # 100 photos x 40 ms = 4 CPU s for 50 posed
     assert f["posed_per_cpu_s"] == 12.5 and f["share_of_bound"] == 0.5
+    assert (f["pose_p50_s"], f["pose_p99_s"]) == (1.5, 4.0)   # photo -> pose, seconds
     assert figures(_result(10.0, 50, 40.0, bound=None))["share_of_bound"] is None
 
 

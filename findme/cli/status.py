@@ -96,7 +96,7 @@ def cmd_status(args) -> int:
 
 
 #: status counters that say where inputs went (``runtime.inbox``), in this order
-DELIVERY = ("overloaded", "expired", "superseded", "too_large", "deferred", "unreported",
+DELIVERY = ("overloaded", "expired", "shed", "superseded", "too_large", "deferred", "unreported",
             "duplicates", "recovered", "handed_over")
 
 

@@ -37,6 +37,9 @@ class HypothesesHandler(Handler):
     # the later stages leave (bench_load --scenario peak: 1,070 hypothesis sets for 807
     # posed -> 908 for 880; posed 10.4 -> 12.1 photos/s)
     nice = 10
+    # the photos' first stage: under a standing queue, photos more than 1 s old are refused
+    # (``Handler.fresh_wait_s``) so that those answered are answered while they are fresh
+    fresh_wait_s = 1.0
 
     def __init__(self, method: str = "findme", max_n: int = 10, policy: str = "all",
                  depth: int = 64):

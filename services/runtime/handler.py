@@ -106,6 +106,15 @@ class Handler:
     #: service's ``max_wait_s``, ``--max-wait``); longer for background work whose results
     #: may come late (the mapper)
     max_wait_s: float | None = None
+    #: under a standing queue (one that has not emptied for ``standing_s`` seconds: the
+    #: service cannot keep up), a message that waited longer than this is answered
+    #: OVERLOADED (None: only ``max_wait_s``). A queue that absorbs a burst still holds
+    #: messages up to ``max_wait_s``; one that stands serves fresh ones, and its oldest are
+    #: refused at once instead of after ``max_wait_s`` (the "controlled delay" of Maurer,
+    #: "Fail at Scale", ACM Queue 13(8) 2015, after CoDel, RFC 8289). For the photos'
+    #: first stage: a pose 10 s late is of no use to a phone that moved on
+    fresh_wait_s: float | None = None
+    standing_s: float = 5.0
     #: call ``tick`` about every this many seconds (None: never), on the worker thread
     tick_s: float | None = None
     #: ``on_message`` is O(1) and never blocks: run it in Zenoh's callback, unqueued (store)

@@ -50,6 +50,7 @@ class Inbox:
         self.frames_in = self.dropped = 0
         self.busy = 0            # worker threads handling something now
         self.next_tick = 0.0
+        self.emptied = time.monotonic()    # when the queue was last seen empty
         self.more: dict[str, int] = {}     # counts by cause
 
     def count(self, what: str, n: int = 1) -> None:
@@ -94,6 +95,8 @@ class Inbox:
                     f"{key} is {len(payload) / 1e6:.1f} MB, over the {inp.max_bytes / 1e6:.0f} MB "
                     f"limit of {self.handler.name}; it was not handled"), "too_large")
                 return False
+            if not len(self.intake):
+                self.emptied = time.monotonic()
             ok, superseded, why = self.intake.offer(
                 Item(i, key, payload, session, recovered, time.monotonic()),
                 latest=inp.depth if inp.policy == "latest" else None)
@@ -135,18 +138,27 @@ class Inbox:
     def take(self) -> Item | None:
         """(under ``cv``) The next item to handle, round-robin between sessions; one that
         waited more than ``max_wait_s`` is answered OVERLOADED instead (a result that late
-        is of no use to a phone; a queue that deep says the service cannot keep up)."""
+        is of no use to a phone; a queue that deep says the service cannot keep up), and
+        under a standing queue one that waited more than the handler's ``fresh_wait_s``."""
         while True:
-            item = self.intake.pop()
+            item, now = self.intake.pop(), time.monotonic()
+            standing = now - self.emptied      # the queue stood until this item left it
+            if not len(self.intake):
+                self.emptied = now
             if item is None or self.max_wait_s is None:
                 return item
-            waited = time.monotonic() - item.t
-            if waited <= self.max_wait_s:
+            waited, limit, why = now - item.t, self.max_wait_s, ""
+            fresh = self.handler.fresh_wait_s
+            if fresh is not None and standing > self.handler.standing_s:
+                limit = min(limit, fresh)
+                why = f", which has not emptied for {standing:.0f} s (it cannot keep up)"
+            if waited <= limit:
                 return item
             self.seen.get(item.session).pop(item.key, None)   # sending it again is no duplicate
             self._refuse(self.handler.inputs[item.input], item.key, Overloaded(
-                f"{item.key} waited {waited:.0f} s in {self.handler.name}'s queue (at most "
-                f"{self.max_wait_s:g} s): not handled; send it again later"), "expired")
+                f"{item.key} waited {waited:.1f} s in {self.handler.name}'s queue{why} (at "
+                f"most {limit:g} s): not handled; send it again later"),
+                "shed" if why else "expired")
 
     def next_work(self, done: bool, stop: threading.Event, tick_s: float | None,
                   idle: threading.Event):

@@ -1,10 +1,14 @@
 """The pure parts of delivery, driven directly: per-session round-robin queues and their
-bounds, bounded expiring session state, the store's window and listing, the output cache's
+bounds, how long a message may wait (a burst vs a standing queue), bounded expiring session state, the store's window and listing, the output cache's
 listing, and rendezvous sharding."""
 
 import pytest
 
+import schemas
+from services.runtime import inbox as inbox_mod
 from services.runtime.cache import OutputCache
+from services.runtime.handler import Handler, Input
+from services.runtime.inbox import Inbox
 from services.runtime.intake import Intake, Item
 from services.runtime.peers import owner
 from services.runtime.sessions import SessionTable
@@ -46,6 +50,60 @@ def test_latest_pushes_out_the_oldest_of_its_kind_only():
     assert [g.key for g in gone] == ["findme/a/frame/10"]
     assert [x.key for x in iter(q.pop, None)] == ["findme/a/frame/0", "findme/a/frame/11",
                                                   "findme/a/frame/12"]
+
+
+class _Clock:
+    t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+class _FirstStage(Handler):
+    name = "first"
+    inputs = (Input("findme/*/frame/*", schemas.Frame),)
+    fresh_wait_s, standing_s = 1.0, 5.0
+
+
+def _taken(box, clock, at):
+    clock.t = at
+    with box.cv:
+        got = box.take()
+    return None if got is None else got.key.rsplit("/", 1)[1]
+
+
+@pytest.mark.parametrize("fresh", [True, False])
+def test_a_standing_queue_serves_fresh_messages_and_refuses_old_ones_at_once(monkeypatch,
+                                                                           fresh):
+    clock = _Clock()
+    monkeypatch.setattr(inbox_mod.time, "monotonic", clock)
+    h = _FirstStage()
+    if not fresh:
+        h.fresh_wait_s = None          # the default: only max_wait_s
+    box = Inbox(h, "first/x", session_depth=64, max_wait_s=10.0)
+    for n in range(4):                 # a burst at t = 100
+        assert box.offer(0, f"findme/a/frame/{n}", b"")
+    assert _taken(box, clock, 103.0) == "0"     # waited 3 s: a burst, under 10 s
+    clock.t = 105.5
+    assert box.offer(0, "findme/a/frame/4", b"")
+    # the queue has not emptied since t = 100: at 106 it stands (6 s > 5 s); the photos
+    # that waited 6 s are refused at once, the one that waited 0.5 s is served
+    assert _taken(box, clock, 106.0) == ("4" if fresh else "1")
+    if fresh:
+        assert box.more["shed"] == 3 and "expired" not in box.more
+        key, err = box.reports[0]
+        assert key == "findme/a/frame/1" and type(err).__name__ == "Overloaded"
+        assert "waited 6.0 s in first's queue, which has not emptied for 6 s" in str(err)
+        assert "(at most 1 s)" in str(err)
+    # t = 106: the queue emptied (fresh) or still holds 2, 3, 4; a new burst at 107
+    for n in range(5, 7):
+        clock.t = 107.0
+        box.offer(0, f"findme/a/frame/{n}", b"")
+    if fresh:                          # emptied at 106: a burst again, 3 s of waiting is fine
+        assert _taken(box, clock, 110.0) == "5"
+    else:                              # > max_wait_s is refused with or without
+        assert _taken(box, clock, 116.5) == "5" and box.more["expired"] == 3
+        assert not box.more.get("shed")
 
 
 def test_session_table_expires_idle_sessions_and_keeps_at_most_max():
