@@ -52,9 +52,12 @@ def one_run(tree: Path, scenario: str, env: dict, out: Path) -> dict:
     # both trees read the same photos: a worktree elsewhere would not find ../shared and
     # fall back to rendered ones, which cost twice as much
     e = {**os.environ, "FINDME_EVAL_DIR": str(EVAL_DIR), **env, "PYTHONPATH": str(tree)}
+    # run IN the tree: the services are started as ``python -m findme.cli``, which puts the
+    # working directory first on the import path, before PYTHONPATH (run from B's tree,
+    # A's runs served B's code: two A/Bs of 2026-11-29 compared B with itself)
     r = subprocess.run([sys.executable, str(tree / "bench" / "bench_load.py"), "--scenario",
                         scenario, "--json", str(out)], env=e, check=True, text=True,
-                       stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+                       cwd=str(tree), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     first = r.stdout.splitlines()[0] if r.stdout else ""
     return {**figures(json.loads(out.read_text())), "photos": first.split(",")[0]}
 

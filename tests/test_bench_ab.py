@@ -1,7 +1,10 @@
 """bench/ab_load.py's arithmetic: the figures of a bench_load result and the paired
 differences (the runs themselves are a benchmark, not a test)."""
 
-from bench.ab_load import figures, paired
+import json
+import textwrap
+
+from bench.ab_load import figures, one_run, paired
 
 
 def _result(posed_per_s, delivered, cpu_ms, offered=100, bound=20.0):
@@ -24,3 +27,28 @@ def test_paired_differences_are_b_minus_a_per_pair_with_the_wins_counted():
     line = next(x for x in paired(a, b) if x.startswith("posed_per_s"))
     assert "+1.000 -0.500 +2.000" in line and "B higher in 2 of 3" in line
     assert "median +1.000" in line
+
+
+def test_a_run_serves_the_code_of_its_own_tree(tmp_path, monkeypatch):
+    """The services bench_load starts run ``python -m``, which imports from the working
+    directory first: a run of tree A started from tree B must still serve A's code."""
+    trees = {}
+    for name in ("a", "b"):
+        t = trees[name] = tmp_path / name
+        (t / "bench").mkdir(parents=True)
+        (t / "probe_mod.py").write_text(f"print({name!r})\n")
+        # as bench_load's Deployment starts a service: ``python -m``, inheriting cwd and env
+        (t / "bench" / "bench_load.py").write_text(textwrap.dedent(f"""
+            import json, subprocess, sys
+            out = sys.argv[sys.argv.index("--json") + 1]
+            served = subprocess.run([sys.executable, "-m", "probe_mod"], text=True,
+                                    capture_output=True, check=True).stdout.strip()
+            json.dump({{"runs": [{{"posed_per_s": 1.0, "delivered": 1, "offered": 1,
+                       "unaccounted": 0, "p50_ms": 1.0, "p99_ms": 1.0, "served": served,
+                       "breakdown": [{{"process": "ALL", "cpu_ms": 1.0}}]}}]}}, open(out, "w"))
+            print("1 photos")
+            """))
+    monkeypatch.chdir(trees["b"])          # ab_load runs from B's tree
+    out = tmp_path / "a.json"
+    assert one_run(trees["a"], "peak", {}, out)["photos"] == "1 photos"
+    assert json.loads(out.read_text())["runs"][0]["served"] == "a"
