@@ -95,8 +95,7 @@ def cmd_serve(args) -> int:
     # after the bus (Linux keeps a niceness per thread): this thread and the service's,
     # which do the work, yield the CPU; Zenoh's I/O threads keep their priority, so that a
     # niced subscriber still takes its messages off the link promptly (the router does
-    # not wait on it) and its intake counts and refuses at once. With the bus niced too:
-    # bench/ab_load.py --pairs 4, peak: -0.49 posed/s (standard error 0.43), lower in 3 of 4
+    # not wait on it) and its intake counts and refuses at once
     if handler.nice and hasattr(os, "nice"):
         os.nice(handler.nice)
     svc = Service(handler, session, instance=args.instance, **service_options(args)).start()
