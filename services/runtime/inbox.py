@@ -5,8 +5,10 @@ safe (Zenoh's callbacks offer, the service's threads take).
 refuses what is too large or does not fit its session's bounded FIFO (``intake.Intake``)
 and queues the rest. A refused input is answered by an Error the reporter thread publishes
 (OVERLOADED, TOO_LARGE), or counted as deferred if it is state the handler fetches again
-(``Input.state``), or logged if its handler is an observer (recorder, viewer). Every
-received message is counted once as handled, dropped (by cause), duplicate or waiting.
+(``Input.state``), or logged if its handler is an observer (recorder, viewer). ``take``
+refuses the same way a message that waited too long: over ``max_wait_s``, or, once the
+queue has stood (not emptied) for the handler's ``standing_s``, over its ``fresh_wait_s``.
+Every received message is counted once as handled, dropped (by cause), duplicate or waiting.
 """
 
 from __future__ import annotations
