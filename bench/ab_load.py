@@ -5,15 +5,16 @@ environments) alternated in pairs, in both orders, with the paired differences.
     python bench/ab_load.py --env-b MALLOC_TRIM_THRESHOLD_=268435456   # same code, B's env
 
 A is the code at ``--base`` (a temporary git worktree; default: this tree), B this tree.
-Each run is the whole ``bench_load.py --scenario S`` of its tree, with ``PYTHONPATH`` set
-to that tree so that the services ``findme up`` would start import it too, and B's runs
-with ``--env-b`` added to their environment. Pairs alternate AB, BA, AB, ...: this
+Each run is the whole ``bench_load.py --scenario S`` of its tree, started in that tree and
+with ``PYTHONPATH`` set to it so that the services ``findme up`` would start import it too,
+and B's runs with ``--env-b`` added to their environment. Pairs alternate AB, BA, AB, ...: this
 machine's speed drifts over minutes (the same code gave 9.5-14.4 posed/s in one morning),
 so only differences within a pair, and their signs over several pairs, say anything.
 
 Prints per run: posed/s, the share of the compute bound measured in that run, photos posed
 per CPU second, photo -> pose p50 and p99, unaccounted; then per figure B - A per pair,
-their mean, median and standard error, and how many pairs B won. Run on a quiet machine: nothing else of yours.
+their mean, median and standard error, and how many pairs B won. Run on a quiet machine:
+nothing else of yours.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ from bench.ab_load import figures, one_run, paired
 
 def _result(posed_per_s, delivered, cpu_ms, offered=100, bound=20.0):
     run = {"posed_per_s": posed_per_s, "delivered": delivered, "offered": offered,
-           "unaccounted": 0, "p50_ms": 1500.0, "p99_ms": 4000.0, "breakdown": [{"process": "h0", "cpu_ms": 1.0},
-                                          {"process": "ALL", "cpu_ms": cpu_ms}]}
+           "unaccounted": 0, "p50_ms": 1500.0, "p99_ms": 4000.0,
+           "breakdown": [{"process": "h0", "cpu_ms": 1.0}, {"process": "ALL", "cpu_ms": cpu_ms}]}
     return {"runs": [run], **({"bound": {"photos_per_s": bound}} if bound else {})}
 
 

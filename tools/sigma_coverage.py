@@ -281,10 +281,15 @@ def table(res: dict, markdown: bool = False) -> str:
     return "\n".join(rows)
 
 
-def report(dataset: str, preds: dict, collected: dict | None = None) -> dict:
-    """{quantity: coverage figures} of ``collect(dataset, preds)`` (or of ``collected``)."""
+def report(dataset: str, preds: dict) -> dict:
+    """{quantity: coverage figures} of the predictions' items (``collect``, ``summarise``)."""
+    return summarise(collect(dataset, preds))
+
+
+def summarise(collected: dict) -> dict:
+    """{quantity: coverage figures} of ``collect``'s {quantity: items}."""
     res = {}
-    for k, items in (collect(dataset, preds) if collected is None else collected).items():
+    for k, items in collected.items():
         z = np.array([i[1] / i[2] for i in items], float)
         err = np.array([i[1] for i in items], float)
         sig = np.array([i[2] for i in items], float)
@@ -308,7 +313,7 @@ def main(argv=None) -> int:
                     help="also: a constant chosen for >= 97 %% within 3 sigma, left out")
     a = ap.parse_args(argv)
     collected = collect(a.dataset, json.load(open(a.predictions)))
-    res = report(a.dataset, {}, collected)
+    res = summarise(collected)
     print(table(res, a.markdown))
     if a.widened:
         print("\na constant chosen for >= 97 % within 3 sigma on the other rooms, left out:")

@@ -26,16 +26,16 @@ sigma): wall points 0.739 / 0.837 / 0.890 within 1 / 2 / 3 sigma, 784 beyond 3 s
 them located on the floor (the boundary above the pixel); the next five hypotheses put the
 truth within 3 sigma for 110 of the 784, and widening over them gives 0.917 within 3; the
 non-linear boundary under any model tried stays <= 0.903 within 3 (floor points 0.963,
-non-floor 0.863); the best single view feature has AUC 0.67 (``far``), the score gap 0.63, and all of
-them combined (a logistic regression fitted leave-one-room-out: 11 of the 20 failing views
-are one kitchen's) 0.53-0.64. So the tail is whole
-boundaries wrong by more than any local error model spans, and no cheap signal picks them
-out: the coverage goal needs a better boundary or a real failure detector, not a different
-sigma formula. The failing views are listed with their floor share: of the 20, 8 show no
-floor at all (kitchen walls above a counter whose edge was taken for the floor line), 3 a
-stove or counter with floor in view, 4 the TUM cabinet's top (a horizontal surface above the
-floor), 4 sunlit carpet, 1 a hallway (looked at one by one). Reads the dataset's ground
-truth: a tool, not the product.
+non-floor 0.863); the best single view feature has AUC 0.67 (``far``), the score gap 0.63,
+and all of them combined (a logistic regression fitted leave-one-room-out: 11 of the 20
+failing views are one kitchen's) 0.53-0.64. So the tail is whole boundaries wrong by more
+than any local error model spans, and no cheap signal picks them out: the coverage goal
+needs a better boundary or a real failure detector, not a different sigma formula. The
+failing views are listed with their floor share: of the 20, 8 show no floor at all (kitchen
+walls above a counter whose edge was taken for the floor line), 3 a stove or counter with
+floor in view, 4 the TUM cabinet's top (a horizontal surface above the floor), 4 sunlit
+carpet, 1 a hallway (looked at one by one). Reads the dataset's ground truth: a tool, not
+the product.
 """
 
 from __future__ import annotations
@@ -218,15 +218,21 @@ def report_views(res) -> None:
         return
     for name in rows[0][1]:
         x = np.array([r[1][name] for r in rows])
-        auc = mannwhitneyu(x[bad], x[~bad]).statistic / (bad.sum() * (~bad).sum())
+        auc = _auc(x, bad)
         print(f"  {name:10s} AUC {max(auc, 1 - auc):.3f}  (median failing {np.median(x[bad]):.3f}, "
               f"others {np.median(x[~bad]):.3f})")
     X = np.array([[r[1][n] for n in rows[0][1]] for r in rows], float)
     groups = np.array([group_of(r[2]) for r in rows])
     for lam in (0.3, 1.0, 3.0, 10.0):
         s = _left_out_scores(X, bad, groups, lam)
-        auc = mannwhitneyu(s[bad], s[~bad]).statistic / (bad.sum() * (~bad).sum())
+        auc = _auc(s, bad)
         print(f"  all features combined (logistic, L2 {lam:g}), leave-one-room-out: AUC {auc:.3f}")
+
+
+def _auc(scores: np.ndarray, bad: np.ndarray) -> float:
+    """Rank-sum AUC of ``scores`` (N,) for the ``bad`` (N,) bool views: the chance that a
+    failing view scores above a fine one."""
+    return mannwhitneyu(scores[bad], scores[~bad]).statistic / (bad.sum() * (~bad).sum())
 
 
 def _left_out_scores(X, y, groups, lam: float) -> np.ndarray:

@@ -97,10 +97,11 @@ class Inbox:
                     f"{key} is {len(payload) / 1e6:.1f} MB, over the {inp.max_bytes / 1e6:.0f} MB "
                     f"limit of {self.handler.name}; it was not handled"), "too_large")
                 return False
+            now = time.monotonic()
             if not len(self.intake):
-                self.emptied = time.monotonic()
+                self.emptied = now
             ok, superseded, why = self.intake.offer(
-                Item(i, key, payload, session, recovered, time.monotonic()),
+                Item(i, key, payload, session, recovered, now),
                 latest=inp.depth if inp.policy == "latest" else None)
             for old in superseded:
                 seen.pop(old.key, None)

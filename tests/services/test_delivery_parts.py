@@ -1,6 +1,6 @@
 """The pure parts of delivery, driven directly: per-session round-robin queues and their
-bounds, how long a message may wait (a burst vs a standing queue), bounded expiring session state, the store's window and listing, the output cache's
-listing, and rendezvous sharding."""
+bounds, how long a message may wait (a burst vs a standing queue), bounded expiring session
+state, the store's window and listing, the output cache's listing, and rendezvous sharding."""
 
 import pytest
 
