@@ -62,7 +62,7 @@ from .v1.common_pb2 import (
     Vec3,
 )
 from .v1.frame_pb2 import Frame
-from .v1.hypotheses_pb2 import Hypothesis, HypothesisSet
+from .v1.hypotheses_pb2 import FrameHeight, Hypothesis, HypothesisSet
 from .v1.measure_pb2 import (
     SURFACE_FLOOR,
     SURFACE_NONE,
@@ -105,7 +105,7 @@ __all__ = [
     "pose_to_foxglove", "pose_to_frame_transform",
     "Envelope", "Pixel", "Vec3", "Intrinsics", "Camera", "GravityAlternative", "Polyline", "SegKind",
     "SEG_KIND_WALL", "SEG_KIND_STEP", "SEG_KIND_OPEN", "SEG_KIND_NONE",
-    "Frame", "Hypothesis", "HypothesisSet", "Selection", "SelectedBy", "SELECTED_BY_USER",
+    "Frame", "FrameHeight", "Hypothesis", "HypothesisSet", "Selection", "SelectedBy", "SELECTED_BY_USER",
     "SELECTED_BY_AUTO", "Scene", "MeasureRequest", "MeasureReply", "MeasuredPoint",
     "Distance", "Surface", "SURFACE_NONE", "SURFACE_FLOOR", "SURFACE_WALL",
     "Motion", "MotionLayout", "MotionGravity", "MotionAlternative", "IndexPair", "Pose", "Trajectory", "Error", "ErrorCode", "ServiceStatus",

@@ -115,11 +115,11 @@ def _polyline(p: Problems, name: str, pl: common_pb2.Polyline) -> None:
 
 
 def _height(p: Problems, msg: Message, field: str = "camera_height_m",
-            sigma: str = "camera_height_sigma_m") -> None:
+            sigma: str = "camera_height_sigma_m", prefix: str = "") -> None:
     if msg.HasField(field):
-        _positive(p, field, getattr(msg, field))
+        _positive(p, prefix + field, getattr(msg, field))
     if msg.HasField(sigma):
-        _nonneg(p, sigma, getattr(msg, sigma))
+        _nonneg(p, prefix + sigma, getattr(msg, sigma))
 
 
 LENS_SOURCES = ("", "input", "exif", "default")
@@ -204,6 +204,8 @@ def _hypothesis_set(m: hypotheses_pb2.HypothesisSet) -> Problems:
         _nonneg(p, f"timing_ms[{k!r}]", v)
     if m.HasField("camera"):
         _camera(p, "camera", m.camera)
+    if m.HasField("frame_height"):
+        _height(p, m.frame_height, prefix="frame_height.")
     if len(m.lines) % 4:
         p.append(f"lines must hold 4 numbers per line (u1, v1, u2, v2), got {len(m.lines)}")
     if len(m.lines) > 4 * MAX_LINES:

@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from schemas.v1 import common_pb2 as schemas_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1bschemas/v1/hypotheses.proto\x12\tfindme.v1\x1a\x17schemas/v1/common.proto\"a\n\nHypothesis\x12\x0c\n\x04rank\x18\x01 \x01(\r\x12\r\n\x05score\x18\x02 \x01(\x01\x12\x0f\n\x07support\x18\x03 \x01(\x01\x12%\n\x08polyline\x18\x04 \x01(\x0b\x32\x13.findme.v1.Polyline\"\xc7\x02\n\rHypothesisSet\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12\r\n\x05width\x18\x04 \x01(\r\x12\x0e\n\x06height\x18\x05 \x01(\r\x12)\n\nhypotheses\x18\x06 \x03(\x0b\x32\x15.findme.v1.Hypothesis\x12\x0e\n\x06reason\x18\x07 \x01(\t\x12\x39\n\ttiming_ms\x18\x08 \x03(\x0b\x32&.findme.v1.HypothesisSet.TimingMsEntry\x12\x0e\n\x06method\x18\t \x01(\t\x12!\n\x06\x63\x61mera\x18\n \x01(\x0b\x32\x11.findme.v1.Camera\x12\r\n\x05lines\x18\x0b \x03(\x01\x1a/\n\rTimingMsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1bschemas/v1/hypotheses.proto\x12\tfindme.v1\x1a\x17schemas/v1/common.proto\"a\n\nHypothesis\x12\x0c\n\x04rank\x18\x01 \x01(\r\x12\r\n\x05score\x18\x02 \x01(\x01\x12\x0f\n\x07support\x18\x03 \x01(\x01\x12%\n\x08polyline\x18\x04 \x01(\x0b\x32\x13.findme.v1.Polyline\"}\n\x0b\x46rameHeight\x12\x1c\n\x0f\x63\x61mera_height_m\x18\x01 \x01(\x01H\x00\x88\x01\x01\x12\"\n\x15\x63\x61mera_height_sigma_m\x18\x02 \x01(\x01H\x01\x88\x01\x01\x42\x12\n\x10_camera_height_mB\x18\n\x16_camera_height_sigma_m\"\xf5\x02\n\rHypothesisSet\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12\r\n\x05width\x18\x04 \x01(\r\x12\x0e\n\x06height\x18\x05 \x01(\r\x12)\n\nhypotheses\x18\x06 \x03(\x0b\x32\x15.findme.v1.Hypothesis\x12\x0e\n\x06reason\x18\x07 \x01(\t\x12\x39\n\ttiming_ms\x18\x08 \x03(\x0b\x32&.findme.v1.HypothesisSet.TimingMsEntry\x12\x0e\n\x06method\x18\t \x01(\t\x12!\n\x06\x63\x61mera\x18\n \x01(\x0b\x32\x11.findme.v1.Camera\x12\r\n\x05lines\x18\x0b \x03(\x01\x12,\n\x0c\x66rame_height\x18\x0c \x01(\x0b\x32\x16.findme.v1.FrameHeight\x1a/\n\rTimingMsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -36,8 +36,10 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_HYPOTHESISSET_TIMINGMSENTRY']._serialized_options = b'8\001'
   _globals['_HYPOTHESIS']._serialized_start=67
   _globals['_HYPOTHESIS']._serialized_end=164
-  _globals['_HYPOTHESISSET']._serialized_start=167
-  _globals['_HYPOTHESISSET']._serialized_end=494
-  _globals['_HYPOTHESISSET_TIMINGMSENTRY']._serialized_start=447
-  _globals['_HYPOTHESISSET_TIMINGMSENTRY']._serialized_end=494
+  _globals['_FRAMEHEIGHT']._serialized_start=166
+  _globals['_FRAMEHEIGHT']._serialized_end=291
+  _globals['_HYPOTHESISSET']._serialized_start=294
+  _globals['_HYPOTHESISSET']._serialized_end=667
+  _globals['_HYPOTHESISSET_TIMINGMSENTRY']._serialized_start=620
+  _globals['_HYPOTHESISSET_TIMINGMSENTRY']._serialized_end=667
 # @@protoc_insertion_point(module_scope)

@@ -19,8 +19,16 @@ class Hypothesis(_message.Message):
     polyline: _common_pb2.Polyline
     def __init__(self, rank: _Optional[int] = ..., score: _Optional[float] = ..., support: _Optional[float] = ..., polyline: _Optional[_Union[_common_pb2.Polyline, _Mapping]] = ...) -> None: ...
 
+class FrameHeight(_message.Message):
+    __slots__ = ("camera_height_m", "camera_height_sigma_m")
+    CAMERA_HEIGHT_M_FIELD_NUMBER: _ClassVar[int]
+    CAMERA_HEIGHT_SIGMA_M_FIELD_NUMBER: _ClassVar[int]
+    camera_height_m: float
+    camera_height_sigma_m: float
+    def __init__(self, camera_height_m: _Optional[float] = ..., camera_height_sigma_m: _Optional[float] = ...) -> None: ...
+
 class HypothesisSet(_message.Message):
-    __slots__ = ("schema", "session", "index", "width", "height", "hypotheses", "reason", "timing_ms", "method", "camera", "lines")
+    __slots__ = ("schema", "session", "index", "width", "height", "hypotheses", "reason", "timing_ms", "method", "camera", "lines", "frame_height")
     class TimingMsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -39,6 +47,7 @@ class HypothesisSet(_message.Message):
     METHOD_FIELD_NUMBER: _ClassVar[int]
     CAMERA_FIELD_NUMBER: _ClassVar[int]
     LINES_FIELD_NUMBER: _ClassVar[int]
+    FRAME_HEIGHT_FIELD_NUMBER: _ClassVar[int]
     schema: str
     session: str
     index: int
@@ -50,4 +59,5 @@ class HypothesisSet(_message.Message):
     method: str
     camera: _common_pb2.Camera
     lines: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., hypotheses: _Optional[_Iterable[_Union[Hypothesis, _Mapping]]] = ..., reason: _Optional[str] = ..., timing_ms: _Optional[_Mapping[str, float]] = ..., method: _Optional[str] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ..., lines: _Optional[_Iterable[float]] = ...) -> None: ...
+    frame_height: FrameHeight
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., hypotheses: _Optional[_Iterable[_Union[Hypothesis, _Mapping]]] = ..., reason: _Optional[str] = ..., timing_ms: _Optional[_Mapping[str, float]] = ..., method: _Optional[str] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ..., lines: _Optional[_Iterable[float]] = ..., frame_height: _Optional[_Union[FrameHeight, _Mapping]] = ...) -> None: ...

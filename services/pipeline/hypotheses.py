@@ -75,6 +75,12 @@ class HypothesesHandler(Handler):
             cam = wp.to_photo(cam)
             lines = None if lines is None else wp.points_to_photo(lines)
         msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov, lines)
+        # the frame's height travels with its hypotheses: a reader of the set (measurement)
+        # then needs no frame, so it need not take in every photo's bytes
+        msg.frame_height.SetInParent()
+        for f in ("camera_height_m", "camera_height_sigma_m"):
+            if frame.HasField(f):
+                setattr(msg.frame_height, f, getattr(frame, f))
         msg.timing_ms["decode"] = 1e3 * (t1 - t0)
         msg.timing_ms["handler_total"] = 1e3 * (time.perf_counter() - t0)
         return [Output(bus.key(k.session, "hypotheses", n), msg)]

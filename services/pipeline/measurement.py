@@ -1,6 +1,6 @@
 """The measurement service: the scene model of each selected photo, and 3D on request.
 
-    frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/scene/<n>
+    hypotheses/<n> + selection/<n>  ->  findme/<session>/scene/<n>
     motion/<a>/<b> whose photos agreed on gravity  ->  scene/<n> again, under it
     query findme/<session>/measure (MeasureRequest)  ->  MeasureReply
 
@@ -11,14 +11,19 @@ a user's boundary lifted again, an automatic one found again in its frame); poin
 located under it from then on. Until then, and for a photo no motion completes, its own
 gravity and its wide sigma hold.
 
-The camera height comes from the selection (if the user gave one there), else the frame,
-else h = 1 (results up to scale, ``metric`` false).
+The camera height comes from the selection (if the user gave one there), else the frame's
+(passed on in the HypothesisSet's ``frame_height``), else h = 1 (results up to scale,
+``metric`` false). The service takes in no frames: the hypotheses carry the camera and the
+frame's height, so a photo's bytes reach it only when it asks for them (a set from a writer
+that does not pass the height on; an automatic boundary found again under a new gravity).
+At peak, when most photos are refused before they have hypotheses, taking in every frame
+cost this process ~2 ms of CPU a photo offered.
 
 State is bounded and expires: per session at most ``max_photos`` photos (least recently
 used out), a session idle for ``idle_s`` is evicted; anything evicted is rebuilt from the
 bus when asked again: from the photo's Scene message (it carries the camera, height and
 boundary; this service and the store keep it 15 min, longer than the frame's minute in the
-store), else from its selection, hypotheses and frame. A photo's HypothesisSet is held only
+store), else from its selection and hypotheses. A photo's HypothesisSet is held only
 until its scene is built.
 """
 
@@ -29,7 +34,7 @@ from collections import OrderedDict
 
 import schemas
 from findme_io.imageio import image_size
-from findme_core.errors import FindmeError, HypothesisError
+from findme_core.errors import FindmeError, HypothesisError, InputError
 from findme_core.geometry.provenance import Provenance
 
 from ..runtime import bus
@@ -44,13 +49,12 @@ DEFAULT_HEIGHT_SIGMA_M = 0.03
 
 
 class _Photos:
-    """One session's photos: n -> (camera, h, sigma), HypothesisSet, ``Held`` scene, the
+    """One session's photos: n -> HypothesisSet, ``Held`` scene, the
     gravity a motion agreed on ((3,) unit, 1-sigma radians); at most ``limit`` of each,
     least recently used out."""
 
     def __init__(self, limit: int):
         self.limit = limit
-        self.frames: OrderedDict[int, tuple] = OrderedDict()
         self.hsets: OrderedDict[int, object] = OrderedDict()
         self.scenes: OrderedDict[int, Held] = OrderedDict()
         self.agreed: OrderedDict[int, tuple] = OrderedDict()
@@ -66,8 +70,7 @@ class _Photos:
 class MeasurementHandler(Handler):
     name = "measurement"
     cache_keys = ("findme/*/scene/*",)
-    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+    inputs = (Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection,
                     answers=("findme/{session}/scene/{n}",)),
               # a skipped motion leaves a photo under its own gravity (its sigma says so)
@@ -89,12 +92,12 @@ class MeasurementHandler(Handler):
         st = self.sessions.get(k.session)
         if isinstance(msg, schemas.Motion):
             return self._motion(k.session, st, (n, k.index(1)), msg)
-        if isinstance(msg, schemas.Frame):
-            self._frame(st, n, msg)
-        elif isinstance(msg, schemas.HypothesisSet):
+        if isinstance(msg, schemas.HypothesisSet):
             st.put(st.hsets, n, msg)
-        else:
+        elif isinstance(msg, schemas.Selection):
             st.waiting[n] = (msg, self.clock())
+        else:
+            raise InputError(f"the measurement service takes no {type(msg).__name__} ({key})")
         if n in st.waiting and self._ready(k.session, st, n, fetch=isinstance(msg, schemas.Selection)):
             return self._select(k.session, st, n, st.waiting.pop(n)[0])
         if st.waiting:
@@ -102,19 +105,15 @@ class MeasurementHandler(Handler):
         return []
 
     def _ready(self, session, st, n, fetch: bool) -> bool:
-        """Frame and hypotheses of photo n are here (``fetch``: asking the bus for missing
-        ones: the bus does not order a selection after the messages it follows)."""
-        for kind, table, cls in (("frame", st.frames, schemas.Frame),
-                                 ("hypotheses", st.hsets, schemas.HypothesisSet)):
-            if n not in table and fetch:
-                try:
-                    msg = self.need(bus.key(session, kind, n), cls)
-                except HypothesisError:
-                    return False   # not on the bus (yet)
-                self._frame(st, n, msg) if kind == "frame" else st.put(st.hsets, n, msg)
-            if n not in table:
-                return False
-        return True
+        """The hypotheses of photo n are here (``fetch``: asking the bus for them when
+        missing: the bus does not order a selection after the messages it follows)."""
+        if n not in st.hsets and fetch:
+            try:
+                st.put(st.hsets, n, self.need(bus.key(session, "hypotheses", n),
+                                              schemas.HypothesisSet))
+            except HypothesisError:
+                return False   # not on the bus (yet)
+        return n in st.hsets
 
     def tick(self, now):
         """Selections whose frame or hypotheses did not come within ``wait_s``: answered
@@ -133,7 +132,7 @@ class MeasurementHandler(Handler):
                 del st.waiting[n]
                 err = schemas.Error(session=session, key=bus.key(session, "selection", n),
                                     code=schemas.ErrorCode.ERROR_CODE_NO_SUCH_HYPOTHESIS,
-                                    message=f"the frame or hypotheses of photo {n} did not come "
+                                    message=f"the hypotheses of photo {n} did not come "
                                             f"within {self.wait_s:g} s", service=self.name,
                                     time_ns=time.time_ns())
                 out.append(Output(bus.key(session, "error"), err, cache=False))
@@ -142,30 +141,33 @@ class MeasurementHandler(Handler):
         self.sessions.expire(now)
         return out
 
-    def _frame(self, st, n, f):
-        w, h = image_size(f.image.data, f"frame {n}")
-        cam = frame_camera(f, w, h)
-        height = f.camera_height_m if f.HasField("camera_height_m") else None
-        sigma = (f.camera_height_sigma_m if f.HasField("camera_height_sigma_m")
+    def _camera(self, session, n, hset):
+        """(camera, provenance, height or None, its 1-sigma) of photo n: the camera the
+        hypotheses were built with (an estimated gravity too) and the frame's height they
+        passed on; what the set lacks (an older writer's) from the frame, asked for."""
+        prov = msg_provenance(hset.camera) if hset.HasField("camera") else None
+        frame = None
+        if prov is None or not hset.HasField("frame_height"):
+            frame = self.need(bus.key(session, "frame", n), schemas.Frame)
+        if prov is not None:
+            cam = msg_camera(hset.camera)
+        else:
+            w, h = image_size(frame.image.data, f"frame {n}")
+            cam, prov = frame_camera(frame, w, h), Provenance()
+        given = frame if frame is not None else hset.frame_height
+        height = given.camera_height_m if given.HasField("camera_height_m") else None
+        sigma = (given.camera_height_sigma_m if given.HasField("camera_height_sigma_m")
                  else DEFAULT_HEIGHT_SIGMA_M)
-        st.put(st.frames, n, (cam, height, sigma))
+        return cam, prov, height, sigma
 
     def _select(self, session, st, n, sel):
-        if n not in st.frames:
-            self._frame(st, n, self.need(bus.key(session, "frame", n), schemas.Frame))
         if n not in st.hsets:
             st.put(st.hsets, n, self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet))
         hyps = msg_hypotheses(st.hsets[n])
         if not 1 <= sel.rank <= len(hyps):
             raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
                                   f"{len(hyps)} hypotheses")
-        cam, height, sigma = st.frames[n]
-        hset = st.hsets[n]
-        prov = msg_provenance(hset.camera) if hset.HasField("camera") else None
-        if prov is not None:   # the camera the hypotheses were built with (estimated gravity)
-            cam = msg_camera(hset.camera)
-        else:
-            prov = Provenance()
+        cam, prov, height, sigma = self._camera(session, n, st.hsets[n])
         if sel.HasField("camera_height_m"):
             height = sel.camera_height_m
             sigma = sel.camera_height_sigma_m if sel.HasField("camera_height_sigma_m") else sigma

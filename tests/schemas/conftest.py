@@ -50,7 +50,8 @@ def sample_messages() -> list[tuple[str, object]]:
                         gravity_cov_rad2=[0.0002, 0.00001, 0.00001, 0.00018],
                         gravity_fit_cov_rad2=[0.0001, 0.0, 0.0, 0.0001],
                         gravity_alternatives=[S.GravityAlternative(
-                            gravity=S.Vec3(x=0.3, y=0.95, z=0.0), ratio=0.97)]))
+                            gravity=S.Vec3(x=0.3, y=0.95, z=0.0), ratio=0.97)]),
+        frame_height=S.FrameHeight(camera_height_m=1.42, camera_height_sigma_m=0.05))
     hset_empty = S.HypothesisSet(session=SESSION, index=4, width=640, height=480,
                                  reason="no floor lines below the horizon",
                                  timing_ms={"lines": 20.0}, method="lsd+dp findme_core 0.1")

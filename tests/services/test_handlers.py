@@ -150,9 +150,16 @@ def test_selection_auto_and_terminal(pipeline):
 
 
 def test_measurement_scene_and_query(pipeline):
+    """The scene from the hypotheses and the selection alone: the set carries the camera
+    and the frame's height, so the service asks the bus for nothing (no frame)."""
     view, frame, hset, sel = pipeline
+    assert hset.frame_height.camera_height_m == frame.camera_height_m
+    assert hset.frame_height.HasField("camera_height_sigma_m") == frame.HasField(
+        "camera_height_sigma_m")
     m = MeasurementHandler()
-    assert m.on_message("findme/t1/frame/0", frame) == []
+    m.fetch = {}.get
+    with pytest.raises(InputError, match="takes no Frame"):
+        m.on_message("findme/t1/frame/0", frame)
     assert m.on_message("findme/t1/hypotheses/0", hset) == []
     (scene_out,) = m.on_message("findme/t1/selection/0", sel)
     assert scene_out.key == "findme/t1/scene/0" and scene_out.msg.metric
@@ -169,13 +176,38 @@ def test_measurement_scene_and_query(pipeline):
     assert rep.distances[0].distance_m == pytest.approx(np.linalg.norm(truth[0].xyz - truth[1].xyz))
 
 
+def test_measurement_asks_for_the_frame_when_the_set_lacks_its_height(pipeline):
+    """A set from a writer that does not pass the frame's height on (a recording made
+    before it did): the frame is asked for, and the scene is the same as from a set that
+    carries it; without the frame on the bus the selection is answered with an Error."""
+    _, frame, hset, sel = pipeline
+    old = schemas.HypothesisSet()
+    old.CopyFrom(hset)
+    old.ClearField("frame_height")
+    scenes = []
+    for h, store in ((hset, {}), (old, {"findme/t1/frame/0": schemas.encode(frame)})):
+        m = MeasurementHandler()
+        m.fetch = store.get
+        m.on_message("findme/t1/hypotheses/0", h)
+        (out,) = m.on_message("findme/t1/selection/0", sel)
+        scenes.append(out.msg)
+    assert scenes[0].metric and scenes[0].camera_height_m == frame.camera_height_m
+    for s in scenes:
+        s.time_ns = 0
+    assert schemas.encode(scenes[0]) == schemas.encode(scenes[1])
+    m = MeasurementHandler()
+    m.fetch = {}.get
+    m.on_message("findme/t1/hypotheses/0", old)
+    with pytest.raises(HypothesisError, match="frame/0"):
+        m.on_message("findme/t1/selection/0", sel)
+
+
 def test_measurement_rebuilds_a_scene_from_its_scene_message(pipeline):
     """A measurement service that no longer holds a photo (restarted, or the session
     evicted) and finds neither its frame nor its hypotheses on the bus (the store keeps
     frames a minute) answers from the photo's Scene message, exactly as before."""
     _, frame, hset, sel = pipeline
     m = MeasurementHandler()
-    m.on_message("findme/t1/frame/0", frame)
     m.on_message("findme/t1/hypotheses/0", hset)
     (scene_out,) = m.on_message("findme/t1/selection/0", sel)
     req = schemas.MeasureRequest(session="t1", index=0)
@@ -198,9 +230,8 @@ def test_measurement_errors_and_fetch(pipeline):
     req.pixels.extend(schemas.pixels_to_msg([[1, 1]]))
     with pytest.raises(UnknownSession, match="'nobody' is not known"):
         m.on_query("findme/nobody/measure", req)
-    # a selection first: the handler fetches the frame and hypotheses it missed from the bus
-    store = {"findme/t1/frame/0": schemas.encode(frame),
-             "findme/t1/hypotheses/0": schemas.encode(hset)}
+    # a selection first: the handler fetches the hypotheses it missed from the bus
+    store = {"findme/t1/hypotheses/0": schemas.encode(hset)}
     m.fetch = store.get
     (out,) = m.on_message("findme/t1/selection/0", sel)
     assert out.key == "findme/t1/scene/0"
@@ -220,6 +251,5 @@ def test_measurement_errors_and_fetch(pipeline):
     m3 = MeasurementHandler(clock=lambda: now[0])      # ... or they come: the scene follows
     m3.fetch = {}.get
     assert m3.on_message("findme/t1/selection/0", sel) == []
-    assert m3.on_message("findme/t1/frame/0", frame) == []
     (out,) = m3.on_message("findme/t1/hypotheses/0", hset)
     assert out.key == "findme/t1/scene/0"

@@ -14,6 +14,7 @@ import math
 import cv2
 import numpy as np
 import pytest
+import zenoh
 
 import schemas
 from findme_core.single import gravity_alternatives as alt
@@ -68,6 +69,14 @@ def _handler(photos, store=True):
     return h
 
 
+def _deliver(h, msgs) -> list:
+    """The outputs of ``h`` for what the bus hands it of ``msgs`` ((key, message), ...): the
+    messages on its inputs' keys (no frames: the hypotheses carry what it needs of them)."""
+    subs = [zenoh.KeyExpr(i.key) for i in h.inputs]
+    return [o for key, msg in msgs if any(s.intersects(zenoh.KeyExpr(key)) for s in subs)
+            for o in h.on_message(key, msg)]
+
+
 def _boundary_error_px(v, polyline) -> float:
     """Median |v - true boundary row| (pixels) of a boundary over the columns where the
     photo sees floor."""
@@ -89,7 +98,7 @@ def _measure(h, n, px):
 def test_a_photo_completed_by_a_motion_is_measured_under_the_agreed_gravity(session):
     views, photos, motion = session
     h = _handler(photos)
-    scenes = [o for msgs in photos for key, msg in msgs for o in h.on_message(key, msg)]
+    scenes = _deliver(h, [m for msgs in photos for m in msgs])
     assert [o.key for o in scenes] == [f"findme/{S}/scene/0", f"findme/{S}/scene/1"]
     own = schemas.msg_to_vec3(scenes[1].msg.camera.gravity)
     assert alt.angle_deg(own, views[1].camera.gravity) > 10.0          # the case is real
@@ -129,8 +138,7 @@ def test_a_photo_completed_by_a_motion_is_measured_under_the_agreed_gravity(sess
 def test_an_agreed_gravity_that_comes_before_the_selection_is_used_when_it_comes(session):
     views, photos, motion = session
     h = _handler(photos)
-    for key, msg in photos[0] + photos[1][:2]:          # photo 1's selection not yet
-        h.on_message(key, msg)
+    _deliver(h, photos[0] + photos[1][:2])              # photo 1's selection not yet
     assert h.on_message(f"findme/{S}/motion/0/1", motion) == []
     (out,) = h.on_message(*photos[1][2])
     assert alt.angle_deg(schemas.msg_to_vec3(out.msg.camera.gravity),
@@ -142,7 +150,7 @@ def test_a_users_boundary_is_kept_and_lifted_under_the_agreed_gravity(session):
     h = _handler(photos, store=False)          # the frame is not needed
     user = schemas.Selection(session=S, index=1, rank=1, by=schemas.SELECTED_BY_USER)
     msgs = photos[0] + photos[1][:2] + [(f"findme/{S}/selection/1", user)]
-    (first,) = [o for key, msg in msgs for o in h.on_message(key, msg)][1:]
+    (first,) = _deliver(h, msgs)[1:]
     (out,) = h.on_message(f"findme/{S}/motion/0/1", motion)
     assert alt.angle_deg(schemas.msg_to_vec3(out.msg.camera.gravity),
                          views[1].camera.gravity) < 1.0
@@ -153,8 +161,7 @@ def test_a_users_boundary_is_kept_and_lifted_under_the_agreed_gravity(session):
 def test_without_its_frame_an_automatic_choice_stays_under_its_own_gravity(session):
     views, photos, motion = session
     h = _handler(photos, store=False)          # the frame has left the bus
-    for key, msg in photos[0] + photos[1]:
-        h.on_message(key, msg)
+    _deliver(h, photos[0] + photos[1])
     assert h.on_message(f"findme/{S}/motion/0/1", motion) == []
     c = h.counters()
     assert (c["scenes_regravitated"], c["scenes_not_regravitated"]) == (0, 1)
@@ -169,8 +176,7 @@ def test_a_sensor_gravity_is_never_replaced_by_a_motion(session):
     sensed.gravity.CopyFrom(schemas.vec3_to_msg(g))   # a phone's own gravity, given
     hs = next(o.msg for o in HypothesesHandler().on_message(photos[1][0][0], sensed)
               if isinstance(o.msg, schemas.HypothesisSet))
-    for key, msg in [(photos[1][0][0], sensed), (photos[1][1][0], hs), photos[1][2]]:
-        h.on_message(key, msg)
+    _deliver(h, [(photos[1][0][0], sensed), (photos[1][1][0], hs), photos[1][2]])
     fake = schemas.Motion()
     fake.CopyFrom(motion)
     fake.gravity.gravity_b.CopyFrom(schemas.vec3_to_msg(alt.down(np.array([0.0, 1.0, 0.3]))))

@@ -118,15 +118,24 @@ def test_measure_query_for_another_session_refused(zsession):
 
 def test_a_fetched_message_is_held_to_the_key_asked_for(level_view):
     """Whoever answers a fetch (any device may reply on its own keys) cannot hand a service
-    another photo's or session's message."""
-    h = MeasurementHandler()
+    another photo's or session's message: neither the hypotheses it asks for nor the frame
+    it asks for when a set does not carry the frame's height."""
     (hs,) = HypothesesHandler().on_message("findme/t1/frame/0", frame_of(level_view))
+    (other_hs,) = HypothesesHandler().on_message("findme/t1/frame/3",
+                                                 frame_of(level_view, session="t1", index=3))
+    without = schemas.HypothesisSet()
+    without.CopyFrom(hs.msg)
+    without.ClearField("frame_height")
     other = frame_of(level_view, session="t1", index=3)
-    h.fetch = {"findme/t1/frame/0": schemas.encode(other),
-               "findme/t1/hypotheses/0": schemas.encode(hs.msg)}.get
     sel = schemas.Selection(session="t1", index=0, rank=1, by=schemas.SELECTED_BY_USER)
-    with pytest.raises(KeyAuthorityError, match="findme/t1/frame/3"):
-        h.on_message("findme/t1/selection/0", sel)
-    st = h.sessions.peek("t1")
-    assert st is None or not (st.frames or st.scenes)
+    for held, wrong in (({"findme/t1/hypotheses/0": schemas.encode(other_hs.msg)},
+                         "findme/t1/hypotheses/3"),
+                        ({"findme/t1/hypotheses/0": schemas.encode(without),
+                          "findme/t1/frame/0": schemas.encode(other)}, "findme/t1/frame/3")):
+        h = MeasurementHandler()
+        h.fetch = held.get
+        with pytest.raises(KeyAuthorityError, match=wrong):
+            h.on_message("findme/t1/selection/0", sel)
+        st = h.sessions.peek("t1")
+        assert st is None or not st.scenes
     assert authority.KEY_RULES["findme.v1.Frame"] == ("frame", ("index",))
