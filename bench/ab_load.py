@@ -3,6 +3,8 @@ environments) alternated in pairs, in both orders, with the paired differences.
 
     python bench/ab_load.py --base REV [--pairs 4] [--scenario peak] [--env-b K=V ...]
     python bench/ab_load.py --env-b MALLOC_TRIM_THRESHOLD_=268435456   # same code, B's env
+    (``--keep DIR`` keeps each run's ``bench_load --json`` as DIR/A0.json, B0.json, ...: the
+    per-process breakdown of every run)
 
 A is the code at ``--base`` (a temporary git worktree; default: this tree), B this tree.
 Each run is the whole ``bench_load.py --scenario S`` of its tree, started in that tree and
@@ -84,10 +86,14 @@ def main(argv=None) -> int:
     ap.add_argument("--scenario", default="peak", choices=("peak", "steady", "gateway"))
     ap.add_argument("--env-b", nargs="*", default=[], metavar="K=V",
                     help="environment variables of B's runs only")
+    ap.add_argument("--keep", metavar="DIR", type=Path,
+                    help="keep each run's bench_load --json here (A0.json, B0.json, ...)")
     a = ap.parse_args(argv)
     env_b = dict(kv.split("=", 1) for kv in a.env_b)
     if not a.base and not env_b:
         ap.error("nothing to compare: give --base REV, --env-b K=V, or both")
+    if a.keep:
+        a.keep.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="ab-load-") as tmp:
         base = HERE
         if a.base:
@@ -100,7 +106,8 @@ def main(argv=None) -> int:
                 order = ("A", "B") if i % 2 == 0 else ("B", "A")
                 for side in order:
                     tree, env = (base, {}) if side == "A" else (HERE, env_b)
-                    f = one_run(tree, a.scenario, env, Path(tmp) / f"{side}{i}.json")
+                    out = (a.keep or Path(tmp)) / f"{side}{i}.json"
+                    f = one_run(tree, a.scenario, env, out)
                     runs[side].append(f)
                     share = ("-" if f["share_of_bound"] is None
                              else f"{100 * f['share_of_bound']:.0f} %")

@@ -52,3 +52,26 @@ def test_a_run_serves_the_code_of_its_own_tree(tmp_path, monkeypatch):
     out = tmp_path / "a.json"
     assert one_run(trees["a"], "peak", {}, out)["photos"] == "1 photos"
     assert json.loads(out.read_text())["runs"][0]["served"] == "a"
+
+
+def test_keep_holds_every_runs_result_with_bs_environment(tmp_path, monkeypatch):
+    """``--keep DIR``: each run's bench_load --json is kept (A0, B0, A1, B1, ...), so the
+    per-process breakdown of every run can be read afterwards; B's runs had ``--env-b``."""
+    import bench.ab_load as ab
+    tree = tmp_path / "tree"
+    (tree / "bench").mkdir(parents=True)
+    (tree / "bench" / "bench_load.py").write_text(textwrap.dedent("""
+        import json, os, sys
+        out = sys.argv[sys.argv.index("--json") + 1]
+        json.dump({"runs": [{"posed_per_s": 1.0, "delivered": 1, "offered": 1,
+                   "unaccounted": 0, "p50_ms": 1.0, "p99_ms": 1.0,
+                   "knob": os.environ.get("AB_KNOB", ""),
+                   "breakdown": [{"process": "ALL", "cpu_ms": 1.0}]}]}, open(out, "w"))
+        print("1 photos")
+        """))
+    monkeypatch.setattr(ab, "HERE", tree)
+    keep = tmp_path / "kept"
+    assert ab.main(["--env-b", "AB_KNOB=1", "--pairs", "2", "--keep", str(keep)]) == 0
+    assert sorted(p.name for p in keep.iterdir()) == ["A0.json", "A1.json", "B0.json", "B1.json"]
+    knobs = {p.stem: json.loads(p.read_text())["runs"][0]["knob"] for p in keep.iterdir()}
+    assert knobs == {"A0": "", "A1": "", "B0": "1", "B1": "1"}
