@@ -106,7 +106,6 @@ def run_session(sid: str, photos, rec_dir: Path) -> tuple[list[dict], int]:
                                                      cam.height), gravity=g, camera_height_m=h)
         fkey = f"findme/{sid}/frame/{n}"
         outs = [(fkey, frame)]
-        _call(meas, fkey, frame, acc, "measurement")   # keeps (camera, height): size read only
         _call(odo, fkey, frame, acc, "odometry")       # holds the frame until it is selected
         for o in _call(hyp, fkey, frame, acc, "hypotheses"):
             outs.append((o.key, o.msg))
