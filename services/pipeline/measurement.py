@@ -117,7 +117,7 @@ class MeasurementHandler(Handler):
         return n in st.hsets
 
     def tick(self, now):
-        """Selections whose frame or hypotheses did not come within ``wait_s``: answered
+        """Selections whose hypotheses did not come within ``wait_s``: answered
         with an Error naming them."""
         out = []
         for session in sorted(self._waiting):
