@@ -76,7 +76,8 @@ class HypothesesHandler(Handler):
             lines = None if lines is None else wp.points_to_photo(lines)
         msg = hypothesis_set_msg(k.session, n, hs, f"{self.method}/findme.v1", cam, prov, lines)
         # the frame's height travels with its hypotheses: a reader of the set (measurement)
-        # then needs no frame, so it need not take in every photo's bytes
+        # then needs no frame, so it need not take in every photo's bytes. Set even when the
+        # frame gave no height: its presence says "passed on" (an older set asks the frame)
         msg.frame_height.SetInParent()
         for f in ("camera_height_m", "camera_height_sigma_m"):
             if frame.HasField(f):
