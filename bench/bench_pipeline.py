@@ -98,6 +98,8 @@ def run_session(sid: str, photos, rec_dir: Path) -> tuple[list[dict], int]:
     of poses that came out."""
     hyp, sel, meas, odo = HypothesesHandler(), SelectionHandler(), MeasurementHandler(), OdometryHandler()
     rec = McapRecording(rec_dir / f"{sid}.mcap", sid)
+    held: dict[str, bytes] = {}
+    odo.fetch = held.get      # odometry asks the bus (the store) for a selected photo's frame
     per, poses = [], 0
     for n, (jpeg, cam, h) in enumerate(photos):
         acc: dict[str, float] = {}
@@ -106,7 +108,7 @@ def run_session(sid: str, photos, rec_dir: Path) -> tuple[list[dict], int]:
                                                      cam.height), gravity=g, camera_height_m=h)
         fkey = f"findme/{sid}/frame/{n}"
         outs = [(fkey, frame)]
-        _call(odo, fkey, frame, acc, "odometry")       # holds the frame until it is selected
+        held[fkey] = schemas.encode(frame)
         for o in _call(hyp, fkey, frame, acc, "hypotheses"):
             outs.append((o.key, o.msg))
             _call(meas, o.key, o.msg, acc, "measurement")

@@ -113,6 +113,15 @@ def scaled_camera(camera: Camera, s: float, width: int, height: int) -> Camera:
                   (camera.cy + 0.5) * s - 0.5, width, height, camera.gravity)
 
 
+def scaled_polyline(polyline, s: float, width: int) -> np.ndarray:
+    """(k, 2) a boundary polyline (pixels, u then v) of a photo decoded ``s`` times its size
+    into ``width`` columns, still running from u = 0 to u = width - 1 (``methods.to_photo``);
+    pixel-centre convention as ``scaled_camera``. A new array: the input is not changed."""
+    poly = (np.asarray(polyline, float) + 0.5) * s - 0.5
+    poly[0, 0], poly[-1, 0] = 0.0, width - 1.0
+    return poly
+
+
 def frame_work_photo(frame, work_size: int = WORK_SIZE, estimate: bool = True) -> WorkPhoto:
     """A Frame's photo decoded once at the smallest JPEG reduction that keeps its long side
     at least ``work_size`` (``imageio.reduction``: a 12 MP photo at a quarter, a photo

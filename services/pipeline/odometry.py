@@ -1,20 +1,26 @@
 """The odometry service: motion between selected photos of a session, and the session's
 trajectory.
 
-    frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/motion/<m>/<n>,
-                                                    findme/<session>/pose/<n>,
-                                                    findme/<session>/trajectory
+    hypotheses/<n> + selection/<n>  ->  findme/<session>/motion/<m>/<n>,
+                                        findme/<session>/pose/<n>,
+                                        findme/<session>/trajectory
 
 Photo m is the nearest lower photo of the session that has a pose (the nearest higher one
 for a photo below the origin); the first selected photo of a session is its origin (the
 session frame is the level frame of photo 0, or of the first photo that was selected).
-Selections may arrive in any order: a photo waits while a lower photo of the session is
-open (its frame or hypotheses arrived, no selection yet), at most ``gap_wait_s`` seconds;
-then it chains past it from the last photo that has a pose, and the gap is reported as an
-Error on ``findme/<session>/error`` naming the photo that never got a selection. A photo
-that will never be selected (an Error about its frame or hypotheses, or no hypotheses) is
-not waited for. A motion that cannot be estimated is published with its error (no
-numbers) and the photo gets no pose; later photos chain from the last one that did.
+Selections may arrive in any order: a photo waits, at most ``gap_wait_s`` seconds, while a
+lower photo that could be its anchor may still get a selection (``OdometrySession.blockers``:
+one whose hypotheses came, or a number not heard of yet: photos are numbered from 0 up and
+every frame ends as hypotheses or an Error naming it). Then it chains past it, and the gap
+is reported as an Error on ``findme/<session>/error`` naming that photo. A photo that will
+never be selected (an Error about its frame or hypotheses, or no hypotheses) is not waited
+for. A motion that cannot be estimated is published with its error (no numbers) and the
+photo gets no pose; later photos chain from the last one that did.
+
+The service takes in no frames: a selected photo's frame is fetched once from the bus (the
+store's minute; the gateway's and capture's caches, 15 min) when the photo is prepared, and
+dropped then. Taking in every frame woke both sharded instances for each photo, most of
+them refused at peak before they had hypotheses.
 
 State is bounded (``odometry_session``) and expires: a session idle for ``idle_s`` is
 evicted; when it comes back, its poses are fetched from the bus (the store, the caches).
@@ -31,13 +37,13 @@ from dataclasses import replace
 import numpy as np
 
 import schemas
-from findme_core.errors import FindmeError, HypothesisError
+from findme_core.errors import FindmeError, HypothesisError, InputError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
 from findme_core.single.segments import WORK_SIZE
 from findme_io.convert import (msg_camera, msg_gravity_estimate, msg_hypotheses, msg_lines,
                                msg_provenance, set_motion_estimate, set_motion_gravity)
-from findme_io.frame_photo import frame_camera, scaled_camera
+from findme_io.frame_photo import frame_camera, scaled_camera, scaled_polyline
 from findme_io.imageio import decode_photo
 
 from ..runtime import bus
@@ -53,8 +59,7 @@ FORBIDDEN = schemas.ErrorCode.ERROR_CODE_FORBIDDEN
 class OdometryHandler(Handler):
     name = "odometry"
     cache_keys = ("findme/*/motion/*/*", "findme/*/pose/*", "findme/*/trajectory")
-    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),
-              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+    inputs = (Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection,
                     answers=("findme/{session}/pose/{n}", "findme/{session}/motion/*/{n}")),
               Input("findme/*/error", schemas.Error, state=True))
@@ -110,13 +115,13 @@ class OdometryHandler(Handler):
         now = self.clock()
         if isinstance(msg, schemas.Error):
             return self._error(k.session, st, msg, now)
+        if not isinstance(msg, (schemas.HypothesisSet, schemas.Selection)):
+            raise InputError(f"the odometry service takes no {type(msg).__name__} ({key})")
         n = k.index()
         if n in st.poses or n in st.closed and not isinstance(msg, schemas.Selection):
             return []
         p = st.photo(n, now)
-        if isinstance(msg, schemas.Frame):
-            p.frame = msg
-        elif isinstance(msg, schemas.HypothesisSet):
+        if isinstance(msg, schemas.HypothesisSet):
             p.hset = msg
             if p.selection is not None:
                 self._check_rank(st, n)
@@ -264,10 +269,14 @@ class OdometryHandler(Handler):
         p = st.photo(n, self.clock())
         if p.frame is None:
             p.frame = self.need(bus.key(session, "frame", n), schemas.Frame)
+            p.time_ns = p.frame.capture_time_ns
         return p.frame
 
     def _time(self, session, st, n) -> int:
         """Capture time of photo n (0 when its frame is no longer on the bus)."""
+        p = st.photos.get(n)
+        if p is not None and p.time_ns is not None:
+            return p.time_ns
         try:
             return self._frame(session, st, n).capture_time_ns
         except HypothesisError:
@@ -291,6 +300,7 @@ class OdometryHandler(Handler):
             p.prepared = (rank, prepare(
                 image, cam, h, hyps, rank, lines, gravity_sigma=prov and prov.unsensed_sigma,
                 gravity_alternatives=prov.unsensed_alternatives if prov else ()))
+            p.frame = None   # what its motions need is prepared (its capture time is kept)
         return p.prepared[1]
 
     def _inputs(self, session, st, n):
@@ -319,8 +329,7 @@ class OdometryHandler(Handler):
         lines = msg_lines(p.hset)
         if s != 1.0:
             cam = scaled_camera(cam, s, image.shape[1], image.shape[0])
-            hyps = [replace(hy, polyline=_pinned((np.asarray(hy.polyline, float) + 0.5) * s - 0.5,
-                                                 image.shape[1]))
+            hyps = [replace(hy, polyline=scaled_polyline(hy.polyline, s, image.shape[1]))
                     for hy in hyps]
             lines = None if lines is None else (lines + 0.5) * s - 0.5
         return image, cam, hyps, sel.rank, h, lines
@@ -348,8 +357,3 @@ class OdometryHandler(Handler):
         return {"sessions": len(self.sessions), "motions": self.motions, "gaps": self.gaps,
                 "evicted": self.sessions.evicted}
 
-
-def _pinned(poly: np.ndarray, width: int) -> np.ndarray:
-    """A scaled polyline still running from u = 0 to u = width - 1 (``methods.to_photo``)."""
-    poly[0, 0], poly[-1, 0] = 0.0, width - 1.0
-    return poly

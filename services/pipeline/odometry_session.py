@@ -3,9 +3,9 @@ have poses, which will never come, and which must wait for a lower photo. Pure a
 ``odometry.OdometryHandler`` estimates the motions.
 
 Bounded: poses are kept for every posed photo (about 0.3 kB each); message payloads and
-prepared photos (features, layouts) only for photos still open (frames of at most
-``keep_frames`` of them; older ones are fetched again from the bus if they get selected)
-and for the ``anchors`` most recent posed photos (the ones the next photo chains from).
+prepared photos (features, layouts) only for photos still open and for the ``anchors`` most
+recent posed photos (the ones the next photo chains from). A frame is held only from when it
+is fetched until its photo is prepared (frames of at most ``keep_frames`` open photos).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from findme_core.motion.trajectory import PlanarPose
 
 CLOSED_MEMORY = 1024   # resolved photo numbers remembered per session (not to wait on again)
+LOOK_BACK = 64         # photo numbers below n that n may wait for without having heard of them
 
 
 @dataclass
@@ -22,7 +23,8 @@ class Photo:
     """What odometry holds about photo n while it is open or an anchor."""
 
     seen: float                      # when it was first heard of (monotonic s)
-    frame: object | None = None      # Frame message
+    frame: object | None = None      # Frame message (fetched when prepared, then dropped)
+    time_ns: int | None = None       # its capture time, kept once the frame was fetched
     hset: object | None = None       # HypothesisSet message
     selection: object | None = None  # Selection message
     selected_at: float | None = None
@@ -60,9 +62,19 @@ class OdometrySession:
         return sorted(n for n, p in self.photos.items() if p.selection is not None and self.is_open(n))
 
     def blockers(self, n: int) -> list[int]:
-        """Open photos below n without a selection: n waits for them (or gives up)."""
-        return sorted(m for m, p in self.photos.items()
-                      if m < n and p.selection is None and self.is_open(m))
+        """Photos below n that may still get a selection: n waits for them (or gives up).
+        Open photos without a selection, and numbers not heard of yet that could become
+        n's anchor or the session's origin (above n's nearest posed photo below, else from
+        0: a session's photos are numbered from 0 up; at most ``LOOK_BACK`` below n): a
+        photo in flight, whose hypotheses (or an Error naming it: every frame ends as one)
+        have not come yet."""
+        known = {m for m, p in self.photos.items()
+                 if m < n and p.selection is None and self.is_open(m)}
+        posed = max((m for m in self.poses if m < n), default=-1)
+        lo = max(0, n - LOOK_BACK, posed + 1)
+        unheard = {m for m in range(lo, n) if m not in self.photos and m not in self.poses
+                   and m not in self.closed}
+        return sorted(known | unheard)
 
     def anchor(self, n: int) -> list[int]:
         """Posed photos to chain n from, best first: the nearest below, then above."""

@@ -154,14 +154,16 @@ def test_tls_passwords_and_per_device_keys(tls_router):
 
 def test_a_device_sends_photos_through_the_tls_router(tls_router, tmp_path):
     """``findme send`` as device alice (her password, the CA) to services joined as the
-    server user: the report of findme run, in a session named after her."""
+    server user, with the store as compose/docker-compose.yml runs it (odometry fetches a
+    selected photo's frame from it: alice may not answer queries): the report of findme
+    run, in a session named after her."""
     endpoint, tls = tls_router
     server_pw, alice_pw = tmp_path / "server.pw", tmp_path / "alice.pw"
     server_pw.write_text("change-me-server\n")
     alice_pw.write_text("change-me-alice\n")
     auth = ["--connect", endpoint, "--ca", tls["root_ca_certificate"]]
     procs = [spawn_findme("serve", name, *auth, "--user", "server", "--password-file", server_pw)
-             for name in ("hypotheses", "measurement", "odometry")]
+             for name in ("store", "hypotheses", "measurement", "odometry")]
     try:
         for p in procs:
             wait_logged(p, " started")

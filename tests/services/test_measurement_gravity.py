@@ -34,6 +34,8 @@ S = "meas"
 def session():
     """(views, messages of each photo in bus order, the motion 0 -> 1)."""
     hyp, sel, odo = HypothesesHandler(), SelectionHandler(), OdometryHandler()
+    frames = {}
+    odo.fetch = frames.get                         # it asks the bus (the store) for frames
     views, photos, motion = [], [], None
     for n, yaw in enumerate((135.0, 180.0)):        # photo 1 (yaw 180) is 52 deg off alone
         v = render(Room.rectangle(5.0, 4.0), Pose(0.3, -0.2, 1.4, yaw, 30.0, 0.0), 640, 480,
@@ -43,10 +45,10 @@ def session():
                                                      camera_height_m=1.4))]
         hs = next(o for o in hyp.on_message(*msgs[0]) if isinstance(o.msg, schemas.HypothesisSet))
         msgs += [(hs.key, hs.msg)] + [(o.key, o.msg) for o in sel.on_message(hs.key, hs.msg)]
-        for key, msg in msgs:
-            for o in odo.on_message(key, msg):
-                if o.key == f"findme/{S}/motion/0/1":
-                    motion = o.msg
+        frames[msgs[0][0]] = schemas.encode(msgs[0][1])
+        for o in _deliver(odo, msgs):
+            if o.key == f"findme/{S}/motion/0/1":
+                motion = o.msg
         views.append(v)
         photos.append(msgs)
     return views, photos, motion

@@ -31,10 +31,22 @@ def photos():
     return poses, msgs
 
 
+def on_bus(handler, msgs):
+    """``handler`` fetching the photos' frames from a bus that holds them (as the store
+    does); the keys it asked for are in ``handler.asked``."""
+    held = {f"findme/od/frame/{n}": schemas.encode(f) for n, (f, _, _) in enumerate(msgs)}
+    handler.asked = []
+    handler.fetch = lambda key: handler.asked.append(key) or held.get(key)
+    return handler
+
+
 def feed(handler, msgs, order):
+    """Outputs of ``handler`` (odometry) for the photos' hypotheses, then their selections
+    in ``order``; frames only on the bus, as the service takes in none."""
     out = []
+    if handler.fetch is None:
+        on_bus(handler, msgs)
     for n, (f, h, _) in enumerate(msgs):
-        handler.on_message(f"findme/od/frame/{n}", f)
         handler.on_message(f"findme/od/hypotheses/{n}", h)
     for n in order:
         out += handler.on_message(f"findme/od/selection/{n}", msgs[n][2])
@@ -129,7 +141,7 @@ def test_after_instances_change_a_session_takes_the_poses_another_instance_made(
                  ("findme/od/pose/2", schemas.encode(theirs))]
     h.fetch_all = lambda pattern: bus_poses if pattern == "findme/od/pose/*" else []
     h.peers_changed()
-    assert h.on_message("findme/od/frame/2", msgs[2][0]) == []      # posed already: nothing to do
+    assert h.on_message("findme/od/hypotheses/2", msgs[2][1]) == []  # posed already: nothing to do
     st = h.sessions.peek("od")
     assert sorted(st.poses) == [0, 1, 2] and st.poses[2].x == 0.5 and not st.stale
     assert st.poses[1].x == out["findme/od/pose/1"].x_m                # its own are kept
@@ -185,3 +197,51 @@ def test_a_symmetric_room_reaches_the_page_as_alternatives():
     n = len(m.alternatives)
     assert f"ambiguous: {n} other motion{'s fit' if n > 1 else ' fits'} almost as well" \
         in motion_text(m)
+
+
+def test_it_takes_no_frames_and_fetches_each_posed_photos_once(photos):
+    """Frames reach odometry only when it asks: once per photo, when the photo is prepared
+    for its motions, and not held after that (a refused photo costs it nothing)."""
+    from findme_core.errors import InputError
+    _, msgs = photos
+    h = OdometryHandler()
+    assert not any("frame" in i.key for i in h.inputs)
+    out = feed(h, msgs, [0, 1, 2])
+    assert "findme/od/pose/2" in out
+    assert sorted(h.asked) == [f"findme/od/frame/{n}" for n in range(3)]
+    st = h.sessions.peek("od")
+    assert all(p.frame is None for p in st.photos.values())
+    assert out["findme/od/pose/1"].time_ns == msgs[1][0].capture_time_ns > 0
+    with pytest.raises(InputError, match="takes no Frame .*findme/od/frame/0"):
+        h.on_message("findme/od/frame/0", msgs[0][0])
+
+
+def test_a_selection_waits_for_a_lower_photo_not_heard_of_yet(photos):
+    """Photo 1's hypotheses are late (another worker): photo 2, selected first, waits for
+    it instead of chaining from photo 0, since its frame is in flight."""
+    _, msgs = photos
+    h = on_bus(OdometryHandler(), msgs)
+    for n in (0, 2):
+        h.on_message(f"findme/od/hypotheses/{n}", msgs[n][1])
+    early = {o.key for n in (0, 2) for o in h.on_message(f"findme/od/selection/{n}", msgs[n][2])}
+    assert "findme/od/pose/0" in early and "findme/od/pose/2" not in early
+    h.on_message("findme/od/hypotheses/1", msgs[1][1])
+    late = {o.key for o in h.on_message("findme/od/selection/1", msgs[1][2])}
+    assert {"findme/od/motion/0/1", "findme/od/motion/1/2", "findme/od/pose/2"} <= late
+
+
+def test_a_photo_never_heard_of_is_chained_past_after_the_wait_and_named(photos):
+    _, msgs = photos
+    clock = [0.0]
+    h = on_bus(OdometryHandler(gap_wait_s=5.0, clock=lambda: clock[0]), msgs)
+    for n in (0, 2):
+        h.on_message(f"findme/od/hypotheses/{n}", msgs[n][1])
+        h.on_message(f"findme/od/selection/{n}", msgs[n][2])
+    assert h.tick(4.9) == []
+    clock[0] = 5.0
+    out = h.tick(5.0)
+    by_key = {o.key: o.msg for o in out}
+    assert not by_key["findme/od/motion/0/2"].error and "findme/od/pose/2" in by_key
+    (gap,) = [o.msg for o in out if o.key == "findme/od/error"]
+    assert gap.key == "findme/od/selection/1" and "photo 1" in gap.message
+    assert h.gaps == 1

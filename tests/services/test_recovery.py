@@ -108,6 +108,7 @@ def test_odometry_chains_past_a_photo_never_selected_and_one_that_failed(views):
     from services.pipeline.hypotheses import HypothesesHandler
     pb, s = ProcBus(), "gaps"
     try:
+        pb.serve("store", "stg")           # odometry asks it for the selected photos' frames
         pb.serve("odometry", "odg", "--gap-wait", "1")
         res = Results(pb.client, s)
         hyp = HypothesesHandler()

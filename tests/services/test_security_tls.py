@@ -1,13 +1,15 @@
 """The phone + server deployment for real (issue 11): compose/router-tls.json5 (TLS, passwords,
 per-device ACL) and the compose file's replicas, each service in its own process as the
-"server" user: 2 hypotheses, 2 odometry, 1 measurement.
+"server" user: 2 hypotheses, 2 odometry, 1 measurement and the store (odometry asks it for
+a selected photo's frame).
 
 * Under that ACL the services see each other's liveliness tokens and answer status queries,
-  so ``findme status`` lists all five and the replicas split the work: every result is
+  so ``findme status`` lists all six and the replicas split the work: every result is
   published once.
 * Cross-session poisoning: device alice publishes, on a key her ACL allows, a Frame whose
-  payload says session bob-1 (camera 9 m high, fx 200). Every service refuses it (FORBIDDEN,
-  naming both keys) and bob's measurement is unchanged.
+  payload says session bob-1 (camera 9 m high, fx 200). The service that takes frames in
+  (the hypotheses) refuses it (FORBIDDEN, naming both keys) and bob's measurement is
+  unchanged.
 
 Waits on liveliness, replies and messages, never sleeps. "Nothing more is coming from an
 instance" is a signal too: each instance handles its inputs in order and publishes from one
@@ -34,7 +36,8 @@ from tests.services.conftest import Collector, spawn_findme, start_tls_router
 
 pytestmark = pytest.mark.timeout(240)
 
-INSTANCES = {"hypotheses": ("h1", "h2"), "odometry": ("o1", "o2"), "measurement": ("m1",)}
+INSTANCES = {"hypotheses": ("h1", "h2"), "odometry": ("o1", "o2"), "measurement": ("m1",),
+             "store": ("s1",)}
 PIXELS = [[247, 378], [495, 276]]
 EXAMPLES = resources.files("findme") / "examples"
 CODE = schemas.ErrorCode
@@ -159,10 +162,10 @@ def test_cross_session_poisoning_is_refused(deployment):
     poison = example_frame("bob-1", 0, "room_a", camera_height_m=9.0,
                            intrinsics={"fx": 200.0, "fy": 200.0})
     put(alice, "findme/alice-1/frame/0", schemas.encode(poison))      # a key alice may use
-    # refused by every service that takes frames in (measurement takes none: the
-    # hypotheses carry what it needs of a frame)
+    # refused by the service that takes frames in (measurement and odometry take none: they
+    # ask the bus for a selected photo's frame, and check what comes back)
     refused = mine.until(lambda it: {e.service.split("/")[0] for e in mine.errors()}
-                         >= {"hypotheses", "odometry"}, what="refusals")
+                         >= {"hypotheses"}, what="refusals")
     for e in mine.errors():
         assert e.code == CODE.ERROR_CODE_FORBIDDEN and e.key == "findme/alice-1/frame/0", e
         assert "findme/alice-1/frame/0" in e.message and "findme/bob-1/frame/0" in e.message
