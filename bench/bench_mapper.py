@@ -4,8 +4,8 @@
 
 A rendered 6 x 5 m room (the project's synth: exact ground-wall boundaries as hypotheses, the
 rendered JPEGs as frames), photos turning right at each spot every ``--step`` degrees. Each
-photo's hypotheses and selection go through ``MapperHandler.on_message`` directly (no bus;
-its frame from a dict, as it asks the store for it). Measured, photo by photo, in one run on one core (CPU time, ``time.thread_time``):
+photo's frame, hypotheses and selection go through ``MapperHandler.on_message`` directly (no
+bus). Measured, photo by photo, in one run on one core (CPU time, ``time.thread_time``):
 
 * **mapper**: the handler as it runs: features once per photo, the new photo's pairs related
   once (cached), placement + outline + joint refinement over every photo so far;
@@ -48,12 +48,10 @@ def main(argv=None) -> int:
     room = rendered_session(Room.rectangle(6.0, 5.0), spots, yaws=range(0, 360, a.step))
     m = MapperHandler(max_photos=len(room.frames))
     mapper_ms, base_ms = [], []
-    import schemas
-    msgs = [(k, msg) for k, msg in room.messages() if "/frame/" not in k]
-    m.fetch = {f"findme/{f.session}/frame/{f.index}": schemas.encode(f) for f in room.frames}.get
+    msgs = list(room.messages())
     for n in range(len(room.frames)):
         t0 = time.thread_time()
-        outs = [o for k, msg in msgs[2 * n: 2 * n + 2] for o in m.on_message(k, msg)]
+        outs = [o for k, msg in msgs[3 * n: 3 * n + 3] for o in m.on_message(k, msg)]
         mapper_ms.append(1e3 * (time.thread_time() - t0))
         st = m.sessions[room.frames[0].session]
         photos = [st.photos[i].photo for i in range(n + 1)]

@@ -1,23 +1,21 @@
 """The mapper service: a session's floor plan, recomputed as its photos arrive.
 
-    hypotheses/<n> + selection/<n>  ->  findme/<session>/plan   (findme.v1.Plan)
+    frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/plan   (findme.v1.Plan)
 
-Per photo, once, when its hypotheses or selection arrive: its frame, asked for from the bus
-(the store, the sender's cache: the service takes in no frames, so a photo refused before it
-has hypotheses costs it nothing), gives its camera and ORB features (the image is dropped).
-When its hypotheses and selection are in (in any order: what is missing is fetched from the
-bus when someone caches it, else awaited): its layout under the selected boundary, with
-the camera the hypotheses were built with (their gravity: the frame's refined by the image,
-or the image's own; a new selection rebuilds it); a photo whose hypothesis set is empty
-takes part without a layout. Between photos, as ``findme plan`` relates them
-(``session.relate``): spots found from the photos (``session.auto_spots``: a photo joins a
-spot when it turned from any photo of it, so a turn with left-out views stays one spot),
-feature matches and two-photo motions; each pair's matches, turn and motion are computed
-once and kept (a motion again when one of its photos gets a new layout). Then
-``session.plan`` (placement of every photo, outline, walls, joint refinement) over the
-session's photos in index order; each placed photo's 1-sigma is the refinement's, else
-``pose.covariance``. The plan frame is the level frame of the first photo with a layout
-(``Plan.origin_index``; photo 0 normally).
+Per photo, once, when its frame arrives: its camera and ORB features (the image is then
+dropped). When its hypotheses and selection are in (in any order: what is missing is fetched
+from the bus when someone caches it, else awaited): its layout under the selected boundary,
+with the camera the hypotheses were built with (their gravity: the frame's refined by the
+image, or the image's own; a new selection rebuilds it); a photo whose hypothesis set is
+empty takes part without a layout. Between photos, as ``findme plan`` relates them (``session.relate``): spots found
+from the photos (``session.auto_spots``: a photo joins a spot when it turned from any photo
+of it, so a turn with left-out views stays one spot), feature matches and two-photo
+motions; each pair's matches, turn and motion are computed once and kept (a motion again
+when one of its photos gets a new layout). Then ``session.plan`` (placement of
+every photo, outline, walls, joint refinement) over the session's photos in index order;
+each placed photo's 1-sigma is the refinement's, else ``pose.covariance``. The plan
+frame is the level frame of the first photo with a layout (``Plan.origin_index``; photo 0
+normally).
 
 Cost, bounded per session: at most ``max_photos`` photos per plan (the first ones; later
 ones are listed LEFT_OUT), a new plan after every ``every`` newly ready photos or when no
@@ -26,13 +24,14 @@ relations of those photos only. On the bus, a plan also waits while more of its 
 messages are queued (``Handler.backlog``): a burst, or a mapper that fell behind a user's
 photos (a plan of 24 photos costs seconds), gets one plan per drained queue, not one per
 photo, so the mapper keeps up; the last plan of a session is the same either way. State: at
-most ``max_sessions`` sessions (least recently active out), each dropped idle ``idle_s``.
+most ``max_sessions`` sessions (the least recently active one is dropped first) and a
+session idle for ``idle_s`` seconds is dropped.
 
 Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan, one that
 cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline
 yet gets a Plan with the reason. Camera height: the selection's, else the frame's, else 1
-(``metric`` false: lengths in camera heights). Instances share the load by session. Plain
-photos (no gravity in the frame) agree on gravity spot by spot (``mapper_gravity``).
+(``metric`` false: lengths in camera heights). Instances share the load by session.
+Plain photos (no gravity in the frame) agree on gravity spot by spot (``mapper_gravity``).
 """
 
 from __future__ import annotations
@@ -89,7 +88,8 @@ class _Session:
 class MapperHandler(Handler):
     name = "mapper"
     cache_keys = ("findme/*/plan",)
-    inputs = (Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
+    inputs = (Input("findme/*/frame/*", schemas.Frame, state=True),   # fetched again if skipped
+              Input("findme/*/hypotheses/*", schemas.HypothesisSet, state=True),
               Input("findme/*/selection/*", schemas.Selection))
     shard = True
     nice, background = 19, True   # background work (``Handler``): poses and measurements first
@@ -126,8 +126,6 @@ class MapperHandler(Handler):
         return st
 
     def on_message(self, key, msg):
-        if not isinstance(msg, (schemas.HypothesisSet, schemas.Selection)):
-            raise InputError(f"the mapper takes no {type(msg).__name__} ({key})")
         k = bus.parse_key(key)
         n = msg.index
         if msg.session != k.session or str(n) != (k.parts[0] if k.parts else ""):
@@ -138,7 +136,9 @@ class MapperHandler(Handler):
                                                "per plan"))
             return []
         ph = st.photos.setdefault(n, _Photo())
-        if isinstance(msg, schemas.HypothesisSet):
+        if isinstance(msg, schemas.Frame):
+            self._frame(ph, msg)
+        elif isinstance(msg, schemas.HypothesisSet):
             ph.hset = msg
         else:   # the inputs it needs may still be on their way: fetched if cached, else awaited
             ph.hset = ph.hset or self._fetch(bus.key(k.session, "hypotheses", n),
@@ -146,11 +146,11 @@ class MapperHandler(Handler):
             if ph.hset is not None and not 1 <= msg.rank <= len(ph.hset.hypotheses):
                 raise HypothesisError(f"selection of hypothesis {msg.rank} of photo {n}, which "
                                       f"has {len(ph.hset.hypotheses)} hypotheses")
+            if ph.camera is None and ph.bad is None:
+                f = self._fetch(bus.key(k.session, "frame", n), schemas.Frame)
+                if f is not None:
+                    self._frame(ph, f)
             ph.selection = msg
-        if ph.camera is None and ph.bad is None:   # asked again with its next message if missing
-            f = self._fetch(bus.key(k.session, "frame", n), schemas.Frame)
-            if f is not None:
-                self._frame(ph, f)
         self._analyse(st, n, ph)
         return self._maybe_plan(k.session, st)
 
@@ -274,7 +274,7 @@ def _left_out(ph: _Photo, first: int | None) -> str:
     if ph.photo is not None:   # ready, but before the first photo with a floor boundary
         return f"no floor boundary ({ph.photo.reason}); the plan starts at a photo with one"
     if ph.camera is None:
-        return "waiting for its frame (not on the bus when asked)"
+        return "waiting for its frame"
     return "waiting for its hypotheses" if ph.hset is None else "waiting for its selection"
 
 

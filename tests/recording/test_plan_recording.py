@@ -1,6 +1,5 @@
 """The floor plan end to end on the bus (embedded Group, one in-process Zenoh session): a
-rendered room's photos, hypotheses and selections go out as plain puts (the store holds the
-frames the mapper asks for), the mapper publishes the plan as
+rendered room's photos, hypotheses and selections go out, the mapper publishes the plan as
 they arrive, the recorder records it (decoded by a reader with none of our code, with its
 Foxglove view) and the viewer service shows it in Rerun (read back from the .rrd)."""
 
@@ -17,7 +16,6 @@ from services.recording.recorder import RecorderHandler
 from services.recording.viewer import Sink, ViewerHandler
 from services.runtime import bus
 from services.runtime.service import Group
-from services.runtime.store import StoreHandler
 from tests.plan_room import rendered_session
 
 from .test_generic_reader import _read_generically
@@ -57,7 +55,6 @@ def recorded(tmp_path_factory):
     try:
         recorder = group.add(RecorderHandler(tmp)).handler
         viewer = group.add(ViewerHandler(Sink("rrd", path=str(tmp)))).handler
-        group.add(StoreHandler())       # the mapper asks it for each photo's frame
         group.add(MapperHandler())
         plans = Plans(session)
         sent = 0

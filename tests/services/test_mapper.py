@@ -34,29 +34,13 @@ def room():
                             yaws=range(0, 360, 60))
 
 
-def fed(m, msgs):
-    """Outputs of mapper ``m`` for ``msgs`` ((key, message), ...) as the bus hands them to
-    it: frames are held by the bus (as the store holds them: ``m`` asks for a photo's when
-    it needs it), the rest delivered in order."""
-    if m.fetch is None:
-        m.held = {}
-        m.fetch = m.held.get
-    out = []
-    for key, msg in msgs:
-        if key.split("/")[2] == "frame":
-            m.held[key] = schemas.encode(msg)
-        else:
-            out += m.on_message(key, msg)
-    return out
-
-
 @pytest.fixture(scope="module")
 def mapped(room):
     """Every photo's messages through one mapper: (handler, plans in order)."""
     m = MapperHandler()
     plans = []
     for key, msg in room.messages():
-        for out in fed(m, [(key, msg)]):
+        for out in m.on_message(key, msg):
             assert out.key == "findme/plan-test/plan"
             plans.append(schemas.decode(schemas.Plan, schemas.encode(out.msg)))
     return m, plans
@@ -109,7 +93,7 @@ def test_the_layouts_lift_with_the_camera_the_hypotheses_were_built_with(room):
             else:
                 msg.camera.CopyFrom(camera_msg(room.views[n].camera,
                                                Provenance("input", "image", tilt_cov(0.005))))
-        plans += [o.msg for o in fed(m, [(key, msg)])]
+        plans += [o.msg for o in m.on_message(key, msg)]
     V, T = _vertices(plans[-1]), room.polygon
     assert plans[-1].closed and len(V) == len(T)
     assert np.linalg.norm(V[:, None] - T[None], axis=2).min(1).max() < 0.04
@@ -142,17 +126,17 @@ def test_the_mapper_gives_what_the_core_gives_for_the_same_photos(mapped):
 
 def test_debounce_by_photo_count_and_the_last_photo_always_counts(room):
     m = MapperHandler(every=5)
-    kinds = ("frame", "hypotheses", "selection")
-    burst = sorted(room.messages(), key=lambda km: kinds.index(km[0].split("/")[2]))
-    plans = [o.msg for o in fed(m, burst)]
-    # a burst (all hypotheses first, as a replay at full speed): the first plan, then one per
-    # 5 new ready photos, and the last, when no photo is left waiting
+    burst = sorted(room.messages(), key=lambda km: km[0].split("/")[2] != "frame")
+    plans = [o.msg for k, msg in burst for o in m.on_message(k, msg)]
+    # a burst (all frames first, as a replay at full speed): the first plan, then one per 5
+    # new ready photos, and the last, when no photo is left waiting
     assert [p.up_to_index for p in plans] == [0, 5, 10, 11]
 
 
 def test_a_reselection_replans_and_a_repeat_does_not(room):
     m = MapperHandler()
-    fed(m, list(room.messages())[:9])
+    for k, msg in list(room.messages())[:9]:
+        m.on_message(k, msg)
     assert m.on_message("findme/plan-test/selection/2", room.selections[2]) == []
     again = schemas.Selection()
     again.CopyFrom(room.selections[2])
@@ -165,10 +149,8 @@ def test_photos_that_cannot_be_used_are_named_in_the_plan(room):
     m = MapperHandler(max_photos=6)
     empty = schemas.HypothesisSet(session="plan-test", index=0, width=640, height=480,
                                   reason="no floor lines below the horizon", method="t")
-    fed(m, [])
-    assert m.on_message("findme/plan-test/hypotheses/0", empty) == []   # no frame on the bus
-    assert fed(m, [("findme/plan-test/frame/0", room.frames[0])]) == []  # none asked it
-    (out,) = m.on_message("findme/plan-test/hypotheses/0", empty)        # asked again: there
+    assert m.on_message("findme/plan-test/hypotheses/0", empty) == []   # no frame yet
+    (out,) = m.on_message("findme/plan-test/frame/0", room.frames[0])
     assert out.msg.reason == "no photo with a floor boundary yet"
     assert "no floor lines" in out.msg.poses[0].reason
     bad = schemas.Frame()
@@ -176,8 +158,9 @@ def test_photos_that_cannot_be_used_are_named_in_the_plan(room):
     bad.image.data = b"\xff\xd8\xff" + b"\x00" * 64
     msgs = list(room.messages())
     outs = []
-    for k, msg in [("findme/plan-test/frame/1", bad), *msgs[4:15], *msgs[27:29], *msgs[15:18]]:
-        outs += fed(m, [(k, msg)])
+    for k, msg in [("findme/plan-test/frame/1", bad), *msgs[6:15],
+                   ("findme/plan-test/frame/9", room.frames[9]), *msgs[15:18]]:
+        outs += m.on_message(k, msg)
     out = outs[-1]
     last = out.msg
     by = {q.index: q for q in last.poses}
@@ -194,9 +177,7 @@ def test_photos_that_cannot_be_used_are_named_in_the_plan(room):
 def test_bad_input_is_a_clear_error(room):
     m = MapperHandler()
     with pytest.raises(InputError, match="carries photo 0"):
-        m.on_message("findme/plan-test/hypotheses/3", room.hsets[0])
-    with pytest.raises(InputError, match="takes no Frame .*findme/plan-test/frame/0"):
-        m.on_message("findme/plan-test/frame/0", room.frames[0])
+        m.on_message("findme/plan-test/frame/3", room.frames[0])
     m.on_message("findme/plan-test/hypotheses/0", room.hsets[0])
     sel = schemas.Selection()
     sel.CopyFrom(room.selections[0])
@@ -206,10 +187,7 @@ def test_bad_input_is_a_clear_error(room):
     # a selection before its hypotheses and frame (nobody to fetch them from): it waits
     assert m.on_message("findme/plan-test/selection/5", room.selections[5]) == []
     assert m.on_message("findme/plan-test/hypotheses/5", room.hsets[5]) == []
-    by = {q.index: q for q in m._plan("plan-test", m.sessions["plan-test"], []).poses}
-    assert by[5].reason == "waiting for its frame (not on the bus when asked)"
-    fed(m, [("findme/plan-test/frame/5", room.frames[5])])   # on the bus now: asked again
-    (out,) = m.on_message("findme/plan-test/selection/5", room.selections[5])
+    (out,) = m.on_message("findme/plan-test/frame/5", room.frames[5])
     assert out.msg.up_to_index == 5
 
 
@@ -218,10 +196,10 @@ def test_sessions_are_bounded_and_expire(room):
     m = MapperHandler(max_sessions=2, idle_s=60.0, clock=lambda: now[0])
 
     def frame(sid):
-        h = schemas.HypothesisSet()
-        h.CopyFrom(room.hsets[0])
-        h.session = sid
-        m.on_message(f"findme/{sid}/hypotheses/0", h)
+        f = schemas.Frame()
+        f.CopyFrom(room.frames[0])
+        f.session = sid
+        m.on_message(f"findme/{sid}/frame/0", f)
     frame("a")
     now[0] = 1.0
     frame("b")
@@ -251,7 +229,7 @@ def test_a_turn_with_left_out_views_is_one_spot_on_the_bus_as_in_findme_plan():
     room = rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
                             yaws=(0, 50, 180, 330))
     m = MapperHandler()
-    plans = [o.msg for o in fed(m, room.messages())]
+    plans = [o.msg for k, msg in room.messages() for o in m.on_message(k, msg)]
     last = plans[-1]
     assert [q.spot for q in last.poses] == [0] * 4 + [1] * 4
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in last.poses)
@@ -279,7 +257,7 @@ def test_a_mapper_behind_its_photos_plans_once_per_drained_queue(room, mapped):
     outs = []
     for k, msg in msgs:
         left[0] -= 1
-        outs += fed(m, [(k, msg)])
+        outs += m.on_message(k, msg)
     (out,) = outs
     assert out.msg.up_to_index == 11 and out.msg.photos == 12
     # the same plan as the mapper that planned after every photo
@@ -303,10 +281,8 @@ def test_on_the_bus_a_queued_burst_gets_one_plan(room, mapped, zsession):
     _, plans = mapped
     h = _HeldMapper()
     svc = Service(h, zsession, fifo_depth=64).start()
-    frames = {k: schemas.encode(msg) for k, msg in room.messages() if "/frame/" in k}
-    h.fetch = frames.get          # the store's part (after Service set its own)
     out = Collector(zsession, "findme/plan-test/plan")
-    msgs = [(k, msg) for k, msg in room.messages() if "/frame/" not in k]
+    msgs = list(room.messages())
     for k, msg in msgs:
         zsession.put(k, schemas.encode(msg))
     with svc._cv:   # the whole burst is in the mapper's queue before it handles any
@@ -327,7 +303,7 @@ def test_a_session_of_large_photos_is_planned_from_their_reduced_decode():
     big = rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
                            yaws=range(0, 360, 60), size=(1280, 960))
     m = MapperHandler()
-    plans = [out.msg for out in fed(m, big.messages())]
+    plans = [out.msg for key, msg in big.messages() for out in m.on_message(key, msg)]
     plan = plans[-1]
     assert (plan.photos, plan.closed) == (12, True)
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
@@ -371,7 +347,8 @@ def test_plain_photos_of_one_spot_agree_on_gravity_before_the_plan():
                                          v.camera.gravity))
                 msgs += [(o.key, o.msg) for o in sel.on_message(out.key, out.msg)]
         assert [k.split("/")[2] for k, _ in msgs] == ["frame", "hypotheses", "selection"]
-        plans += [o.msg for o in fed(m, msgs)]
+        for key, msg in msgs:
+            plans += [o.msg for o in m.on_message(key, msg)]
     assert sum(d > 10.0 for d in off) >= 3, off              # the case is real
     plan = plans[-1]
     assert plan.closed and not plan.reason, plan.reason
@@ -397,7 +374,7 @@ def test_a_plain_photos_user_chosen_boundary_is_lifted_again_not_replaced():
                    hfov_deg=70.0, supersample=1)
         data = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
         frame = make_frame("user", n, data, hfov_deg=70.0, camera_height_m=1.4)
-        fed(m, [(f"findme/user/frame/{n}", frame)])
+        m.on_message(f"findme/user/frame/{n}", frame)
         hs = next(o.msg for o in hyp.on_message(f"findme/user/frame/{n}", frame)
                   if isinstance(o.msg, schemas.HypothesisSet))
         m.on_message(f"findme/user/hypotheses/{n}", hs)
