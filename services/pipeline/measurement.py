@@ -35,7 +35,7 @@ from collections import OrderedDict
 
 import schemas
 from findme_io.imageio import image_size
-from findme_core.errors import FindmeError, HypothesisError, InputError
+from findme_core.errors import FindmeError, HypothesisError
 from findme_core.geometry.provenance import Provenance
 
 from ..runtime import bus
@@ -88,6 +88,7 @@ class MeasurementHandler(Handler):
         self.regravitated = self.not_regravitated = 0   # under a motion's agreed gravity
 
     def on_message(self, key, msg):
+        self.check_input(key, msg)
         k = bus.parse_key(key)   # the key names session and n, never the payload
         n = k.index()
         st = self.sessions.get(k.session)
@@ -95,10 +96,8 @@ class MeasurementHandler(Handler):
             return self._motion(k.session, st, (n, k.index(1)), msg)
         if isinstance(msg, schemas.HypothesisSet):
             st.put(st.hsets, n, msg)
-        elif isinstance(msg, schemas.Selection):
-            st.waiting[n] = (msg, self.clock())
         else:
-            raise InputError(f"the measurement service takes no {type(msg).__name__} ({key})")
+            st.waiting[n] = (msg, self.clock())
         if n in st.waiting and self._ready(k.session, st, n, fetch=isinstance(msg, schemas.Selection)):
             return self._select(k.session, st, n, st.waiting.pop(n)[0])
         if st.waiting:

@@ -37,7 +37,7 @@ from dataclasses import replace
 import numpy as np
 
 import schemas
-from findme_core.errors import FindmeError, HypothesisError, InputError
+from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
 from findme_core.single.segments import WORK_SIZE
@@ -105,6 +105,7 @@ class OdometryHandler(Handler):
         return poses, times
 
     def on_message(self, key, msg):
+        self.check_input(key, msg)
         k = bus.parse_key(key)   # the key names session and n, never the payload
         if isinstance(msg, schemas.Error) and self._dead_photo(k.session, msg) is None:
             return []   # not about a photo that will get no pose: no state for it
@@ -115,8 +116,6 @@ class OdometryHandler(Handler):
         now = self.clock()
         if isinstance(msg, schemas.Error):
             return self._error(k.session, st, msg, now)
-        if not isinstance(msg, (schemas.HypothesisSet, schemas.Selection)):
-            raise InputError(f"the odometry service takes no {type(msg).__name__} ({key})")
         n = k.index()
         if n in st.poses or n in st.closed and not isinstance(msg, schemas.Selection):
             return []

@@ -30,7 +30,7 @@ class Input:
     (its result, or an Error): a restarted or new instance recovers unanswered ones from the
     bus.
     state: the input is state the handler fetches again when it needs it (``need``), e.g.
-    the frames odometry also gets: when queues are full it is skipped and counted as
+    the frames the mapper also gets: when queues are full it is skipped and counted as
     deferred, not answered with an error. Any other input that cannot be queued is answered
     by an Error (OVERLOADED, TOO_LARGE), or only logged and counted if the handler does not
     ``report_overload`` (the recorder).
@@ -135,6 +135,13 @@ class Handler:
         msg = schemas.decode(cls, data)
         authority.check(key, msg)
         return msg
+
+    def check_input(self, key: str, msg) -> None:
+        """Raise InputError naming ``key`` unless ``msg`` is of a type one of ``inputs``
+        declares. The bus never delivers another; a caller driving the handler directly
+        (a test, a bench, a replay) is told, before any state is made for it."""
+        if not any(i.type is not None and isinstance(msg, i.type) for i in self.inputs):
+            raise InputError(f"the {self.name} service takes no {type(msg).__name__} ({key})")
 
     def on_message(self, key: str, msg) -> list[Output]:
         return []
