@@ -100,6 +100,8 @@ def _command_of(argv: list[str]) -> str | None:
 
 def main(argv=None) -> int:
     one_thread_per_process()
+    from findme.malloc_env import keep_freed_memory
+    keep_freed_memory()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(_command_of(argv))
     args, extra = parser.parse_known_args(argv)
