@@ -67,6 +67,7 @@ import schemas  # noqa: E402
 from findme_core.synth.render import Pose, Room, render  # noqa: E402
 from bench.load_rig import (UP_SERVICES, Deployment, Ledger, Sampler, breakdown,  # noqa: E402
                             breakdown_table, cpu_seconds, drive, drive_pages, photos,
+                            posed_split,
                             tum_walk)
 from findme_io.convert import make_frame  # noqa: E402
 from services.runtime import bus  # noqa: E402
@@ -275,6 +276,12 @@ def report(r, bound=None) -> str:
         out[-1] += (f" (the bound: {1e3 / bound['ms_per_photo_mean']:.2f}, "
                     f"{100 * r['delivered'] / max(cpu_s, 1e-9) * bound['ms_per_photo_mean'] / 1e3:.0f} %"
                     " of it)")
+        split, b_ms = posed_split(r), bound["ms_per_photo_mean"]
+        out += [f"CPU per photo posed: {split['all']:.0f} ms against the bound's {b_ms:.0f}: "
+                f"the handlers on its way {split['path']:.0f} ms ({split['path'] - b_ms:+.0f}), "
+                f"their processes' intake {split['intake']:.0f} ms, the store, recorder, "
+                f"mapper and router {split['off_path']:.0f} ms; "
+                f"{split['offered_per_posed']:.1f} photos offered a photo posed"]
         share = r["posed_per_s"] / bound["photos_per_s"]
         sides = ""
         if "after" in bound:

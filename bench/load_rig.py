@@ -512,6 +512,33 @@ def cpu_seconds(run: dict) -> float:
     return every["cpu_ms"] * run["offered"] / 1e3
 
 
+#: the processes on the way from a photo to its pose (by tag prefix), against the store,
+#: recorder, mapper and router, which take in every photo offered, posed or refused
+PATH_TAGS = ("h", "o", "selection", "measurement")
+
+
+def posed_split(run: dict) -> dict:
+    """CPU ms per photo posed in a ``bench_load`` run, by where it went: ``path`` the
+    handlers on the way to a pose (hypotheses, selection, measurement, odometry: what the
+    compute bound measures), ``intake`` those processes' CPU outside their handlers
+    (Zenoh's threads, callbacks, refusals), ``off_path`` all of the store's, recorder's,
+    mapper's and router's; ``offered_per_posed`` photos offered per photo posed."""
+    k = run["offered"] / max(run["delivered"], 1)
+    out = {"path": 0.0, "intake": 0.0, "off_path": 0.0, "offered_per_posed": k}
+    for b in run["breakdown"]:
+        tag = b["process"]
+        if tag == "ALL":
+            continue
+        on_path = tag in PATH_TAGS or (tag[0] in "ho" and tag[1:].isdigit())
+        if on_path and "handle_cpu_ms" in b:
+            out["path"] += k * (b["handle_cpu_ms"] + b["tick_cpu_ms"])
+            out["intake"] += k * b["other_cpu_ms"]
+        else:
+            out["off_path"] += k * b["cpu_ms"]
+    out["all"] = out["path"] + out["intake"] + out["off_path"]
+    return out
+
+
 def breakdown_table(rows: list[dict]) -> str:
     head = ("| process | CPU ms/photo | handler CPU | tick CPU | other CPU | msgs in / out | "
             "kB in / out | decodes (ms, Mpx) | probes | protobuf ms | bus queries (wall ms) | "
