@@ -17,10 +17,10 @@ never be selected (an Error about its frame or hypotheses, or no hypotheses) is 
 for. A motion that cannot be estimated is published with its error (no numbers) and the
 photo gets no pose; later photos chain from the last one that did.
 
-The service takes in no frames: a selected photo's frame is fetched once from the bus (the
-store's minute; the gateway's and capture's caches, 15 min) when the photo is prepared, and
-dropped then. Taking in every frame woke both sharded instances for each photo, most of
-them refused at peak before they had hypotheses.
+The service takes in no frames: a photo's frame is fetched once from the bus when its
+hypotheses come (the store keeps it a minute, a user may select later), held until the photo
+is prepared (``odometry_session.keep_frames``) and dropped then. Taking in every frame woke
+both sharded instances for each photo, most of them refused at peak before hypotheses.
 
 State is bounded (``odometry_session``) and expires: a session idle for ``idle_s`` is
 evicted; when it comes back, its poses are fetched from the bus (the store, the caches).
@@ -126,6 +126,8 @@ class OdometryHandler(Handler):
                 self._check_rank(st, n)
             elif not msg.hypotheses:
                 st.close(n, "dead")      # nothing to select: nobody waits for it
+            elif p.frame is None:   # fetched now: a user may select after the store's minute
+                p.frame = self._try(bus.key(k.session, "frame", n), schemas.Frame)
         else:
             if n in st.closed:
                 st.closed.pop(n)        # selected after all: it gets a pose now
@@ -268,7 +270,7 @@ class OdometryHandler(Handler):
         p = st.photo(n, self.clock())
         if p.frame is None:
             p.frame = self.need(bus.key(session, "frame", n), schemas.Frame)
-            p.time_ns = p.frame.capture_time_ns
+        p.time_ns = p.frame.capture_time_ns
         return p.frame
 
     def _time(self, session, st, n) -> int:

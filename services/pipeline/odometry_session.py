@@ -5,7 +5,8 @@ have poses, which will never come, and which must wait for a lower photo. Pure a
 Bounded: poses are kept for every posed photo (about 0.3 kB each); message payloads and
 prepared photos (features, layouts) only for photos still open and for the ``anchors`` most
 recent posed photos (the ones the next photo chains from). A frame is held only from when it
-is fetched until its photo is prepared (frames of at most ``keep_frames`` open photos).
+is fetched (its hypotheses came) until its photo is prepared: frames of at most
+``keep_frames`` open photos, the newest; an older one is asked for again when selected.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ class Photo:
     """What odometry holds about photo n while it is open or an anchor."""
 
     seen: float                      # when it was first heard of (monotonic s)
-    frame: object | None = None      # Frame message (fetched when prepared, then dropped)
+    frame: object | None = None      # Frame message (fetched with its hypotheses, dropped once prepared)
     time_ns: int | None = None       # its capture time, kept once the frame was fetched
     hset: object | None = None       # HypothesisSet message
     selection: object | None = None  # Selection message
@@ -91,7 +92,8 @@ class OdometrySession:
         with_frames = sorted(n for n, p in self.photos.items()
                              if p.frame is not None and n not in self.poses)
         for n in with_frames[:max(0, len(with_frames) - self.keep_frames)]:
-            self.photos[n].frame = None
+            p = self.photos[n]
+            p.time_ns, p.frame = p.frame.capture_time_ns, None   # asked for again if selected
 
     def adopt(self, poses: dict[int, PlanarPose], times: dict[int, int]) -> None:
         """Take poses already on the bus that this session does not have (it was handled

@@ -200,8 +200,8 @@ def test_a_symmetric_room_reaches_the_page_as_alternatives():
 
 
 def test_it_takes_no_frames_and_fetches_each_posed_photos_once(photos):
-    """Frames reach odometry only when it asks: once per photo, when the photo is prepared
-    for its motions, and not held after that (a refused photo costs it nothing)."""
+    """Frames reach odometry only when it asks: once per photo, when its hypotheses come,
+    and not held after its photo is prepared (a refused photo costs it nothing)."""
     from findme_core.errors import InputError
     _, msgs = photos
     h = OdometryHandler()
@@ -245,3 +245,35 @@ def test_a_photo_never_heard_of_is_chained_past_after_the_wait_and_named(photos)
     (gap,) = [o.msg for o in out if o.key == "findme/od/error"]
     assert gap.key == "findme/od/selection/1" and "photo 1" in gap.message
     assert h.gaps == 1
+
+
+def test_a_selection_after_the_store_forgot_the_frame_still_gets_its_motion(photos):
+    """The frame is asked for when the hypotheses come (seconds after the photo), so a user
+    who selects after the store's minute, from a sender that keeps no cache, still gets the
+    motion and the capture time."""
+    _, msgs = photos
+    h = on_bus(OdometryHandler(), msgs)
+    for n in (0, 1):
+        h.on_message(f"findme/od/hypotheses/{n}", msgs[n][1])
+    assert h.asked == ["findme/od/frame/0", "findme/od/frame/1"]
+    h.fetch = lambda key: None          # the minute has passed: nobody has the frames now
+    out = {o.key: o.msg for n in (0, 1)
+           for o in h.on_message(f"findme/od/selection/{n}", msgs[n][2])}
+    assert not out["findme/od/motion/0/1"].error
+    assert out["findme/od/pose/1"].time_ns == msgs[1][0].capture_time_ns > 0
+    st = h.sessions.peek("od")
+    assert all(p.frame is None for p in st.photos.values())   # dropped once prepared
+
+
+def test_frames_held_for_a_late_selection_are_bounded_per_session(photos):
+    """At most ``keep_frames`` frames wait for their selection; an older one is dropped with
+    its capture time kept, and asked for again when its photo is selected."""
+    from services.pipeline.odometry_session import OdometrySession
+    _, msgs = photos
+    st = OdometrySession(keep_frames=1)
+    for n in (0, 1):
+        p = st.photo(n, 0.0)
+        p.frame = msgs[n][0]
+    st.prune()
+    assert st.photos[0].frame is None and st.photos[1].frame is msgs[1][0]
+    assert st.photos[0].time_ns == msgs[0][0].capture_time_ns
