@@ -4,6 +4,7 @@ frame is lost or answered twice. Frames come as plain puts from a client (a phon
 someone else's making), not from our capture service. Waits on results and liveliness."""
 
 import threading
+import time
 
 import pytest
 
@@ -138,3 +139,42 @@ def test_odometry_chains_past_a_photo_never_selected_and_one_that_failed(views):
     assert gap.key == bus.key(s, "selection", 2) and "chains past it" in gap.message, errs
     assert st.counters["gaps"] == 1 and st.counters["motions"] == 3, dict(st.counters)
     assert res.once("pose") == {k: 1 for k in _poses(s, (0, 1, 3, 5))}
+
+
+def test_a_selection_after_the_store_forgot_the_frames_still_gets_its_motion(views):
+    """A sender without a cache (plain puts) and a user who chooses late: odometry asked for
+    each frame when its hypotheses came, so selections made after the store's window (1 s
+    here) has dropped the frames still get their motion, without asking again."""
+    from services.pipeline.hypotheses import HypothesesHandler
+    from services.runtime.bus import get_all
+    pb, s = ProcBus(), "late"
+    try:
+        pb.serve("store", "stl", "--window", "1")
+        pb.serve("odometry", "odl")
+        res = Results(pb.client, s)
+        hyp = HypothesesHandler()
+        for n in (0, 1):
+            f = frame_of(views[n], s, n)
+            bus.put(pb.client, bus.key(s, "frame", n), schemas.encode(f))
+            (out,) = hyp.on_message(bus.key(s, "frame", n), f)
+            bus.put(pb.client, out.key, schemas.encode(out.msg))
+        pb.wait_status("odometry", "odl", lambda st: st.counters["handled"] >= 2)
+        # the store's window passes: asked (paced) until it no longer holds the frames
+        deadline, pace = time.monotonic() + 30, threading.Event()
+        while get_all(pb.client, f"findme/{s}/frame/*", 5):
+            assert time.monotonic() < deadline, "the store kept the frames past its window"
+            pace.wait(0.1)
+        for n in (0, 1):
+            sel = schemas.Selection(session=s, index=n, rank=1, by=schemas.SELECTED_BY_USER)
+            bus.put(pb.client, bus.key(s, "selection", n), schemas.encode(sel))
+        res.wait(_poses(s, (0, 1)) + [f"findme/{s}/motion/0/1"])
+        st = pb.status("odometry", "odl")
+        res.sub.undeclare()
+    finally:
+        codes = pb.close()
+    assert codes["odl"] == 0
+    m = schemas.decode(schemas.Motion, res.last[f"findme/{s}/motion/0/1"])
+    assert not m.error and 0.05 < m.z_m < 0.2, m
+    # the bus asked: the new session's poses once, then each frame once (none at selection)
+    assert st.counters["fetches"] == 3 and st.counters["motions"] == 1, dict(st.counters)
+    assert res.once("error") == {}
