@@ -99,7 +99,7 @@ def run_session(sid: str, photos, rec_dir: Path) -> tuple[list[dict], int]:
     hyp, sel, meas, odo = HypothesesHandler(), SelectionHandler(), MeasurementHandler(), OdometryHandler()
     rec = McapRecording(rec_dir / f"{sid}.mcap", sid)
     held: dict[str, bytes] = {}
-    odo.fetch = held.get      # odometry asks the bus (the store) for a selected photo's frame
+    odo.fetch = held.get      # odometry asks the bus (the store) for a photo's frame
     per, poses = [], 0
     for n, (jpeg, cam, h) in enumerate(photos):
         acc: dict[str, float] = {}

@@ -512,9 +512,10 @@ def cpu_seconds(run: dict) -> float:
     return every["cpu_ms"] * run["offered"] / 1e3
 
 
-#: the processes on the way from a photo to its pose (by tag prefix), against the store,
-#: recorder, mapper and router, which take in every photo offered, posed or refused
-PATH_TAGS = ("h", "o", "selection", "measurement")
+#: the processes on the way from a photo to its pose besides the hypotheses and odometry
+#: instances (h0, h1, o0, ...); the store, recorder, mapper and router take in every photo
+#: offered, posed or refused
+PATH_SERVICES = ("selection", "measurement")
 
 
 def posed_split(run: dict) -> dict:
@@ -529,7 +530,7 @@ def posed_split(run: dict) -> dict:
         tag = b["process"]
         if tag == "ALL":
             continue
-        on_path = tag in PATH_TAGS or (tag[0] in "ho" and tag[1:].isdigit())
+        on_path = tag in PATH_SERVICES or (tag[:1] in ("h", "o") and tag[1:].isdigit())
         if on_path and "handle_cpu_ms" in b:
             out["path"] += k * (b["handle_cpu_ms"] + b["tick_cpu_ms"])
             out["intake"] += k * b["other_cpu_ms"]
