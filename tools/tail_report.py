@@ -35,8 +35,8 @@ failing views are listed with their floor share: of the 20, 8 show no floor at a
 walls above a counter whose edge was taken for the floor line), 3 a stove or counter with
 floor in view, 4 the TUM cabinet's top (a horizontal surface above the floor), 4 sunlit
 carpet, 1 a hallway (looked at one by one). A ceiling-line cue (the room height the
-boundary implies) was tried too: ``tools/ceiling_report.py``. Reads the dataset's ground truth: a tool, not
-the product.
+boundary implies) was tried too: ``tools/ceiling_report.py``. Reads the dataset's ground
+truth: a tool, not the product.
 """
 
 from __future__ import annotations
