@@ -37,12 +37,8 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from findme.evaluation.views import GravityInput, view_camera, view_inputs  # noqa: E402
-from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.single.search import SegKind  # noqa: E402
-from findme_io.camera_source import hypothesize_photo  # noqa: E402
-from findme_io.imageio import read_image  # noqa: E402
-from tail_report import analyse_view  # noqa: E402
+from tail_report import analyse_view, view_hypotheses  # noqa: E402
 
 #: room heights tried, metres
 HEIGHTS = np.arange(1.9, 4.51, 0.05)
@@ -100,19 +96,11 @@ def analyse(args):
     """One view: the implied room height under the top and the true boundary, the share of
     ceiling pixels (labels) and the share of its points beyond 3 sigma."""
     dataset, vid = args
-    cv2.setNumThreads(1)
-    vdir = os.path.join(dataset, "views")
-    meta = json.load(open(os.path.join(vdir, vid + ".json")))
-    _, h, _ = view_inputs(meta)
-    image = read_image(os.path.join(vdir, meta["image"]))
-    cam, prov = view_camera(meta, image, GravityInput(given=True))
-    try:
-        hs, cam, prov = hypothesize_photo(image, cam, prov, "findme", 10, camera_height=h)
-    except FindmeError:
-        return vid, None
+    seen = view_hypotheses(dataset, vid, True)
     _, tv = analyse_view((dataset, vid, True))
-    if not hs.hypotheses or not tv or not tv["points"]:
+    if seen is None or not tv or not tv["points"]:
         return vid, None
+    meta, h, _, image, cam, _, hs = seen
     edges = cv2.dilate(cv2.Canny(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), 50, 150),
                        np.ones((5, 5), np.uint8)) > 0
     top = hs.hypotheses[0]
@@ -125,7 +113,7 @@ def analyse(args):
         poly = np.column_stack([seen, bv[seen]])
         out["truth"] = implied_height(ceiling_support(edges, cam, h, wall_floor_points(
             cam, h, poly, np.full(len(poly) - 1, SegKind.WALL))))
-    labels = cv2.imread(os.path.join(vdir, meta["labels"]), cv2.IMREAD_UNCHANGED)
+    labels = cv2.imread(os.path.join(dataset, "views", meta["labels"]), cv2.IMREAD_UNCHANGED)
     out["ceiling"] = float(np.mean(labels == 1))
     z = np.concatenate([np.linalg.norm(p["alts"][:, 0] - p["truth"], axis=1) / p["sigma"]
                         for p in tv["points"].values()])

@@ -91,10 +91,10 @@ def _xyz(located, n):
     return out
 
 
-def analyse_view(args):
-    """One view: per point kind, the truth, the top point, its sigma and surface, the points
-    under the alternatives and under the shifted boundaries; and the top's view features."""
-    dataset, vid, given = args
+def view_hypotheses(dataset: str, vid: str, given: bool):
+    """A dev view as ``findme eval`` sees it: (meta, camera height m, query pixels, image,
+    camera, provenance, hypotheses), the camera and provenance after the hypotheses; None
+    when the photo has no hypothesis."""
     cv2.setNumThreads(1)
     vdir = os.path.join(dataset, "views")
     meta = json.load(open(os.path.join(vdir, vid + ".json")))
@@ -104,9 +104,18 @@ def analyse_view(args):
     try:
         hs, cam, prov = hypothesize_photo(image, cam, prov, "findme", 10, camera_height=h)
     except FindmeError:
+        return None
+    return (meta, h, queries, image, cam, prov, hs) if hs.hypotheses else None
+
+
+def analyse_view(args):
+    """One view: per point kind, the truth, the top point, its sigma and surface, the points
+    under the alternatives and under the shifted boundaries; and the top's view features."""
+    dataset, vid, given = args
+    seen = view_hypotheses(dataset, vid, given)
+    if seen is None:
         return vid, None
-    if not hs.hypotheses:
-        return vid, None
+    meta, h, queries, image, cam, prov, hs = seen
     top, scale = hs.hypotheses[0], max(cam.width, cam.height) / WORK_SIZE
     alts = [_scene(cam, h, prov, x.polyline, x.kinds) for x in hs.hypotheses[:K]]
     alts += [None] * (K - len(alts))     # fewer hypotheses: the missing ones answer nothing
