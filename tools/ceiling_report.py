@@ -6,9 +6,12 @@ The idea (the floor-ceiling symmetry that panorama layout methods use): a wall s
 floor line and meets the ceiling at one room height H. Lift each column of the top
 hypothesis's WALL pieces to the floor (y = h in the level frame: x right, y down, z
 forward; metres), raise it to y = h - H for H in ``HEIGHTS``, project it back, and count the
-Canny edges (dilated 2 px) along that curve: the best-supported H is the room height the
-boundary implies. A counter's front edge taken for the floor would imply a room of ~4 m, so
-an implausible H, or no edge at any H, would flag the view.
+share of that curve lying on an edge across it (a colour gradient of at least
+``MIN_GRADIENT`` levels a pixel within ``ACROSS_DEG`` of the curve's normal): the
+best-supported H, if at least ``MIN_SUPPORT`` of the curve, is the room height the boundary
+implies. A counter's front edge taken for the floor would imply a room of ~4 m, so an
+implausible H would flag the view. On rendered rooms it finds the ceiling height to the
+grid's 5 cm, and nothing where no ceiling is in view (``tests/test_tool_ceiling.py``).
 
 Every ZInD dev view, under the dataset's gravity and camera height. A view fails when more
 than 30 % of its query points lie beyond 3 sigma (as ``tools/tail_report.py``). The same
@@ -16,13 +19,14 @@ search under the TRUE boundary (the dataset's ``boundary_v``) checks the cue its
 
 Measured 2026-11-29: 180 views, 16 failing. The failing views show little or no ceiling
 (by the dataset's labels at most 5 % of their pixels; under 1 % in 14 of them): they look
-down at counters, a stove, carpet. 7 of the 16 have no WALL column whose ceiling curve is in
-the image, so the cue has nothing to check where it is needed. Flagging an implied height
-outside 2.3-3.2 m would take 5 of the 16 failing views and 52 of the 164 others. And the cue
-itself is weak: under the TRUE boundary the implied height lies in 2.3-3.2 m for only 19 %
-of the 52 views with an estimate (median 2.10 m, about a door head's height: other
-horizontal edges out-vote the ceiling line). Not used in the product. Reads the dataset's
-ground truth: a tool, not the product.
+down at counters, a stove, carpet. Under their top boundary 14 of the 16 imply no height at
+all (no ceiling line found), and the 2 that do imply a plausible one (2.3-3.2 m), while 17
+of the 35 other views with an estimate do not: the cue has nothing to say where it is needed.
+Under the TRUE boundary, 24 views give a height (median 2.35 m), 62 % of them within
+2.3-3.2 m: a ceiling line is found in few real views, and not always the ceiling's. Not used
+in the product. (A first version counted Canny edges at 50/150: that misses a ceiling that
+differs from its wall in colour more than in brightness, and gave 19 % under the true
+boundary.) Reads the dataset's ground truth: a tool, not the product.
 """
 
 from __future__ import annotations
@@ -46,6 +50,9 @@ HEIGHTS = np.arange(1.9, 4.51, 0.05)
 PLAUSIBLE = (2.3, 3.2)
 #: fewest in-image columns for a height to be scored
 MIN_COLUMNS = 10
+#: an edge: a gradient of at least this many grey levels a pixel, within this angle of the
+#: curve's normal; a ceiling line: at least this share of the curve on edges
+MIN_GRADIENT, ACROSS_DEG, MIN_SUPPORT = 2.0, 20.0, 0.3
 
 
 def wall_floor_points(camera, h: float, polyline, kinds) -> np.ndarray:
@@ -68,25 +75,48 @@ def wall_floor_points(camera, h: float, polyline, kinds) -> np.ndarray:
     return r * (h / r[:, 1])[:, None]
 
 
-def ceiling_support(edges: np.ndarray, camera, h: float, floor_pts: np.ndarray) -> np.ndarray:
-    """(len(HEIGHTS),) share of edge pixels along the ceiling curve above ``floor_pts`` for
-    each room height (NaN: fewer than ``MIN_COLUMNS`` of its columns in the image);
-    ``edges`` (H, W) bool."""
+def gradients(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) float32 x and y derivatives (levels a pixel) of the blurred ``image`` (H, W, 3)
+    uint8 BGR, each pixel's from the colour channel that changes most there (a grey ceiling
+    over a beige wall differs in colour more than in brightness)."""
+    blur = cv2.GaussianBlur(image.astype(np.float32), (0, 0), 1.0)
+    gx = cv2.Sobel(blur, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(blur, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    best = np.argmax(gx * gx + gy * gy, axis=2)[..., None]
+    return (np.take_along_axis(gx, best, 2)[..., 0], np.take_along_axis(gy, best, 2)[..., 0])
+
+
+def ceiling_support(grad, camera, h: float, floor_pts: np.ndarray) -> np.ndarray:
+    """(len(HEIGHTS),) share of the ceiling curve above ``floor_pts`` (N, 3) that lies on
+    an edge across it, for each room height: the gradient ``grad`` ((H, W) x and y) at
+    least ``MIN_GRADIENT`` and within ``ACROSS_DEG`` of the curve's normal (a wall meeting
+    a ceiling of a similar white is a weak edge, so no fixed edge detector's threshold);
+    NaN where fewer than ``MIN_COLUMNS`` of its columns are in the image."""
+    gx, gy = grad
     out = np.full(len(HEIGHTS), np.nan)
     for i, H in enumerate(HEIGHTS):
         q = floor_pts.copy()
         q[:, 1] = h - H
         uv, front = camera.project_level(q)
-        ok = (front & (uv[:, 0] >= 0) & (uv[:, 0] < camera.width) & (uv[:, 1] >= 1)
-              & (uv[:, 1] < camera.height))
-        if ok.sum() >= MIN_COLUMNS:
-            out[i] = edges[uv[ok, 1].astype(int), uv[ok, 0].astype(int)].mean()
+        ok = (front & (uv[:, 0] >= 0) & (uv[:, 0] < camera.width - 1) & (uv[:, 1] >= 1)
+              & (uv[:, 1] < camera.height - 1))
+        if ok.sum() < MIN_COLUMNS:
+            continue
+        t = np.gradient(uv, axis=0)[ok]           # the curve's direction at each sample
+        normal = np.column_stack([-t[:, 1], t[:, 0]])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
+        iu, iv = np.rint(uv[ok, 0]).astype(int), np.rint(uv[ok, 1]).astype(int)
+        g = np.column_stack([gx[iv, iu], gy[iv, iu]])
+        mag = np.linalg.norm(g, axis=1)
+        across = np.abs(np.sum(g * normal, axis=1)) >= np.cos(np.radians(ACROSS_DEG)) * mag
+        out[i] = float(np.mean((mag >= MIN_GRADIENT) & across))
     return out
 
 
 def implied_height(support: np.ndarray) -> tuple[float, float]:
-    """(best-supported room height m, its support); NaNs when no height was scored."""
-    if np.all(np.isnan(support)):
+    """(best-supported room height m, its support); NaNs when no height was scored or
+    none reaches ``MIN_SUPPORT`` (no ceiling line found)."""
+    if np.all(np.isnan(support)) or np.nanmax(support) < MIN_SUPPORT:
         return float("nan"), float("nan")
     i = int(np.nanargmax(support))
     return float(HEIGHTS[i]), float(support[i])
@@ -101,17 +131,16 @@ def analyse(args):
     if seen is None or not tv or not tv["points"]:
         return vid, None
     meta, h, _, image, cam, _, hs = seen
-    edges = cv2.dilate(cv2.Canny(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), 50, 150),
-                       np.ones((5, 5), np.uint8)) > 0
+    grad = gradients(image)
     top = hs.hypotheses[0]
     out = {"top": implied_height(ceiling_support(
-        edges, cam, h, wall_floor_points(cam, h, top.polyline, top.kinds)))}
+        grad, cam, h, wall_floor_points(cam, h, top.polyline, top.kinds)))}
     bv = np.array([np.nan if b is None else b for b in meta.get("boundary_v") or []], float)
     seen = np.nonzero(np.isfinite(bv))[0]
     out["truth"] = (float("nan"), float("nan"))
     if len(seen) > MIN_COLUMNS:
         poly = np.column_stack([seen, bv[seen]])
-        out["truth"] = implied_height(ceiling_support(edges, cam, h, wall_floor_points(
+        out["truth"] = implied_height(ceiling_support(grad, cam, h, wall_floor_points(
             cam, h, poly, np.full(len(poly) - 1, SegKind.WALL))))
     labels = cv2.imread(os.path.join(dataset, "views", meta["labels"]), cv2.IMREAD_UNCHANGED)
     out["ceiling"] = float(np.mean(labels == 1))
