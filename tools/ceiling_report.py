@@ -127,7 +127,7 @@ def analyse(args):
     ceiling pixels (labels) and the share of its points beyond 3 sigma."""
     dataset, vid = args
     seen = view_hypotheses(dataset, vid, True)
-    _, tv = analyse_view((dataset, vid, True))
+    _, tv = analyse_view((dataset, vid, True), seen) if seen else (vid, None)
     if seen is None or not tv or not tv["points"]:
         return vid, None
     meta, h, _, image, cam, _, hs = seen

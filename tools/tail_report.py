@@ -108,11 +108,12 @@ def view_hypotheses(dataset: str, vid: str, given: bool):
     return (meta, h, queries, image, cam, prov, hs) if hs.hypotheses else None
 
 
-def analyse_view(args):
+def analyse_view(args, seen=None):
     """One view: per point kind, the truth, the top point, its sigma and surface, the points
-    under the alternatives and under the shifted boundaries; and the top's view features."""
+    under the alternatives and under the shifted boundaries; and the top's view features.
+    ``seen``: its ``view_hypotheses``, when the caller has them already."""
     dataset, vid, given = args
-    seen = view_hypotheses(dataset, vid, given)
+    seen = view_hypotheses(dataset, vid, given) if seen is None else seen
     if seen is None:
         return vid, None
     meta, h, queries, image, cam, prov, hs = seen
