@@ -127,7 +127,7 @@ class OdometryHandler(Handler):
             elif not msg.hypotheses:
                 st.close(n, "dead")      # nothing to select: nobody waits for it
             elif p.frame is None:   # fetched now: a user may select after the store's minute
-                p.frame = self._try(bus.key(k.session, "frame", n), schemas.Frame)
+                p.hold(self._try(bus.key(k.session, "frame", n), schemas.Frame))
         else:
             if n in st.closed:
                 st.closed.pop(n)        # selected after all: it gets a pose now
@@ -269,8 +269,7 @@ class OdometryHandler(Handler):
     def _frame(self, session, st, n):
         p = st.photo(n, self.clock())
         if p.frame is None:
-            p.frame = self.need(bus.key(session, "frame", n), schemas.Frame)
-        p.time_ns = p.frame.capture_time_ns
+            p.hold(self.need(bus.key(session, "frame", n), schemas.Frame))
         return p.frame
 
     def _time(self, session, st, n) -> int:

@@ -31,6 +31,12 @@ class Photo:
     selected_at: float | None = None
     prepared: tuple | None = None    # (rank, findme_core.motion.pair prepared photo): its motions' inputs
 
+    def hold(self, frame) -> None:
+        """Hold ``frame`` (None: nobody had it) and keep its capture time past it."""
+        self.frame = frame
+        if frame is not None:
+            self.time_ns = frame.capture_time_ns
+
 
 class OdometrySession:
     def __init__(self, keep_frames: int = 8, anchors: int = 2):
@@ -92,8 +98,7 @@ class OdometrySession:
         with_frames = sorted(n for n, p in self.photos.items()
                              if p.frame is not None and n not in self.poses)
         for n in with_frames[:max(0, len(with_frames) - self.keep_frames)]:
-            p = self.photos[n]
-            p.time_ns, p.frame = p.frame.capture_time_ns, None   # asked for again if selected
+            self.photos[n].frame = None   # asked for again if selected (its time is kept)
 
     def adopt(self, poses: dict[int, PlanarPose], times: dict[int, int]) -> None:
         """Take poses already on the bus that this session does not have (it was handled

@@ -273,7 +273,7 @@ def test_frames_held_for_a_late_selection_are_bounded_per_session(photos):
     st = OdometrySession(keep_frames=1)
     for n in (0, 1):
         p = st.photo(n, 0.0)
-        p.frame = msgs[n][0]
+        p.hold(msgs[n][0])     # as the handler holds a fetched frame
     st.prune()
     assert st.photos[0].frame is None and st.photos[1].frame is msgs[1][0]
     assert st.photos[0].time_ns == msgs[0][0].capture_time_ns
