@@ -224,6 +224,7 @@ def main(argv=None):
         refit = _score(a.split, scorer, trust_tools["refit"])
         ours_preds = json.loads((t / "ours.json").read_text())
         nograv_preds = json.loads((t / "nograv.json").read_text())
+        phone_preds = json.loads((t / "noisy_refined_declared.json").read_text())
         ours = _score(a.split, scorer, t / "ours.json")
         nograv = _score(a.split, scorer, t / "nograv.json")
         auto_spots = _score(a.split, scorer, t / "auto.json")
@@ -307,7 +308,7 @@ def main(argv=None):
         "tell and gives its candidates, best first.", "",
         *_locate_rows(locate), "",
         *results_trust.section(a.split, ours, refit, loro, ours_preds, nograv_preds,
-                               trust_tools),
+                               phone_preds, trust_tools, PHONE_NOISE_DEG),
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text("\n".join(lines) + "\n")

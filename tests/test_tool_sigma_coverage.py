@@ -1,0 +1,57 @@
+"""``tools/sigma_coverage.py`` on a tiny dataset written here in the findme-eval layout: a
+gravity the dataset marks as an approximation (KITTI's nominal mounting) is not scored, a
+measured one is, and the leave-one-room-out factor is fitted on the other rooms only."""
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+import sigma_coverage as sc  # noqa: E402
+
+NOMINAL = "APPROXIMATION: camera assumed level (the true per-frame pitch/roll is not available)"
+
+
+def _gravity(pitch_deg: float, roll_deg: float) -> list[float]:
+    """gravity_cam (down, camera frame) of a camera pitched down / rolled right, degrees."""
+    p, r = math.radians(pitch_deg), math.radians(roll_deg)
+    return [math.cos(p) * math.sin(r), math.cos(p) * math.cos(r), math.sin(p)]
+
+
+def _dataset(tmp_path: Path, views: dict) -> Path:
+    (tmp_path / "views").mkdir()
+    for vid, meta in views.items():
+        (tmp_path / "views" / f"{vid}.json").write_text(json.dumps({"id": vid, **meta}))
+    index = {"subsets": {"zind-tilted": {"views": [v for v in views if v.startswith("z")]},
+                         "kitti06-pairs": {"views": [v for v in views if v.startswith("k")]}}}
+    (tmp_path / "index.json").write_text(json.dumps(index))
+    return tmp_path
+
+
+def test_nominal_gravity_is_not_scored_measured_is(tmp_path):
+    truth = {"zt_r01_p1_v0": {"gravity_cam": _gravity(20, 0)},
+             "kitti06_000012_c0": {"gravity_cam": _gravity(0, 0), "gravity_note": NOMINAL}}
+    # both estimates 2 deg off in roll with a 0.5 deg 1-sigma: 4 sigma
+    preds = {"views": {"zt_r01_p1_v0": {"gravity_cam": _gravity(20, 2), "gravity_source": "image",
+                                        "gravity_sigma_deg": 0.5},
+                       "kitti06_000012_c0": {"gravity_cam": _gravity(0, 2),
+                                             "gravity_source": "image",
+                                             "gravity_sigma_deg": 0.5}}}
+    items = sc.collect(str(_dataset(tmp_path, truth)), preds)
+    assert [g for g, _, _ in items["gravity roll (image)"]] == ["room01"]
+    _, err, sigma = items["gravity roll (image)"][0]
+    assert abs(err / sigma - 4.0) < 1e-6
+    assert sc.gravity_measured(truth["zt_r01_p1_v0"])
+    assert not sc.gravity_measured(truth["kitti06_000012_c0"])
+
+
+def test_left_out_factor_comes_from_the_other_rooms():
+    # room a: errors exactly at their sigma; room b: ten times over. A factor fitted on b alone
+    # scales a's sigmas by 10 (a: all within 1), and on a alone leaves b's (b: none within 3).
+    items = [("a", 1.0, 1.0)] * 10 + [("b", 10.0, 1.0)] * 10
+    z = sc.loro(items)
+    assert np.allclose(z[:10], 0.1) and np.allclose(z[10:], 10.0)
+    assert sc.coverage(z) == (0.5, 0.5, 0.5)
