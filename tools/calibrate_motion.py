@@ -14,7 +14,10 @@ normalised error on the ``--fit`` subset equals a calibrated Gaussian's (0.674):
 
 It prints the coverage (fraction within 1 and 3 sigma along, across and in yaw, and of the
 translation within 2 sigma as ``tools/motion_pairs.py`` counts it) of the current and the
-fitted values on every pair subset; the other subsets are the held-out check. Put the fitted
+fitted values on every pair subset; the other subsets are the held-out check. Then the same
+fit left out group by group on the ``--fit`` subset (TUM: blocks of 6 frames): each group's
+terms fitted without it, and the coverage of every pair under its own group's terms beside the
+in-sample one. Put the fitted
 values in ``MotionParams`` (findme_core/motion/model.py: ``findme_*`` for findme, the others
 for features, lifted and paper).
 """
@@ -36,6 +39,7 @@ from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
 from findme_core.motion.methods import METHODS  # noqa: E402
 from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
+from sigma_coverage import group_of  # noqa: E402
 
 SUBSETS = ("tum-cabinet-pairs", "zind-pairs-tilted", "zind-pairs-level", "kitti06-pairs")
 MEDIAN_ABS_Z = 0.6745   # median |z| of a standard normal
@@ -51,10 +55,11 @@ def _no_model_error(method: str) -> MotionParams:
 
 def raw_motions(split: Path, subset: str, method: str) -> dict:
     """Estimates with their fit sigmas only, and the truth, of the answered pairs: arrays
-    x, z (m), yaw (deg), sx, sz (m), sy (deg), gx, gz, gy."""
+    x, z (m), yaw (deg), sx, sz (m), sy (deg), gx, gz, gy, and each pair's leave-one-out
+    group (``sigma_coverage.group_of``)."""
     index = json.loads((split / "index.json").read_text())
     p0 = _no_model_error(method)
-    rows = []
+    rows, groups = [], []
     for pid in index["subsets"][subset]["pairs"]:
         pair, photos = pair_inputs(split / "pairs", split / "views", pid)
         try:
@@ -69,7 +74,10 @@ def raw_motions(split: Path, subset: str, method: str) -> dict:
         m, g = r.motion, pair["motion"]
         rows.append((m.x, m.z, math.degrees(m.yaw), m.sigma_x, m.sigma_z,
                      math.degrees(m.sigma_yaw), g["x_m"], g["z_m"], g["yaw_deg"]))
-    return dict(zip(("x", "z", "yaw", "sx", "sz", "sy", "gx", "gz", "gy"), np.array(rows).T))
+        groups.append(group_of(pid))
+    out = dict(zip(("x", "z", "yaw", "sx", "sz", "sy", "gx", "gz", "gy"),
+                   np.array(rows).reshape(-1, 9).T))
+    return {**out, "group": np.asarray(groups)}
 
 
 def _variances(a: dict, scale: float, direction_deg: float, position_m: float):
@@ -120,6 +128,35 @@ def _solve(f, lo: float, hi: float) -> float:
     return 0.5 * (lo + hi)
 
 
+def fit_terms(d: dict) -> tuple[float, float, float, float]:
+    """(scale, direction deg, yaw deg, position m): the model errors fitted on the pairs ``d``
+    (the module docstring's steps 1 and 2)."""
+    base = np.hypot(d["x"], d["z"])
+    short = _subset(d, base <= np.quantile(base, 1 / 3))
+    pos = _solve(lambda m: np.median(np.concatenate(normalised(short, 0, 0, 0, m)[:2]))
+                 - MEDIAN_ABS_Z, 0, 1)
+    return (_solve(lambda s: np.median(normalised(d, s, 0, 0, pos)[0]) - MEDIAN_ABS_Z, 0, 1),
+            _solve(lambda r: np.median(normalised(d, 0, r, 0, pos)[1]) - MEDIAN_ABS_Z, 0, 45),
+            _solve(lambda y: np.median(normalised(d, 0, 0, y)[2]) - MEDIAN_ABS_Z, 0, 45), pos)
+
+
+def left_out(d: dict) -> tuple[dict, list[np.ndarray]]:
+    """Leave one group out on the pairs ``d``: ({group: terms fitted without it}, the
+    normalised errors along, across and in yaw of every pair under its own group's terms)."""
+    folds, zs = {}, [[], [], []]
+    for g in np.unique(d["group"]):
+        held = d["group"] == g
+        folds[str(g)] = terms = fit_terms(_subset(d, ~held))
+        for acc, z in zip(zs, normalised(_subset(d, held), *terms)):
+            acc.append(z)
+    return folds, [np.concatenate(z) for z in zs]
+
+
+def _cover(zs) -> str:
+    return ", ".join(f"{name} {np.mean(z <= 1):.2f} / {np.mean(z <= 2):.2f} / {np.mean(z <= 3):.2f}"
+                     for name, z in zip(("along", "across", "yaw"), zs))
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -130,13 +167,7 @@ def main(argv=None) -> None:
     cv2.setNumThreads(1)
     data = {s: raw_motions(a.split, s, a.method) for s in SUBSETS}
     d = data[a.fit]
-    base = np.hypot(d["x"], d["z"])
-    short = _subset(d, base <= np.quantile(base, 1 / 3))
-    pos = _solve(lambda m: np.median(np.concatenate(normalised(short, 0, 0, 0, m)[:2]))
-                 - MEDIAN_ABS_Z, 0, 1)
-    fitted = (_solve(lambda s: np.median(normalised(d, s, 0, 0, pos)[0]) - MEDIAN_ABS_Z, 0, 1),
-              _solve(lambda r: np.median(normalised(d, 0, r, 0, pos)[1]) - MEDIAN_ABS_Z, 0, 45),
-              _solve(lambda y: np.median(normalised(d, 0, 0, y)[2]) - MEDIAN_ABS_Z, 0, 45), pos)
+    fitted = fit_terms(d)
     p = MotionParams()
     for name, terms in (("current", p.model_errors(a.method)),
                         (f"fitted on {a.fit}", fitted)):
@@ -148,6 +179,14 @@ def main(argv=None) -> None:
             print(f"  {s:20s} n={len(dd['x']):3d}  within 1 / 3 sigma: along {cover[0]}, "
                   f"across {cover[1]}, yaw {cover[2]}; translation within 2 sigma "
                   f"{within_two_sigma(dd, *terms):.2f}")
+    folds, zs = left_out(d)
+    print(f"leave one group out on {a.fit} (TUM: blocks of 6 frames; each group's pairs "
+          "with the terms fitted without them):")
+    for g, t in folds.items():
+        print(f"  without {g}: scale_sigma {t[0]:.3f}, direction_sigma_deg {t[1]:.2f}, "
+              f"yaw_sigma_deg {t[2]:.2f}, position_sigma_m {t[3]:.3f}")
+    print(f"  in sample, within 1 / 2 / 3 sigma: {_cover(normalised(d, *fitted))}")
+    print(f"  left out,  within 1 / 2 / 3 sigma: {_cover(zs)}")
 
 
 if __name__ == "__main__":

@@ -235,20 +235,31 @@ TARGET = (0.68, 0.99)
 FLOOR_GAIN = 0.005
 
 
+def target_loss(z: np.ndarray) -> float:
+    """How far the coverage of the normalised errors ``z`` within 1 and 3 sigma is from
+    ``TARGET`` (squares; more than ``TARGET[1]`` within 3 costs nothing)."""
+    c1, c3 = float(np.mean(z <= 1)), float(np.mean(z <= 3))
+    return (c1 - TARGET[0]) ** 2 + (min(c3, TARGET[1]) - TARGET[1]) ** 2
+
+
+def fit_factor(z_of, grid) -> tuple[float, float]:
+    """(loss, k): the k of ``grid`` (ascending) whose ``z_of(k)`` has the least
+    ``target_loss``; ties: the smaller k."""
+    best, arg = np.inf, float(grid[0])
+    for k in grid:
+        loss = target_loss(z_of(float(k)))
+        if loss < best - 1e-12:
+            best, arg = loss, float(k)
+    return best, arg
+
+
 def fit_model(err: np.ndarray, sig: np.ndarray) -> tuple[float, float]:
     """(k, f): the sigma model hypot(k * stated, f) whose coverage within 1 and 3 sigma
     comes nearest a Gaussian's (``TARGET``; least squares over a grid; f from the errors'
     quantiles). f = 0 unless a floor improves the loss by ``FLOOR_GAIN``. Ties: the smaller
     k, then the smaller f."""
     def best_k(f):
-        best, arg = np.inf, 1.0
-        for k in SCALES:
-            z = err / np.hypot(k * sig, f)
-            c1, c3 = float(np.mean(z <= 1)), float(np.mean(z <= 3))
-            loss = (c1 - TARGET[0]) ** 2 + (min(c3, TARGET[1]) - TARGET[1]) ** 2
-            if loss < best - 1e-12:
-                best, arg = loss, float(k)
-        return best, arg
+        return fit_factor(lambda k: err / np.hypot(k * sig, f), SCALES)
     loss0, k0 = best_k(0.0)
     best, arg = loss0 - FLOOR_GAIN, (k0, 0.0)
     for f in np.unique(np.quantile(err, [0.1, 0.25, 0.4, 0.55, 0.7])):
