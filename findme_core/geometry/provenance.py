@@ -73,6 +73,15 @@ class Provenance:
         return float(math.sqrt(max(np.trace(self.gravity_cov), 0.0) / 2.0))
 
     @property
+    def gravity_inexact(self) -> bool:
+        """Whether gravity carries an error a result built on it must show: it came from or
+        was refined with the photo's lines (any source but "input"), or was given with a
+        1-sigma above a phone held still's (``INPUT_GRAVITY_SIGMA_DEG``). A given gravity
+        taken as it is at that 1-sigma or less counts as exact (a dataset's, a tripod's)."""
+        return (self.gravity != "input"
+                or self.gravity_sigma > math.radians(INPUT_GRAVITY_SIGMA_DEG) + 1e-12)
+
+    @property
     def unsensed_sigma(self) -> float | None:
         """The 1-sigma (radians) a motion checks a gravity no sensor gave against the other
         photo's (``motion.pair_gravity``): ``gravity_sigma`` when it came from the image,

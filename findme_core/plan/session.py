@@ -55,7 +55,10 @@ class SessionParams:
 @dataclass
 class Photo:
     """One photo's per-photo results: its layout (None without a usable hypothesis, with
-    the reason), scene and features; whether its gravity came from its own lines."""
+    the reason), scene and features; whether its gravity carries an error the plan's sigmas
+    must show (``gravity_inexact``, ``Provenance.gravity_inexact``: it came from or was
+    refined with the photo's lines, or was given looser than a phone held still; then
+    ``PlanParams.image_gravity_models``)."""
 
     camera: Camera
     height: float
@@ -63,7 +66,7 @@ class Photo:
     scene: Scene | None
     features: features.Features
     reason: str | None = None
-    gravity_from_image: bool = False
+    gravity_inexact: bool = False
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
@@ -303,7 +306,7 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     amb = [float(pl.ambiguity[pl.block[i]] / pl.scores[pl.block[i]])
            if pl.scores[pl.block[i]] > 0 else float("nan") for i in range(len(photos))]
     plan_params = params.plan
-    if any(p.gravity_from_image for p, pose in zip(photos, pl.poses) if np.isfinite(pose[0])):
+    if any(p.gravity_inexact for p, pose in zip(photos, pl.poses) if np.isfinite(pose[0])):
         pm, lm = plan_params.image_gravity_models
         plan_params = replace(plan_params, pose_sigma_model=pm, length_sigma_model=lm)
     result = floorplan.build(layouts, pl.poses, plan_params, notes, amb, spot=pl.spot,

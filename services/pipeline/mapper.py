@@ -2,20 +2,19 @@
 
     frame/<n> + hypotheses/<n> + selection/<n>  ->  findme/<session>/plan   (findme.v1.Plan)
 
-Per photo, once, when its frame arrives: its camera and ORB features (the image is then
-dropped). When its hypotheses and selection are in (in any order: what is missing is fetched
-from the bus when someone caches it, else awaited): its layout under the selected boundary,
-with the camera the hypotheses were built with (their gravity: the frame's refined by the
-image, or the image's own; a new selection rebuilds it); a photo whose hypothesis set is
-empty takes part without a layout. Between photos, as ``findme plan`` relates them (``session.relate``): spots found
-from the photos (``session.auto_spots``: a photo joins a spot when it turned from any photo
-of it, so a turn with left-out views stays one spot), feature matches and two-photo
-motions; each pair's matches, turn and motion are computed once and kept (a motion again
-when one of its photos gets a new layout). Then ``session.plan`` (placement of
-every photo, outline, walls, joint refinement) over the session's photos in index order;
-each placed photo's 1-sigma is the refinement's, else ``pose.covariance``. The plan
-frame is the level frame of the first photo with a layout (``Plan.origin_index``; photo 0
-normally).
+Per photo, once, when its frame arrives: its camera and ORB features (the image is then dropped).
+When its hypotheses and selection are in (in any order: what is missing is fetched from the bus
+when someone caches it, else awaited): its layout under the selected boundary, with the camera
+the hypotheses were built with (their gravity: the frame's refined by the image, or the image's
+own; a new selection rebuilds it); a photo whose hypothesis set is empty takes part without a
+layout. Between photos, as ``findme plan`` relates them (``session.relate``): spots found from
+the photos (``session.auto_spots``: a photo joins a spot when it turned from any photo of it, so
+a turn with left-out views stays one spot), feature matches and two-photo motions; each pair's
+matches, turn and motion are computed once and kept (a motion again when one of its photos gets a
+new layout). Then ``session.plan`` (placement of every photo, outline, walls, joint refinement)
+over the session's photos in index order; each placed photo's 1-sigma is the refinement's, else
+``pose.covariance``. The plan frame is the level frame of the first photo with a layout
+(``Plan.origin_index``; photo 0 normally).
 
 Cost, bounded per session: at most ``max_photos`` photos per plan (the first ones; later
 ones are listed LEFT_OUT), a new plan after every ``every`` newly ready photos or when no
@@ -30,8 +29,8 @@ session idle for ``idle_s`` seconds is dropped.
 Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan, one that
 cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline
 yet gets a Plan with the reason. Camera height: the selection's, else the frame's, else 1
-(``metric`` false: lengths in camera heights). Instances share the load by session.
-Plain photos (no gravity in the frame) agree on gravity spot by spot (``mapper_gravity``).
+(``metric`` false: lengths in camera heights). Instances share the load by session. Plain
+photos agree on gravity spot by spot; an inexact gravity widens the sigmas (``mapper_gravity``).
 """
 
 from __future__ import annotations
@@ -208,7 +207,8 @@ class MapperHandler(Handler):
                 why = None
             except FindmeError as e:
                 why = str(e).splitlines()[0][:200]
-        ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why)
+        ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why,
+                                      gravity_inexact=mapper_gravity.inexact(ph.hset))
         ph.key = (rank, height)
         for pk in [pk for pk in st.pairs if pk[0] == "motion" and n in pk[1:]]:
             del st.pairs[pk]   # motions lift with the scene; matches and turns stay

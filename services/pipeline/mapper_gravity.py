@@ -32,7 +32,7 @@ from findme_core.plan import session as plan_session
 from findme_core.plan import shared_gravity, spot
 from findme_core.single import layout
 from findme_core.single.scene import Scene
-from findme_io.convert import msg_gravity_estimate, msg_hypotheses
+from findme_io.convert import msg_gravity_estimate, msg_hypotheses, msg_provenance
 from findme_io.frame_photo import best_again
 from findme_io.imageio import decode_photo
 
@@ -54,6 +54,14 @@ def estimate_of(ph):
     gravity was given."""
     hs = ph.hset
     return msg_gravity_estimate(hs.camera) if hs is not None and hs.HasField("camera") else None
+
+
+def inexact(hset) -> bool:
+    """Whether the gravity a hypothesis set's camera was built with carries an error
+    (``Provenance.gravity_inexact``: the frame's refined by the image, or the image's own);
+    False when the set says nothing of it."""
+    prov = msg_provenance(hset.camera) if hset is not None and hset.HasField("camera") else None
+    return prov is not None and prov.gravity_inexact
 
 
 def agreed(st, order: list, params: plan_session.SessionParams,
@@ -97,10 +105,10 @@ def agreed(st, order: list, params: plan_session.SessionParams,
                 del st.pairs[k]
             ph.plain.gravity_used = used
         if v is None:
-            out.append(p if e is None else replace(p, gravity_from_image=True))
+            out.append(p if e is None else replace(p, gravity_inexact=True))
         elif isinstance(v, str):
             out.append(plan_session.Photo(p.camera, p.height, None, None, p.features, v,
-                                          gravity_from_image=True))
+                                          gravity_inexact=True))
         else:
             out.append(_relifted(ph, p, v, params))
     return out
@@ -123,7 +131,7 @@ def _relifted(ph, p: plan_session.Photo, g, params: plan_session.SessionParams
             hyp, why = _best_again(ph, cam, p.height, params)
     else:
         hyp, why = None, p.reason
-    out = plan_session.Photo(cam, p.height, None, None, p.features, why, gravity_from_image=True)
+    out = plan_session.Photo(cam, p.height, None, None, p.features, why, gravity_inexact=True)
     if hyp is not None:
         try:
             out = replace(out, layout=layout.from_hypothesis(cam, p.height, hyp.polyline,

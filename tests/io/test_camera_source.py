@@ -45,3 +45,28 @@ def test_level_when_the_image_is_not_used(tilted_view):
     assert prov.gravity == "level" and prov.estimate is None and "level assumed" in prov.notes[-1]
     hs, cam2, _ = hypothesize_photo(v.image, cam, prov)
     assert np.allclose(cam2.gravity, (0, 1, 0))
+
+
+def test_which_gravity_a_plan_states_its_sigmas_for(tilted_view):
+    """``Provenance.gravity_inexact``, as ``session_photos.final_gravity`` hands it to the
+    plan: a given gravity taken as it is at no more than a phone held still's 1-sigma is
+    exact; one refined by the photo's lines, given loosely, or found in the photo is not
+    (the plan then states its sigmas with ``PlanParams.image_gravity_models``)."""
+    from findme_io.session_photos import final_gravity
+    v = tilted_view
+    cases = {"exact (sigma 0)": (v.camera.gravity, 0.0),
+             "a phone held still, as it is": (v.camera.gravity, math.radians(0.5)),
+             "a phone in the hand, refined": (v.camera.gravity, math.radians(1.5)),
+             "from the image": (None, None)}
+    got = {}
+    for name, (g, s) in cases.items():
+        cam, prov = with_gravity(level_camera(v), v.image if s != math.radians(0.5) else None,
+                                 g, s)
+        got[name] = (prov.gravity, final_gravity(v.image, cam, prov, 1.4, True)[4])
+    assert got == {"exact (sigma 0)": ("input", False),
+                   "a phone held still, as it is": ("input", False),
+                   "a phone in the hand, refined": ("input+image", True),
+                   "from the image": ("image", True)}
+    # given loosely and not refined (no image to refine it with): still inexact
+    _, loose = with_gravity(level_camera(v), None, v.camera.gravity, math.radians(1.5))
+    assert loose.gravity == "input" and loose.gravity_inexact

@@ -18,7 +18,7 @@ import pytest
 import schemas
 from findme_core.errors import HypothesisError, InputError
 from findme_core.geometry.provenance import Provenance, tilt_cov
-from findme_core.plan import fuse, polygon, session as plan_session
+from findme_core.plan import floorplan, fuse, polygon, session as plan_session
 from findme_core.synth.room import Room
 from findme_io.convert import camera_msg
 from services.pipeline.mapper import MapperHandler
@@ -97,6 +97,35 @@ def test_the_layouts_lift_with_the_camera_the_hypotheses_were_built_with(room):
     V, T = _vertices(plans[-1]), room.polygon
     assert plans[-1].closed and len(V) == len(T)
     assert np.linalg.norm(V[:, None] - T[None], axis=2).min(1).max() < 0.04
+
+
+def test_a_phone_gravity_refined_by_the_photos_widens_the_plans_sigmas(room, mapped):
+    """The phone page's gravity (1-sigma 1.5 deg), refined by each photo's lines in the
+    hypotheses service: its hypothesis sets say so (source input+image). The same room, the
+    same outline and poses, but its sigmas carry gravity's error: the models fitted with
+    gravity from the photos (``PlanParams.image_gravity_models``), not an exact gravity's
+    (``mapped``'s frames give theirs and their hypothesis sets say nothing of it)."""
+    m = MapperHandler()
+    plans = []
+    for key, msg in room.messages():
+        kind, n = key.split("/")[2], int(key.split("/")[3])
+        if kind == "hypotheses":
+            msg = type(msg).FromString(msg.SerializeToString())
+            msg.camera.CopyFrom(camera_msg(room.views[n].camera, Provenance(
+                "input", "input+image", tilt_cov(math.radians(0.4)))))
+        plans += [o.msg for o in m.on_message(key, msg)]
+    exact, phone = mapped[1][-1], plans[-1]
+    np.testing.assert_allclose(_vertices(phone), _vertices(exact), atol=1e-9)
+    pp = floorplan.PlanParams()
+    (kx, fx, ky, fy), (kl, fl) = pp.image_gravity_models
+    (gx, _, gy, _), (gl, _) = pp.pose_sigma_model, pp.length_sigma_model
+    assert (fx, fy, fl) == (0.0, 0.0, 0.0) and kx > gx and ky > gy and kl > gl
+    assert [q.sigma_x_m for q in phone.poses] == pytest.approx(
+        [q.sigma_x_m * kx / gx for q in exact.poses], rel=1e-6)
+    assert [q.sigma_yaw_rad for q in phone.poses] == pytest.approx(
+        [q.sigma_yaw_rad * ky / gy for q in exact.poses], rel=1e-6)
+    assert [w.sigma_m for w in phone.walls] == pytest.approx(
+        [w.sigma_m * kl / gl for w in exact.walls], rel=1e-6)
 
 
 def test_the_plan_grows_photo_by_photo(mapped):
