@@ -14,11 +14,11 @@ from findme_io.camera_source import hypothesize_photo
 
 
 def final_gravity(img, cam, prov, height: float, metric: bool) -> tuple:
-    """(camera, height, metric, estimate, inexact) of one photo with the gravity its
+    """(camera, height, metric, estimate, gravity kind) of one photo with the gravity its
     hypotheses end with (``camera_source.hypothesize_photo``: an estimate from the photo's
     lines is refined with its best boundary); ``estimate`` is the ``GravityEstimate`` when
     gravity came from the photo alone (sources image or level), else None (given, or refined
-    from a given one); ``inexact``: ``Provenance.gravity_inexact`` of the gravity it ends with.
+    from a given one); its gravity's ``Provenance.gravity_kind`` (exact, sensor, image).
     """
     est = None
     if prov.estimate is not None:
@@ -26,16 +26,16 @@ def final_gravity(img, cam, prov, height: float, metric: bool) -> tuple:
                                          camera_height=height if metric else None)
         if prov.gravity in ("image", "level"):
             est = prov.estimate
-    return cam, height, metric, est, prov.gravity_inexact
+    return cam, height, metric, est, prov.gravity_kind
 
 
 def session_photos(images, inputs) -> tuple[list, dict]:
-    """``session.Photo`` of each photo from its ``final_gravity`` inputs (``gravity_inexact``
-    as it says); {index: why} of the photos left out because their gravity could not be told
-    (``shared_gravity``)."""
+    """``session.Photo`` of each photo from its ``final_gravity`` inputs (its ``gravity``
+    kind as they say, unless the photos' lines made it); {index: why} of the photos left out
+    because their gravity could not be told (``shared_gravity``)."""
     photos, sg = shared_gravity.analyse_plain(images, [i[0] for i in inputs],
                                               [i[1] for i in inputs], [i[3] for i in inputs])
-    photos = [replace(p, gravity_inexact=True) if i[4] and not p.gravity_inexact else p
+    photos = [replace(p, gravity=i[4]) if p.gravity == "exact" else p
               for p, i in zip(photos, inputs)]
     return photos, ({} if sg is None else {i: p.reason for i, p in enumerate(photos)
                                              if p.layout is None and p.reason

@@ -73,13 +73,18 @@ class Provenance:
         return float(math.sqrt(max(np.trace(self.gravity_cov), 0.0) / 2.0))
 
     @property
-    def gravity_inexact(self) -> bool:
-        """Whether gravity carries an error a result built on it must show: it came from or
-        was refined with the photo's lines (any source but "input"), or was given with a
-        1-sigma above a phone held still's (``INPUT_GRAVITY_SIGMA_DEG``). A given gravity
-        taken as it is at that 1-sigma or less counts as exact (a dataset's, a tripod's)."""
-        return (self.gravity != "input"
-                or self.gravity_sigma > math.radians(INPUT_GRAVITY_SIGMA_DEG) + 1e-12)
+    def gravity_kind(self) -> str:
+        """What gravity's error is like, for results built on it (a plan's sigmas):
+        "exact": given and taken as it is, at a 1-sigma no worse than a phone held still's
+        (``INPUT_GRAVITY_SIGMA_DEG``: a dataset's, a tripod's); "sensor": given by a sensor
+        with a larger 1-sigma, or refined with the photo's lines (source "input+image");
+        "image": from the photo's lines alone, or level assumed."""
+        if self.gravity in ("image", "level"):
+            return "image"
+        if (self.gravity == "input"
+                and self.gravity_sigma <= math.radians(INPUT_GRAVITY_SIGMA_DEG) + 1e-12):
+            return "exact"
+        return "sensor"
 
     @property
     def unsensed_sigma(self) -> float | None:

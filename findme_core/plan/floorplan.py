@@ -52,13 +52,13 @@ class PlanParams:
             leave-one-room-out figures in docs/RESULTS.md).
         length_sigma_model: (k, floor_m): the same for a seen wall's length. A wall nobody
             saw closes the outline: its length is inferred, not measured (1-sigma NaN).
-        image_gravity_models: (pose model, length model) for a session where some photo's
-            gravity is inexact (``session.Photo.gravity_inexact``: from or refined with the
-            photos' own lines, as the services refine a phone's, or given loosely): the
-            refinement holds each photo's gravity fixed, so its covariance misses what
-            gravity's error does. Fitted with gravity withheld. On the gravity the phone
-            page sends (1.5 deg, refined) the given-gravity models held 0.43 / 0.84 of the
-            plan yaws within 1 / 3 sigma, these 0.69 / 0.96 (dev rooms, 2026-11-30).
+        image_gravity_models: (pose model, length model) fitted with gravity withheld (the
+            refinement holds gravity fixed: its covariance misses gravity's error). The pose
+            model serves a session with a photo whose ``session.Photo.gravity`` is not
+            "exact" (a phone's refined by its lines, "sensor", or "image"); the length model
+            one with an "image" photo. On the phone page's gravity (dev rooms, 2026-11-30)
+            the exact pose models held 0.43 / 0.84 of the yaws within 1 / 3 sigma, these
+            0.69 / 0.96; this length model is 4x too wide there (0.88 within 1 sigma).
     """
 
     polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)

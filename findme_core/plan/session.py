@@ -55,10 +55,9 @@ class SessionParams:
 @dataclass
 class Photo:
     """One photo's per-photo results: its layout (None without a usable hypothesis, with
-    the reason), scene and features; whether its gravity carries an error the plan's sigmas
-    must show (``gravity_inexact``, ``Provenance.gravity_inexact``: it came from or was
-    refined with the photo's lines, or was given looser than a phone held still; then
-    ``PlanParams.image_gravity_models``)."""
+    the reason), scene and features; what its gravity's error is like
+    (``Provenance.gravity_kind``: "exact", "sensor" or "image"), which the plan's sigmas
+    must show (``PlanParams.image_gravity_models``)."""
 
     camera: Camera
     height: float
@@ -66,7 +65,7 @@ class Photo:
     scene: Scene | None
     features: features.Features
     reason: str | None = None
-    gravity_inexact: bool = False
+    gravity: str = "exact"
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
@@ -306,9 +305,12 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     amb = [float(pl.ambiguity[pl.block[i]] / pl.scores[pl.block[i]])
            if pl.scores[pl.block[i]] > 0 else float("nan") for i in range(len(photos))]
     plan_params = params.plan
-    if any(p.gravity_inexact for p, pose in zip(photos, pl.poses) if np.isfinite(pose[0])):
-        pm, lm = plan_params.image_gravity_models
-        plan_params = replace(plan_params, pose_sigma_model=pm, length_sigma_model=lm)
+    kinds = {p.gravity for p, pose in zip(photos, pl.poses) if np.isfinite(pose[0])}
+    pm, lm = plan_params.image_gravity_models
+    if kinds - {"exact"}:
+        plan_params = replace(plan_params, pose_sigma_model=pm)
+    if "image" in kinds:
+        plan_params = replace(plan_params, length_sigma_model=lm)
     result = floorplan.build(layouts, pl.poses, plan_params, notes, amb, spot=pl.spot,
                              links=links, matches=matches,
                              focal=np.array([p.camera.fx for p in photos]))

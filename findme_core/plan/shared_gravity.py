@@ -253,8 +253,8 @@ def analyse_plain(images, cameras, heights, estimates, params=None,
         if v is None:
             photos.append(session.analyse(im, c, h, params, f))
         elif isinstance(v, str):
-            photos.append(session.Photo(c, float(h), None, None, f, v, gravity_inexact=True))
+            photos.append(session.Photo(c, float(h), None, None, f, v, gravity="image"))
         else:
             photo = session.analyse(im, c.with_gravity(v), h, params, f)
-            photos.append(replace(photo, gravity_inexact=True))
+            photos.append(replace(photo, gravity="image"))
     return photos, sg

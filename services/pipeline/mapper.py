@@ -208,7 +208,7 @@ class MapperHandler(Handler):
             except FindmeError as e:
                 why = str(e).splitlines()[0][:200]
         ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why,
-                                      gravity_inexact=mapper_gravity.inexact(ph.hset))
+                                      gravity=mapper_gravity.gravity_kind(ph.hset))
         ph.key = (rank, height)
         for pk in [pk for pk in st.pairs if pk[0] == "motion" and n in pk[1:]]:
             del st.pairs[pk]   # motions lift with the scene; matches and turns stay

@@ -56,12 +56,12 @@ def estimate_of(ph):
     return msg_gravity_estimate(hs.camera) if hs is not None and hs.HasField("camera") else None
 
 
-def inexact(hset) -> bool:
-    """Whether the gravity a hypothesis set's camera was built with carries an error
-    (``Provenance.gravity_inexact``: the frame's refined by the image, or the image's own);
-    False when the set says nothing of it."""
+def gravity_kind(hset) -> str:
+    """``Provenance.gravity_kind`` of the gravity a hypothesis set's camera was built with
+    (the frame's refined by the image: "sensor"; the image's own: "image"); "exact" when the
+    set says nothing of it."""
     prov = msg_provenance(hset.camera) if hset is not None and hset.HasField("camera") else None
-    return prov is not None and prov.gravity_inexact
+    return "exact" if prov is None else prov.gravity_kind
 
 
 def agreed(st, order: list, params: plan_session.SessionParams,
@@ -105,10 +105,10 @@ def agreed(st, order: list, params: plan_session.SessionParams,
                 del st.pairs[k]
             ph.plain.gravity_used = used
         if v is None:
-            out.append(p if e is None else replace(p, gravity_inexact=True))
+            out.append(p if e is None else replace(p, gravity="image"))
         elif isinstance(v, str):
             out.append(plan_session.Photo(p.camera, p.height, None, None, p.features, v,
-                                          gravity_inexact=True))
+                                          gravity="image"))
         else:
             out.append(_relifted(ph, p, v, params))
     return out
@@ -131,7 +131,7 @@ def _relifted(ph, p: plan_session.Photo, g, params: plan_session.SessionParams
             hyp, why = _best_again(ph, cam, p.height, params)
     else:
         hyp, why = None, p.reason
-    out = plan_session.Photo(cam, p.height, None, None, p.features, why, gravity_inexact=True)
+    out = plan_session.Photo(cam, p.height, None, None, p.features, why, gravity="image")
     if hyp is not None:
         try:
             out = replace(out, layout=layout.from_hypothesis(cam, p.height, hyp.polyline,

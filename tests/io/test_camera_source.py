@@ -48,25 +48,23 @@ def test_level_when_the_image_is_not_used(tilted_view):
 
 
 def test_which_gravity_a_plan_states_its_sigmas_for(tilted_view):
-    """``Provenance.gravity_inexact``, as ``session_photos.final_gravity`` hands it to the
-    plan: a given gravity taken as it is at no more than a phone held still's 1-sigma is
-    exact; one refined by the photo's lines, given loosely, or found in the photo is not
-    (the plan then states its sigmas with ``PlanParams.image_gravity_models``)."""
+    """``Provenance.gravity_kind``, as ``session_photos.final_gravity`` hands it to the plan
+    (``PlanParams.image_gravity_models``): a given gravity taken as it is at no more than a
+    phone held still's 1-sigma is exact; a sensor's refined by the photo's lines or given
+    loosely is a sensor's; one found in the photo is the image's."""
     from findme_io.session_photos import final_gravity
     v = tilted_view
-    cases = {"exact (sigma 0)": (v.camera.gravity, 0.0),
-             "a phone held still, as it is": (v.camera.gravity, math.radians(0.5)),
-             "a phone in the hand, refined": (v.camera.gravity, math.radians(1.5)),
-             "from the image": (None, None)}
+    cases = {"exact (sigma 0)": (v.camera.gravity, 0.0, v.image),
+             "a phone held still, as it is": (v.camera.gravity, math.radians(0.5), None),
+             "a phone in the hand, refined": (v.camera.gravity, math.radians(1.5), v.image),
+             "a phone in the hand, as it is": (v.camera.gravity, math.radians(1.5), None),
+             "from the image": (None, None, v.image)}
     got = {}
-    for name, (g, s) in cases.items():
-        cam, prov = with_gravity(level_camera(v), v.image if s != math.radians(0.5) else None,
-                                 g, s)
+    for name, (g, s, img) in cases.items():
+        cam, prov = with_gravity(level_camera(v), img, g, s)
         got[name] = (prov.gravity, final_gravity(v.image, cam, prov, 1.4, True)[4])
-    assert got == {"exact (sigma 0)": ("input", False),
-                   "a phone held still, as it is": ("input", False),
-                   "a phone in the hand, refined": ("input+image", True),
-                   "from the image": ("image", True)}
-    # given loosely and not refined (no image to refine it with): still inexact
-    _, loose = with_gravity(level_camera(v), None, v.camera.gravity, math.radians(1.5))
-    assert loose.gravity == "input" and loose.gravity_inexact
+    assert got == {"exact (sigma 0)": ("input", "exact"),
+                   "a phone held still, as it is": ("input", "exact"),
+                   "a phone in the hand, refined": ("input+image", "sensor"),
+                   "a phone in the hand, as it is": ("input", "sensor"),
+                   "from the image": ("image", "image")}

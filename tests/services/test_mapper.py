@@ -99,12 +99,14 @@ def test_the_layouts_lift_with_the_camera_the_hypotheses_were_built_with(room):
     assert np.linalg.norm(V[:, None] - T[None], axis=2).min(1).max() < 0.04
 
 
-def test_a_phone_gravity_refined_by_the_photos_widens_the_plans_sigmas(room, mapped):
+def test_a_phone_gravity_refined_by_the_photos_widens_the_plans_pose_sigmas(room, mapped):
     """The phone page's gravity (1-sigma 1.5 deg), refined by each photo's lines in the
-    hypotheses service: its hypothesis sets say so (source input+image). The same room, the
-    same outline and poses, but its sigmas carry gravity's error: the models fitted with
-    gravity from the photos (``PlanParams.image_gravity_models``), not an exact gravity's
-    (``mapped``'s frames give theirs and their hypothesis sets say nothing of it)."""
+    hypotheses service: its hypothesis sets say so (source input+image, a "sensor" gravity).
+    The same room, the same outline and poses, but the poses' sigmas carry gravity's error:
+    the pose model fitted with gravity from the photos (``PlanParams.image_gravity_models``),
+    not an exact gravity's (``mapped``'s frames give theirs and their hypothesis sets say
+    nothing of it); the walls keep the exact gravity's length model (a sensor's gravity does
+    not fail whole rooms as the image's alone can)."""
     m = MapperHandler()
     plans = []
     for key, msg in room.messages():
@@ -117,15 +119,15 @@ def test_a_phone_gravity_refined_by_the_photos_widens_the_plans_sigmas(room, map
     exact, phone = mapped[1][-1], plans[-1]
     np.testing.assert_allclose(_vertices(phone), _vertices(exact), atol=1e-9)
     pp = floorplan.PlanParams()
-    (kx, fx, ky, fy), (kl, fl) = pp.image_gravity_models
-    (gx, _, gy, _), (gl, _) = pp.pose_sigma_model, pp.length_sigma_model
-    assert (fx, fy, fl) == (0.0, 0.0, 0.0) and kx > gx and ky > gy and kl > gl
+    (kx, fx, ky, fy), _ = pp.image_gravity_models
+    gx, _, gy, _ = pp.pose_sigma_model
+    assert (fx, fy) == (0.0, 0.0) and kx > gx and ky > gy
     assert [q.sigma_x_m for q in phone.poses] == pytest.approx(
         [q.sigma_x_m * kx / gx for q in exact.poses], rel=1e-6)
     assert [q.sigma_yaw_rad for q in phone.poses] == pytest.approx(
         [q.sigma_yaw_rad * ky / gy for q in exact.poses], rel=1e-6)
-    assert [w.sigma_m for w in phone.walls] == pytest.approx(
-        [w.sigma_m * kl / gl for w in exact.walls], rel=1e-6)
+    assert [w.sigma_m for w in phone.walls] == pytest.approx([w.sigma_m for w in exact.walls],
+                                                             rel=1e-9)
 
 
 def test_the_plan_grows_photo_by_photo(mapped):
