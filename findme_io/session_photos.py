@@ -6,8 +6,6 @@ the photos whose gravity came from their own lines agree on it spot by spot
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from findme_core.plan import shared_gravity
 
 from findme_io.camera_source import hypothesize_photo
@@ -30,13 +28,12 @@ def final_gravity(img, cam, prov, height: float, metric: bool) -> tuple:
 
 
 def session_photos(images, inputs) -> tuple[list, dict]:
-    """``session.Photo`` of each photo from its ``final_gravity`` inputs (its ``gravity``
-    kind as they say, unless the photos' lines made it); {index: why} of the photos left out
-    because their gravity could not be told (``shared_gravity``)."""
-    photos, sg = shared_gravity.analyse_plain(images, [i[0] for i in inputs],
-                                              [i[1] for i in inputs], [i[3] for i in inputs])
-    photos = [replace(p, gravity=i[4]) if p.gravity == "exact" else p
-              for p, i in zip(photos, inputs)]
+    """``session.Photo`` of each photo from its ``final_gravity`` inputs (its gravity's kind
+    with it); {index: why} of the photos left out because their gravity could not be told
+    (``shared_gravity``)."""
+    photos, sg = shared_gravity.analyse_plain(
+        images, [i[0] for i in inputs], [i[1] for i in inputs], [i[3] for i in inputs],
+        kinds=[i[4] for i in inputs])
     return photos, ({} if sg is None else {i: p.reason for i, p in enumerate(photos)
                                              if p.layout is None and p.reason
                                              and p.reason.startswith("gravity unknown")})

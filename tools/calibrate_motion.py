@@ -39,7 +39,7 @@ from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
 from findme_core.motion.methods import METHODS  # noqa: E402
 from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
-from sigma_coverage import group_of  # noqa: E402
+from sigma_coverage import group_of, leave_group_out  # noqa: E402
 
 SUBSETS = ("tum-cabinet-pairs", "zind-pairs-tilted", "zind-pairs-level", "kitti06-pairs")
 MEDIAN_ABS_Z = 0.6745   # median |z| of a standard normal
@@ -143,13 +143,9 @@ def fit_terms(d: dict) -> tuple[float, float, float, float]:
 def left_out(d: dict) -> tuple[dict, list[np.ndarray]]:
     """Leave one group out on the pairs ``d``: ({group: terms fitted without it}, the
     normalised errors along, across and in yaw of every pair under its own group's terms)."""
-    folds, zs = {}, [[], [], []]
-    for g in np.unique(d["group"]):
-        held = d["group"] == g
-        folds[str(g)] = terms = fit_terms(_subset(d, ~held))
-        for acc, z in zip(zs, normalised(_subset(d, held), *terms)):
-            acc.append(z)
-    return folds, [np.concatenate(z) for z in zs]
+    folds, z = leave_group_out(d["group"], lambda m: fit_terms(_subset(d, m)),
+                               lambda terms, held: normalised(_subset(d, held), *terms))
+    return folds, list(z)
 
 
 def _cover(zs) -> str:

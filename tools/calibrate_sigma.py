@@ -45,8 +45,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from findme.evaluation.views import SIGMA_PARTS  # noqa: E402
-from sigma_coverage import (_pitch_roll, _wrap_deg, fit_factor, gravity_measured,  # noqa: E402
-                            group_of)
+from sigma_coverage import (fit_factor, gravity_measured, group_of,  # noqa: E402
+                            leave_group_out, pitch_roll, wrap_deg)
 from findme_core.geometry.uncertainty import BOUNDARY_SIGMA_WORK_PX  # noqa: E402
 from findme_core.single.vanishing import GravityParams  # noqa: E402
 
@@ -85,30 +85,26 @@ def _gravity_errors(views, preds, params: GravityParams):
         q = preds["views"].get(v) or {}
         if q.get("gravity_source") != "image" or not gravity_measured(meta):
             continue
-        (pp, rp), (pt, rt) = _pitch_roll(q["gravity_cam"]), _pitch_roll(meta["gravity_cam"])
+        (pp, rp), (pt, rt) = pitch_roll(q["gravity_cam"]), pitch_roll(meta["gravity_cam"])
         groups.append(group_of(v))
-        errs.append((abs(pp - pt), abs(_wrap_deg(rp - rt))))
+        errs.append((abs(pp - pt), abs(wrap_deg(rp - rt))))
         s = q["gravity_sigma_deg"]
         raw.append(math.sqrt(max(s * s - floor * floor, 0.0)) / params.sigma_scale)
     return np.asarray(groups), np.asarray(errs, float).reshape(-1, 2), np.asarray(raw)
 
 
 def _cov(z) -> str:
-    return " / ".join(f"{np.mean(z <= k):.3f}" for k in (1, 2, 3))
+    return " / ".join(f"{np.mean(np.ravel(z) <= k):.3f}" for k in (1, 2, 3))
 
 
 def loro_fit(groups: np.ndarray, z_of, grid) -> tuple[float, dict, np.ndarray]:
     """(k fitted on every item, {group: k fitted without it}, the normalised errors of every
     item under its own group's left-out k). ``z_of(k, mask)``: the normalised errors of the
-    masked items."""
-    everything = np.ones(len(groups), bool)
-    k_all = fit_factor(lambda k: z_of(k, everything), grid)[1]
-    folds, z = {}, []
-    for g in np.unique(groups):
-        held = groups == g
-        folds[str(g)] = k = fit_factor(lambda k: z_of(k, ~held), grid)[1]
-        z.append(z_of(k, held))
-    return k_all, folds, np.concatenate(z)
+    masked items, (..., n masked)."""
+    def fit(mask):
+        return fit_factor(lambda k: z_of(k, mask), grid)[1]
+    folds, z = leave_group_out(groups, fit, z_of)
+    return fit(np.ones(len(groups), bool)), folds, z
 
 
 def _report(name: str, unit: str, shipped: float, k_all: float, folds: dict, z_shipped,
@@ -148,8 +144,7 @@ def main(argv=None):
     groups, gerr, raw = _gravity_errors(views, without_g, p)
 
     def z_gravity(scale, mask):
-        s = np.hypot(scale * raw[mask], p.sigma_floor_deg)
-        return (gerr[mask] / s[:, None]).ravel()
+        return gerr[mask].T / np.hypot(scale * raw[mask], p.sigma_floor_deg)   # (2, n)
     scale_grid = np.exp(np.linspace(np.log(0.5), np.log(5.0), 201))
     k_all, folds, z_out = loro_fit(groups, z_gravity, scale_grid)
     every = np.ones(len(raw), bool)

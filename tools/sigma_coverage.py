@@ -70,11 +70,11 @@ def gravity_measured(meta: dict) -> bool:
     return not str(meta.get("gravity_note", "")).startswith("APPROXIMATION")
 
 
-def _wrap_deg(d):
+def wrap_deg(d):
     return (d + 180.0) % 360.0 - 180.0
 
 
-def _pitch_roll(g):
+def pitch_roll(g):
     g = np.asarray(g, float) / np.linalg.norm(g)
     return math.degrees(math.asin(float(np.clip(g[2], -1, 1)))), math.degrees(math.atan2(g[0], g[1]))
 
@@ -117,10 +117,10 @@ def collect(dataset: str, preds: dict) -> dict:
         s = p.get("gravity_sigma_deg")
         if (src in ("image", "level", "input+image") and s and meta.get("gravity_cam")
                 and gravity_measured(meta)):
-            pp, rp = _pitch_roll(p["gravity_cam"])
-            pt, rt = _pitch_roll(meta["gravity_cam"])
+            pp, rp = pitch_roll(p["gravity_cam"])
+            pt, rt = pitch_roll(meta["gravity_cam"])
             out[f"gravity pitch ({src})"].append((g, abs(pp - pt), s))
-            out[f"gravity roll ({src})"].append((g, abs(_wrap_deg(rp - rt)), s))
+            out[f"gravity roll ({src})"].append((g, abs(wrap_deg(rp - rt)), s))
     pdir = os.path.join(dataset, idx.get("pairs_dir", "pairs"))
     for pid, p in sorted(preds.get("pairs", {}).items()):
         path = os.path.join(pdir, pid + ".json")
@@ -131,7 +131,7 @@ def collect(dataset: str, preds: dict) -> dict:
         g = group_of(pid)
         for ax, e, s in (("x", p["x_m"] - t["x_m"], p.get("sigma_x_m")),
                          ("z", p["z_m"] - t["z_m"], p.get("sigma_z_m")),
-                         ("yaw", _wrap_deg(p["yaw_deg"] - t["yaw_deg"]), p.get("sigma_yaw_deg"))):
+                         ("yaw", wrap_deg(p["yaw_deg"] - t["yaw_deg"]), p.get("sigma_yaw_deg"))):
             if s and math.isfinite(s) and s > 0:
                 out[f"motion {ax} ({sub})"].append((g, abs(e), s))
     rdir = os.path.join(dataset, idx.get("rooms_dir", "rooms"))
@@ -154,7 +154,7 @@ def collect(dataset: str, preds: dict) -> dict:
                 out["plan pose x, z"].append((g, abs(pose["x_m"] - t["x_m"]), sxz))
                 out["plan pose x, z"].append((g, abs(pose["z_m"] - t["z_m"]), sxz))
             if sy:
-                out["plan pose yaw"].append((g, abs(_wrap_deg(pose["yaw_deg"] - t["yaw_deg"])), sy))
+                out["plan pose yaw"].append((g, abs(wrap_deg(pose["yaw_deg"] - t["yaw_deg"])), sy))
     return out
 
 
@@ -269,18 +269,30 @@ def fit_model(err: np.ndarray, sig: np.ndarray) -> tuple[float, float]:
     return arg
 
 
+def leave_group_out(groups: np.ndarray, fit, score) -> tuple[dict, np.ndarray]:
+    """Leave one group out: for each group (sorted), ``params = fit(others)`` on the mask of
+    the other groups' items, then ``score(params, held)``, an array (..., n held) over its
+    own items. Returns ({group: params}, the scores of every item, (..., N) in item order)."""
+    folds, out = {}, None
+    for g in np.unique(groups):
+        held = groups == g
+        folds[str(g)] = params = fit(~held)
+        s = np.asarray(score(params, held), float)
+        if out is None:
+            out = np.empty(s.shape[:-1] + (len(groups),))
+        out[..., held] = s
+    return folds, out
+
+
 def loro_model(items: list) -> tuple[np.ndarray, dict]:
     """z of every item under the (k, f) model fitted on the other groups; and the (k, f)
     of each group's fold."""
     groups = np.array([i[0] for i in items])
     err = np.array([i[1] for i in items], float)
     sig = np.array([i[2] for i in items], float)
-    out, folds = np.empty_like(err), {}
-    for g in np.unique(groups):
-        held = groups == g
-        k, f = fit_model(err[~held], sig[~held]) if (~held).sum() >= 5 else (1.0, 0.0)
-        folds[str(g)] = (k, f)
-        out[held] = err[held] / np.hypot(k * sig[held], f)
+    folds, out = leave_group_out(
+        groups, lambda m: fit_model(err[m], sig[m]) if m.sum() >= 5 else (1.0, 0.0),
+        lambda kf, held: err[held] / np.hypot(kf[0] * sig[held], kf[1]))
     return out, folds
 
 

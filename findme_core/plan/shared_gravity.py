@@ -232,9 +232,10 @@ def verdicts(estimates, sg: SharedGravity) -> list:
 
 
 def analyse_plain(images, cameras, heights, estimates, params=None,
-                  shared: SharedGravityParams = SharedGravityParams()):
+                  shared: SharedGravityParams = SharedGravityParams(), kinds=None):
     """A session's photos (``session.analyse``) where some photos' gravity came from their
-    own lines (``estimates[i]`` not None; None: given, kept as it is): those agree on it
+    own lines (``estimates[i]`` not None, ``session.Photo.gravity`` "image"; None: given,
+    kept as it is, of the kind ``kinds[i]`` says, "exact" by default): those agree on it
     spot by spot first (``agree``), then get their hypotheses under it. Photos whose spot
     cannot decide, and lone photos whose own gravity is ambiguous (it has alternatives),
     are left out (no layout) with the reason: a plan without them beats a wrong room.
@@ -243,15 +244,16 @@ def analyse_plain(images, cameras, heights, estimates, params=None,
         (photos, ``SharedGravity`` or None when no photo's gravity came from its lines).
     """
     params = params or session.SessionParams()
+    kinds = kinds or ["exact"] * len(images)
     feats = [features.detect(im, params.features) for im in images]
     if all(e is None for e in estimates):
-        return [session.analyse(im, c, h, params, f)
-                for im, c, h, f in zip(images, cameras, heights, feats)], None
+        return [replace(session.analyse(im, c, h, params, f), gravity=k)
+                for im, c, h, f, k in zip(images, cameras, heights, feats, kinds)], None
     sg = agree(cameras, estimates, feats, shared)
     photos = []
-    for im, c, h, f, v in zip(images, cameras, heights, feats, verdicts(estimates, sg)):
+    for im, c, h, f, v, k in zip(images, cameras, heights, feats, verdicts(estimates, sg), kinds):
         if v is None:
-            photos.append(session.analyse(im, c, h, params, f))
+            photos.append(replace(session.analyse(im, c, h, params, f), gravity=k))
         elif isinstance(v, str):
             photos.append(session.Photo(c, float(h), None, None, f, v, gravity="image"))
         else:

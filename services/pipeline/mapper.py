@@ -30,7 +30,7 @@ Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan,
 cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline
 yet gets a Plan with the reason. Camera height: the selection's, else the frame's, else 1
 (``metric`` false: lengths in camera heights). Instances share the load by session. Plain
-photos agree on gravity spot by spot; an inexact gravity widens the sigmas (``mapper_gravity``).
+photos agree on gravity spot by spot; gravity not exact widens pose sigmas (``mapper_gravity``).
 """
 
 from __future__ import annotations
