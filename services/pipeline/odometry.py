@@ -15,7 +15,8 @@ every frame ends as hypotheses or an Error naming it). Then it chains past it, a
 is reported as an Error on ``findme/<session>/error`` naming that photo. A photo that will
 never be selected (an Error about its frame or hypotheses, or no hypotheses) is not waited
 for. A motion that cannot be estimated is published with its error (no numbers) and the
-photo gets no pose; later photos chain from the last one that did.
+photo gets no pose; later photos chain from the last one that did, and are tried again from
+a photo that gets its pose late (``OdometrySession.reopen_after``, at the next tick).
 
 The service takes in no frames: a photo's frame is fetched once from the bus when its
 hypotheses come (the store keeps it a minute, a user may select later), held until the photo
@@ -40,15 +41,13 @@ import schemas
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
-from findme_core.single.segments import WORK_SIZE
-from findme_io.convert import (msg_camera, msg_gravity_estimate, msg_hypotheses, msg_lines,
-                               msg_provenance, set_motion_estimate, set_motion_gravity)
-from findme_io.frame_photo import frame_camera, scaled_camera, scaled_polyline
-from findme_io.imageio import decode_photo
+from findme_io.convert import (msg_gravity_estimate, msg_provenance, set_motion_estimate,
+                               set_motion_gravity)
 
 from ..runtime import bus
 from ..runtime.handler import Handler, Input, Output
 from ..runtime.sessions import SessionTable
+from .odometry_inputs import photo_inputs
 from .odometry_session import OdometrySession
 
 NEVER_SELECTED = {"frame", "hypotheses"}   # an Error about these: the photo gets no selection
@@ -253,7 +252,7 @@ class OdometryHandler(Handler):
                 # a turn of plain photos carries the first sure gravity along
                 st.photos[b].prepared = (st.photos[b].prepared[0], res.photos[1])
         except FindmeError as e:
-            st.close(b, "failed")
+            st.fail(b, a)
             m.error = str(e).splitlines()[0][:500] or type(e).__name__
             return [Output(bus.key(session, "motion", a, b), m)]
         mo = res.motion
@@ -264,6 +263,8 @@ class OdometryHandler(Handler):
         st.poses[b] = compose(st.poses[a], mo.x, mo.z, mo.yaw, mo.dy, cov)
         st.times[b] = self._time(session, st, b)
         self.motions += 1
+        if st.reopen_after(b):        # photos that failed from an anchor below b: b is nearer
+            self._waiting.add(session)
         return [Output(bus.key(session, "motion", a, b), m), self._pose_out(session, st, b)]
 
     def _frame(self, session, st, n):
@@ -304,35 +305,14 @@ class OdometryHandler(Handler):
         return p.prepared[1]
 
     def _inputs(self, session, st, n):
-        """(image, camera, hypotheses, selected rank, camera height, lines or None) of photo
-        n, at the working size: a large photo is decoded once at a JPEG reduction
-        (``imageio.reduction``; a 12 MP photo at a quarter) and its camera, hypotheses and
-        lines are scaled to match (pixel centres kept); the motion is in metres either way."""
+        """``odometry_inputs.photo_inputs`` of photo n, its messages fetched where needed."""
         f = self._frame(session, st, n)
         p = st.photos[n]
         if p.hset is None:
             p.hset = self.need(bus.key(session, "hypotheses", n), schemas.HypothesisSet)
         if p.selection is None:
             p.selection = self.need(bus.key(session, "selection", n), schemas.Selection)
-        photo = decode_photo(f.image.data, f"frame {n}", reduce_to=WORK_SIZE)
-        image, s = photo.image, photo.scale
-        hset = p.hset   # the camera the hypotheses were built with (estimated gravity)
-        cam = (msg_camera(hset.camera) if hset.HasField("camera")
-               else frame_camera(f, photo.width, photo.height))
-        sel = p.selection
-        h = (sel.camera_height_m if sel.HasField("camera_height_m") else
-             f.camera_height_m if f.HasField("camera_height_m") else 1.0)
-        hyps = msg_hypotheses(p.hset)
-        if not 1 <= sel.rank <= len(hyps):
-            raise HypothesisError(f"selection of hypothesis {sel.rank} of photo {n}, which has "
-                                  f"{len(hyps)} hypotheses")
-        lines = msg_lines(p.hset)
-        if s != 1.0:
-            cam = scaled_camera(cam, s, image.shape[1], image.shape[0])
-            hyps = [replace(hy, polyline=scaled_polyline(hy.polyline, s, image.shape[1]))
-                    for hy in hyps]
-            lines = None if lines is None else (lines + 0.5) * s - 0.5
-        return image, cam, hyps, sel.rank, h, lines
+        return photo_inputs(f, p.hset, p.selection, n)
 
     def _pose_msg(self, session, st, n):
         p = st.poses[n]

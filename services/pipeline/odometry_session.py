@@ -7,6 +7,8 @@ prepared photos (features, layouts) only for photos still open and for the ``anc
 recent posed photos (the ones the next photo chains from). A frame is held only from when it
 is fetched (its hypotheses came) until its photo is prepared: frames of at most
 ``keep_frames`` open photos, the newest; an older one is asked for again when selected.
+A photo whose motion failed keeps its selection and hypotheses (the newest ``keep_frames``
+such photos) in case a nearer anchor comes late (``fail``, ``reopen_after``).
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ class OdometrySession:
         self.poses: dict[int, PlanarPose] = {}
         self.times: dict[int, int] = {}
         self.closed: dict[int, str] = {}     # n -> "failed" | "dead" (never selected)
+        self.failed: dict[int, tuple[int, Photo]] = {}   # n -> (anchor it failed from, its messages)
         self.origin: int | None = None
         self.stale = False    # another instance may have posed photos since: ask the bus
 
@@ -63,6 +66,31 @@ class OdometrySession:
         while len(self.closed) > CLOSED_MEMORY:
             del self.closed[next(iter(self.closed))]
         self.photos.pop(n, None)
+
+    def fail(self, n: int, anchor: int) -> None:
+        """Photo n's motion from ``anchor`` failed: closed, its selection and hypotheses
+        kept (not its frame or features) for ``reopen_after``."""
+        p = self.photos.get(n)
+        self.close(n, "failed")
+        if p is not None and p.selection is not None and p.hset is not None:
+            self.failed[n] = (anchor, Photo(p.seen, time_ns=p.time_ns, hset=p.hset,
+                                            selection=p.selection, selected_at=p.selected_at))
+            while len(self.failed) > self.keep_frames:
+                del self.failed[min(self.failed)]
+
+    def reopen_after(self, m: int) -> list[int]:
+        """Photo m has just got a pose: the failed photos above it that failed from an anchor
+        below it, with no pose between, are open again (m is now their nearest anchor: a
+        photo chained past m while m was late, e.g. its host was cut off, gets its pose
+        from m once m has one). Returns them, lowest first."""
+        out = []
+        for n, (a, p) in sorted(self.failed.items()):
+            if a < m < n and not any(m < k < n for k in self.poses):
+                del self.failed[n]
+                self.closed.pop(n, None)
+                self.photos[n] = p
+                out.append(n)
+        return out
 
     def pending(self) -> list[int]:
         """Open photos with a selection, lowest first."""
@@ -108,5 +136,6 @@ class OdometrySession:
                 self.poses[n] = p
                 self.times[n] = times.get(n, 0)
                 self.closed.pop(n, None)
+                self.failed.pop(n, None)
         if self.poses and self.origin is None:
             self.origin = min(self.poses)

@@ -83,12 +83,15 @@ class Keys:
     """Every message of a session seen on the bus, by key (latest wins)."""
 
     def __init__(self, session, sid):
-        self.got, self.cv = {}, threading.Condition()
+        self.got, self.errors, self.cv = {}, [], threading.Condition()
         self.sub = session.declare_subscriber(f"findme/{sid}/**", self._cb)
 
     def _cb(self, s):
+        key, data = str(s.key_expr), s.payload.to_bytes()
         with self.cv:
-            self.got[str(s.key_expr)] = s.payload.to_bytes()
+            self.got[key] = data
+            if key.endswith("/error"):
+                self.errors.append(schemas.decode(schemas.Error, data))
             self.cv.notify_all()
 
     def wait(self, pred, timeout):
@@ -324,7 +327,7 @@ def test_worker_link_cut_mid_session_loses_no_photo(lan, deployment, browser):
     have = sorted(k.split("/", 2)[2] for k in keys.got)
     keys.sub.undeclare()
     assert done, ("a photo was lost when the worker's link went down and came back "
-                  f"(recovery): the session has {have}")
+                  f"(recovery): the session has {have}; errors: {keys.errors}")
     page.wait_for_selector('#floor-map[data-poses="3"]')
     assert not page.js_errors, page.js_errors
     page.context.close()

@@ -111,18 +111,23 @@ def test_the_first_photo_is_the_origin_whatever_the_order(photos):
     assert [p.index for p in out["findme/od/trajectory"].poses] == [0, 1, 2]
 
 
-def test_a_failed_motion_carries_its_error_and_the_chain_goes_on(photos):
-    _, msgs = photos
+def unmatchable(msgs):
+    """The photos with photo 1 blank and all floor: no feature and no wall in common with
+    any other photo, so its motions fail."""
     blank = schemas.Frame()
     blank.CopyFrom(msgs[1][0])
     import cv2
     blank.image.data = cv2.imencode(".jpg", np.full((480, 640, 3), 128, np.uint8))[1].tobytes()
-    floor_only = schemas.HypothesisSet()     # no feature and no wall: nothing in common
+    floor_only = schemas.HypothesisSet()
     floor_only.CopyFrom(msgs[1][1])
     floor_only.hypotheses[0].polyline.CopyFrom(
         schemas.polyline_to_msg([[0.0, -0.5], [639.0, -0.5]], [SegKind.OPEN]))
-    bad = [msgs[0], (blank, floor_only, msgs[1][2]), msgs[2]]
-    out = feed(OdometryHandler(), bad, [0, 1, 2])
+    return [msgs[0], (blank, floor_only, msgs[1][2]), msgs[2]]
+
+
+def test_a_failed_motion_carries_its_error_and_the_chain_goes_on(photos):
+    _, msgs = photos
+    out = feed(OdometryHandler(), unmatchable(msgs), [0, 1, 2])
     m01 = out["findme/od/motion/0/1"]
     assert m01.error and not m01.HasField("x_m") and "findme/od/pose/1" not in out
     assert not out["findme/od/motion/0/2"].error          # photo 2 chains from photo 0
@@ -245,6 +250,50 @@ def test_a_photo_never_heard_of_is_chained_past_after_the_wait_and_named(photos)
     (gap,) = [o.msg for o in out if o.key == "findme/od/error"]
     assert gap.key == "findme/od/selection/1" and "photo 1" in gap.message
     assert h.gaps == 1
+
+
+def test_a_photo_chained_past_a_late_one_is_tried_again_from_it(photos):
+    """Photo 1 is late (its host was cut off): photo 2 chains past it after the wait, from
+    photo 0, and that motion fails (photo 2 is photo 0 again: nothing moved). When photo 1
+    comes and gets its pose, photo 2 is tried again from it at the next tick and gets its
+    pose: the session ends as it would have without the delay."""
+    _, msgs = photos
+    again = [schemas.Frame(), schemas.HypothesisSet()]
+    for m, src in zip(again, msgs[0][:2]):
+        m.CopyFrom(src)
+        m.index = 2
+    sel2 = schemas.Selection(session="od", index=2, rank=1, by=schemas.SELECTED_BY_AUTO)
+    shots = [msgs[0], msgs[1], (again[0], again[1], sel2)]
+    clock = [0.0]
+    h = on_bus(OdometryHandler(gap_wait_s=5.0, clock=lambda: clock[0]), shots)
+    frames, hsets = h.fetch, {"findme/od/hypotheses/1": schemas.encode(shots[1][1])}
+    h.fetch = lambda key: hsets.get(key) or frames(key)    # the store has what came late
+    for n in (0, 2):
+        h.on_message(f"findme/od/hypotheses/{n}", shots[n][1])
+        h.on_message(f"findme/od/selection/{n}", shots[n][2])
+    clock[0] = 5.0
+    first = {o.key: o.msg for o in h.tick(5.0)}
+    assert "identical" in first["findme/od/motion/0/2"].error and "findme/od/pose/2" not in first
+    h.on_message("findme/od/hypotheses/1", shots[1][1])
+    late = {o.key: o.msg for o in h.on_message("findme/od/selection/1", shots[1][2])}
+    assert not late["findme/od/motion/0/1"].error and "findme/od/pose/2" not in late
+    clock[0] = 5.5
+    retried = {o.key: o.msg for o in h.tick(5.5)}
+    assert not retried["findme/od/motion/1/2"].error
+    p2 = retried["findme/od/pose/2"]          # photo 2 is where photo 0 was
+    assert math.hypot(p2.x_m, p2.z_m) < 0.05 and abs(math.degrees(p2.yaw_rad)) < 1.0
+    assert [p.index for p in retried["findme/od/trajectory"].poses] == [0, 1, 2]
+    assert h.tick(6.0) == [] and not h.sessions.peek("od").failed   # tried once, not again
+
+
+def test_a_failed_photo_is_not_tried_again_from_a_farther_anchor(photos):
+    """Only a nearer anchor than the one a motion failed from reopens it: a failed photo 1
+    stays failed when photo 2 gets its pose."""
+    _, msgs = photos
+    h = OdometryHandler()
+    out = feed(h, unmatchable(msgs), [0, 1, 2])
+    assert out["findme/od/motion/0/1"].error and "findme/od/pose/2" in out
+    assert list(h.sessions.peek("od").failed) == [1] and h.tick(1e9) == []
 
 
 def test_a_selection_after_the_store_forgot_the_frame_still_gets_its_motion(photos):
