@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 import sigma_coverage as sc
+import surface_coverage
 
 HERE = Path(__file__).resolve().parent
 SINGLE = ["zind-level", "zind-tilted", "zind-pairs-tilted", "tum-cabinet", "zind-level-lowfloor",
@@ -150,6 +151,14 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         f"{phone_deg:g}°\" run above). The simulated sensor error is Gaussian at its declared "
         "1-sigma by construction; a real sensor's may not be:", "",
         *coverage_rows(split, phone_preds), "",
+        "**Where the points' sigmas fail** (`tools/surface_coverage.py`, the same run): each "
+        "point on the surface the product put it on, its own (a floor point on the floor, a "
+        "wall or non-floor point on a wall) or the other. A point's 1-sigma takes its surface "
+        "as right; a point on the other surface has a boundary under it that is wrong by far "
+        "more than the boundary's 1-sigma (a counter's top taken for the floor line, floor "
+        "beyond a low cabinet taken for its face). Within 1 / 2 / 3 sigma, in sample:", "",
+        *surface_coverage.table(surface_coverage.collect(str(split), phone_preds),
+                                markdown=True), "",
         "**The plan's model errors** (`tools/calibrate_plan.py`: sigma = hypot(k * the joint "
         "refinement's, floor), raw coverage, fitted in sample, left out):", "", "```",
         *tools["plan_given"].strip().splitlines(), "", "gravity withheld:",

@@ -146,6 +146,7 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
                     pred[kind + "_sigma_parts_m"] = [
                         None if p is None or p.xyz is None else
                         [round(p.sigma_parts[k], 5) for k in SIGMA_PARTS] for p in located]
+                    pred[kind + "_surface"] = [None if p is None else p.surface for p in located]
             if scene is not None:
                 pred["distances"] = _distances(located_by, scene)
         return vid, pred, None

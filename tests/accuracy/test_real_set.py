@@ -81,3 +81,8 @@ def test_same_result_without_ground_truth(tmp_path):
         run_findme("eval", tmp_path / d, "--out", tmp_path / f"{d}.json", "--jobs", "1")
         preds.append(json.loads((tmp_path / f"{d}.json").read_text()))
     assert preds[0]["views"] == preds[1]["views"] and len(preds[0]["views"]) == len(views)
+    for p in preds[0]["views"].values():     # each answered point says which surface it is on
+        for kind in ("floor_points", "wall_points", "nonfloor_points"):
+            assert len(p.get(kind + "_surface") or []) == len(p.get(kind) or [])
+            for x, surface in zip(p.get(kind) or [], p.get(kind + "_surface") or []):
+                assert (surface in ("floor", "wall")) == (x is not None), (kind, x, surface)

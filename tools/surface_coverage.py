@@ -1,0 +1,93 @@
+"""Where the points' sigmas fail: coverage of each point kind split by the surface the
+product put the point on, the query's own (a floor point on the floor, a wall or non-floor
+point on a wall) or the other one.
+
+    python tools/surface_coverage.py DATASET_DIR PREDICTIONS.json [--markdown]
+
+A point's 1-sigma assumes its surface is right: a floor point's does not depend on the
+boundary at all, a wall point's only on the boundary moving by its 1-sigma. A point on the
+other surface means the chosen boundary is wrong under it by far more than that (a counter's
+top taken for the floor line; floor seen beyond a low cabinet taken for its face). Reads the
+dataset's ground truth: a tool, not the product. Needs predictions with ``<kind>_surface``
+(``findme eval`` since 2026-11-30).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from sigma_coverage import POINT_KINDS, coverage  # noqa: E402
+
+RIGHT = {"floor_points": "floor", "wall_points": "wall", "nonfloor_points": "wall"}
+
+
+def collect(dataset: str, preds: dict) -> dict:
+    """{"<kind> (<family>)": {"right": z, "other": z}}, z the (n,) normalised errors
+    |error| / sigma of the answered points on the query's own surface and on the other."""
+    idx = json.load(open(os.path.join(dataset, "index.json")))
+    vdir = os.path.join(dataset, idx.get("views_dir", "views"))
+    out: dict = {}
+    for vid, p in sorted(preds.get("views", {}).items()):
+        path = os.path.join(vdir, vid + ".json")
+        if not os.path.exists(path):
+            continue
+        meta = json.load(open(path))
+        family = "tum" if vid.startswith("tum") else "zind"
+        for k in POINT_KINDS:
+            surfaces = p.get(k + "_surface")
+            if surfaces is None:
+                continue
+            for q, x, s, surf in zip(meta.get(k) or [], p.get(k) or [], p.get(k + "_sigma_m") or [],
+                                     surfaces):
+                if x is None or s is None or not math.isfinite(s) or s <= 0:
+                    continue
+                z = float(np.linalg.norm(np.subtract(x, q["xyz_m"]))) / s
+                side = "right" if surf == RIGHT[k] else "other"
+                row = out.setdefault(f"{k.replace('_', ' ')} ({family})", {"right": [], "other": []})
+                row[side].append(z)
+    return {k: {s: np.asarray(v, float) for s, v in r.items()} for k, r in out.items()}
+
+
+def table(res: dict, markdown: bool = False) -> list[str]:
+    """One row per point kind: n, then the share on each surface and its coverage."""
+    def cell(z, n):
+        if not len(z):
+            return "0 | –"
+        return (f"{len(z) / n:.2f} | " + " / ".join(f"{c:.2f}" for c in coverage(z)))
+    rows = (["| points | n | on its own surface: share | within 1 / 2 / 3 sigma | on the "
+             "other surface: share | within 1 / 2 / 3 sigma | all: within 1 / 2 / 3 sigma |",
+             "|---|---|---|---|---|---|---|"] if markdown else [])
+    for k in sorted(res):
+        r = res[k]
+        n = len(r["right"]) + len(r["other"])
+        every = np.concatenate([r["right"], r["other"]])
+        line = (f"| {k} | {n} | {cell(r['right'], n)} | {cell(r['other'], n)} | "
+                + " / ".join(f"{c:.2f}" for c in coverage(every)) + " |")
+        rows.append(line if markdown else line.replace("|", " ").strip())
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("dataset")
+    ap.add_argument("predictions")
+    ap.add_argument("--markdown", action="store_true")
+    a = ap.parse_args(argv)
+    res = collect(a.dataset, json.load(open(a.predictions)))
+    if not res:
+        print("no point carries its surface (<kind>_surface): run findme eval again", file=sys.stderr)
+        return 1
+    print("\n".join(table(res, a.markdown)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
