@@ -86,7 +86,7 @@ def register(sub) -> None:
 
 
 def photo_inputs(path: str, args) -> tuple:
-    """(image, camera, height, metric, estimate) of one photo: the sidecar's inputs, else
+    """(image, ``session_photos.PhotoGravity``) of one photo: the sidecar's inputs, else
     the flags, then the photo's EXIF; its gravity as ``findme hypotheses`` takes it (a given
     one refined by the photo's lines unless ``--gravity-sigma 0``, else estimated from them:
     then ``estimate`` is that ``GravityEstimate``, else None)."""
@@ -112,7 +112,7 @@ def photo_inputs(path: str, args) -> tuple:
         h, metric = float(height), True
     else:
         h, metric = camera_height(args.camera_height)
-    return (img, *final_gravity(img, cam, prov, h, metric))
+    return img, final_gravity(img, cam, prov, h, metric)
 
 
 def cmd_plan(args) -> int:
@@ -123,10 +123,10 @@ def cmd_plan(args) -> int:
             raise InputError(f"--spots has {len(spots)} labels for {len(args.photos)} photos")
     images, inputs = [], []
     for path in args.photos:
-        img, *rest = photo_inputs(path, args)
+        img, g = photo_inputs(path, args)
         images.append(img)
-        inputs.append(rest)
-    metric = all(i[2] for i in inputs)
+        inputs.append(g)
+    metric = all(g.metric for g in inputs)
     photos, _ = session_photos(images, inputs)
     plan, _, timing = session.plan(photos, spots)
     names = [os.path.basename(p) for p in args.photos]
@@ -214,9 +214,9 @@ def _photos(paths, args) -> list:
     """``session.Photo`` of photos taken together (``session_photos``)."""
     images, inputs = [], []
     for p in paths:
-        img, *rest = photo_inputs(p, args)
+        img, g = photo_inputs(p, args)
         images.append(img)
-        inputs.append(rest)
+        inputs.append(g)
     return session_photos(images, inputs)[0]
 
 

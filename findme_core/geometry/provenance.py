@@ -22,6 +22,8 @@ from findme_core.errors import CameraError
 
 CAMERA_SOURCES = ("input", "exif", "default")
 GRAVITY_SOURCES = ("input", "input+image", "image", "level")
+#: what a gravity's error is like (``Provenance.gravity_kind``), best first
+GRAVITY_KINDS = ("exact", "sensor", "image")
 #: 1-sigma of a given gravity (a phone held still: its accelerometer's tilt error), degrees.
 INPUT_GRAVITY_SIGMA_DEG = 0.5
 

@@ -23,9 +23,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from findme_core.errors import FindmeError, GeometryError
+from findme_core.errors import CameraError, FindmeError, GeometryError
 from findme_core.geometry import planar
 from findme_core.geometry.camera import Camera
+from findme_core.geometry.provenance import GRAVITY_KINDS
 from findme_core.motion import features, lifting, methods as motion
 from findme_core.plan import consistency, find_spot, floorplan, fuse, spot
 from findme_core.single import layout
@@ -66,6 +67,11 @@ class Photo:
     features: features.Features
     reason: str | None = None
     gravity: str = "exact"
+
+    def __post_init__(self):
+        if self.gravity not in GRAVITY_KINDS:
+            raise CameraError(f"a photo's gravity kind must be one of {GRAVITY_KINDS}, got "
+                              f"{self.gravity!r}")
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),

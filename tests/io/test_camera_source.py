@@ -62,7 +62,7 @@ def test_which_gravity_a_plan_states_its_sigmas_for(tilted_view):
     got = {}
     for name, (g, s, img) in cases.items():
         cam, prov = with_gravity(level_camera(v), img, g, s)
-        got[name] = (prov.gravity, final_gravity(v.image, cam, prov, 1.4, True)[4])
+        got[name] = (prov.gravity, final_gravity(v.image, cam, prov, 1.4, True).kind)
     assert got == {"exact (sigma 0)": ("input", "exact"),
                    "a phone held still, as it is": ("input", "exact"),
                    "a phone in the hand, refined": ("input+image", "sensor"),

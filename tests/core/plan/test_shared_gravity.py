@@ -100,3 +100,16 @@ def test_a_lone_ambiguous_photo_is_left_out_with_the_reason(turn):
     photos, _ = shared_gravity.analyse_plain([images[k]], [cams[k]], [H], [ests[k]])
     assert photos[0].layout is None and photos[0].reason.startswith("gravity unknown")
     assert "ambiguous" in photos[0].reason
+
+
+@pytest.mark.parametrize("kind", ["level", "", "from_image", None])
+def test_a_photo_of_an_unknown_gravity_kind_is_named(kind):
+    """``session.Photo.gravity`` picks the plan's sigma models: a kind that is not one of
+    ``provenance.GRAVITY_KINDS`` would silently take the exact gravity's, so it is refused
+    with the value."""
+    from findme_core.errors import CameraError
+    cam = Camera(500.0, 500.0, 319.5, 239.5, 640, 480)
+    with pytest.raises(CameraError, match=repr(kind).replace("(", r"\(")):
+        session.Photo(cam, H, None, None, None, gravity=kind)
+    for ok in ("exact", "sensor", "image"):
+        assert session.Photo(cam, H, None, None, None, gravity=ok).gravity == ok
