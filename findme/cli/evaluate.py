@@ -52,6 +52,9 @@ def register(sub) -> None:
                    help="1-sigma of the views' camera heights in the 3D points' sigmas "
                         "(default 0: a dataset's heights are the ones its truth was made "
                         "with; a height a user types is known to about 0.03 m)")
+    p.add_argument("--declared-surface", action="store_true",
+                   help="locate each floor / wall query point on that surface, as a user "
+                        "who says what they tapped (findme locate --point U,V,floor)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -84,5 +87,6 @@ def _motion_methods(text: str) -> list[str]:
 
 def cmd_eval(args) -> int:
     evaluate(args.dataset, args.out, args.method, args.max, _motion_methods(args.motion_method),
-             GravityInput.from_args(args), args.jobs, args.room_spots, args.height_sigma)
+             GravityInput.from_args(args), args.jobs, args.room_spots, args.height_sigma,
+             args.declared_surface)
     return 0

@@ -78,11 +78,14 @@ def register(sub) -> None:
     q.add_argument("--method", default="findme", choices=METHODS,
                    help="hypothesis method: findme (default) or paper")
     pts = q.add_mutually_exclusive_group(required=True)
-    pts.add_argument("--point", action="append", metavar="U,V",
+    pts.add_argument("--point", action="append", metavar="U,V[,floor|wall]",
                      help="a pixel (column, row from the top-left pixel's centre); repeat for "
-                          "more (a negative value: --point=-4,2)")
+                          "more (a negative value: --point=-4,2); with floor or wall: the "
+                          "surface you tapped, whatever the boundary says (floor: on the "
+                          "floor; wall: no answer where the boundary puts the floor)")
     pts.add_argument("--points", metavar="FILE.json",
-                     help='pixels as JSON: [[u, v], ...] or {"points": [[u, v], ...]}')
+                     help='pixels as JSON: [[u, v], ...] or {"points": [[u, v], ...]}; '
+                          'a pixel may name its surface: [u, v, "floor"]')
     q.add_argument("--json", action="store_true", help="print one JSON object")
     q.set_defaults(func=cmd_locate)
 
@@ -172,9 +175,14 @@ def _say_sources(out: dict) -> None:
           f"roll {g['roll_deg']:+.1f} deg ({gtext[g['source']]})", file=sys.stderr)
 
 
-def read_points(args) -> list[tuple[float, float]]:
+def read_points(args) -> tuple[list[tuple[float, float]], list[str | None] | None]:
+    """(pixels, the surface each was said to be on or None; None when none was)."""
     if args.point:
-        return [floats(p, 2, "--point") for p in args.point]
+        said = [str(p).rsplit(",", 1)[1].strip() if str(p).count(",") == 2 else None
+                for p in args.point]
+        pixels = [floats(p if s is None else str(p).rsplit(",", 1)[0], 2, "--point")
+                  for p, s in zip(args.point, said)]
+        return pixels, _surfaces(said, "--point")
     try:
         with open(args.points, "rb") as f:
             raw = f.read(1_000_001)
@@ -193,8 +201,13 @@ def read_points(args) -> list[tuple[float, float]]:
     pts = data.get("points") if isinstance(data, dict) else data
     if not isinstance(pts, list) or not pts:
         raise InputError(f'{args.points}: expected [[u, v], ...] or {{"points": [[u, v], ...]}}')
-    out = []
+    out, said = [], []
     for i, p in enumerate(pts):
+        if isinstance(p, (list, tuple)) and len(p) == 3:
+            p, s = p[:2], p[2]
+            said.append(s if isinstance(s, str) else repr(s))
+        else:
+            said.append(None)
         if (not isinstance(p, (list, tuple)) or len(p) != 2
                 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in p)):
             raise InputError(f"{args.points}: point {i} is {p!r}, expected [u, v] numbers")
@@ -204,7 +217,14 @@ def read_points(args) -> list[tuple[float, float]]:
             raise InputError(f"{args.points}: point {i} is not a finite pixel") from None
         if not all(math.isfinite(x) for x in out[-1]):
             raise InputError(f"{args.points}: point {i} is {p!r}, not finite")
-    return out
+    return out, _surfaces(said, args.points)
+
+
+def _surfaces(said: list, where: str) -> list[str | None] | None:
+    bad = [s for s in said if s not in (None, "floor", "wall")]
+    if bad:
+        raise InputError(f"{where}: a point's surface must be floor or wall, got {bad[0]!r}")
+    return said if any(said) else None
 
 
 def _no_constant(name: str):
@@ -212,8 +232,8 @@ def _no_constant(name: str):
 
 
 def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool,
-                provenance=None) -> dict:
-    located = scene.locate(pixels)
+                provenance=None, surfaces=None) -> dict:
+    located = scene.locate(pixels, surfaces)
     dist = distances(located, scene.height, scene.height_sigma)
     r = lambda x: None if x is None else round(float(x), 6)  # noqa: E731
     src = camera_json(scene.camera, provenance) if provenance is not None else {}
@@ -221,8 +241,9 @@ def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool,
         "points": [{"pixel": [r(p.pixel[0]), r(p.pixel[1])], "surface": p.surface,
                     "xyz_m": None if p.xyz is None else [r(x) for x in p.xyz],
                     "sigma_m": r(p.sigma_m), "error": p.error,
+                    "said": None if surfaces is None else surfaces[i],
                     "sigma_parts_m": None if p.sigma_parts is None else
-                    {k: r(v) for k, v in p.sigma_parts.items()}} for p in located],
+                    {k: r(v) for k, v in p.sigma_parts.items()}} for i, p in enumerate(located)],
         "distances_m": [r(d) for d, _, _ in dist],
         "distance_sigma_m": [r(s) for _, s, _ in dist],
         "camera_height_m": scene.height, "metric": metric,
@@ -231,7 +252,7 @@ def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool,
 
 
 def cmd_locate(args) -> int:
-    pixels = read_points(args)
+    pixels, surfaces = read_points(args)
     h, metric = camera_height(args.camera_height)
     image, cam, prov = _load(args)
     hs, cam, prov = hypothesize_photo(image, cam, prov, args.method,
@@ -248,7 +269,7 @@ def cmd_locate(args) -> int:
               "rest on a guessed boundary", file=sys.stderr)
     scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov,
                   boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
-    out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov)
+    out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov, surfaces)
     out["room_view"] = {"ok": view.ok, "reason": view.reason}
     if args.json:
         print(json.dumps(out))
@@ -260,7 +281,8 @@ def cmd_locate(args) -> int:
             print(f"  {i + 1}. ({p['pixel'][0]:g}, {p['pixel'][1]:g})  no answer: {p['error']}")
         else:
             x, y, z = p["xyz_m"]
-            print(f"  {i + 1}. ({p['pixel'][0]:g}, {p['pixel'][1]:g})  {p['surface']:5s} "
+            print(f"  {i + 1}. ({p['pixel'][0]:g}, {p['pixel'][1]:g})  {p['surface']:5s}"
+                  + (" (as you said) " if p["said"] else " ") +
                   f"x {x:+.3f} y {y:+.3f} z {z:+.3f} {unit}  (± {p['sigma_m']:.3f})")
     for i, (d, s) in enumerate(zip(out["distances_m"], out["distance_sigma_m"])):
         if d is not None:

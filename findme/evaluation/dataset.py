@@ -22,10 +22,12 @@ from .views import DATASET_HEIGHT_SIGMA_M, GravityInput, predict_view
 
 def evaluate(dataset: str, out: str, method: str, max_n: int, motion_methods: list[str],
              gravity: GravityInput, workers: int, room_spots: str,
-             height_sigma: float = DATASET_HEIGHT_SIGMA_M) -> None:
+             height_sigma: float = DATASET_HEIGHT_SIGMA_M, declared: bool = False) -> None:
     """Predictions of every view, pair and room of ``dataset`` (a findme-eval folder) into
     ``out`` (the first motion method's pairs; each other one's into ``OUT.<name>.json``),
-    in ``workers`` processes; prints what it wrote and the first failures.
+    in ``workers`` processes; prints what it wrote and the first failures. ``declared``:
+    each query point is located on the surface its kind says (``views.DECLARED``), as a user
+    who says what they tapped.
 
     Raises:
         InputError: ``dataset`` has no index.json.
@@ -39,9 +41,9 @@ def evaluate(dataset: str, out: str, method: str, max_n: int, motion_methods: li
     view_dir = os.path.join(dataset, index.get("views_dir", "views"))
     views = sorted({v for ss in index["subsets"].values() for v in ss.get("views", [])})
     preds = {"views": {}, "pairs": {}, "method": method, "gravity": gravity.describe(),
-             "height_sigma_m": height_sigma}
+             "height_sigma_m": height_sigma, "declared_surface": declared}
     failures = []
-    jobs = [(view_dir, v, method, max_n, gravity, height_sigma) for v in views]
+    jobs = [(view_dir, v, method, max_n, gravity, height_sigma, declared) for v in views]
     bar = tqdm(total=len(jobs), desc=f"views ({method})", unit="view", file=sys.stderr)
     if workers > 1:
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as ex:

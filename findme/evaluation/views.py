@@ -27,6 +27,9 @@ from findme_io.imageio import read_image
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 #: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``
 SIGMA_PARTS = ("boundary", "height", "pixel", "gravity")
+#: the surface a user tapping a dataset's query point would say it is on (``--declared-surface``;
+#: TUM's non-floor points are not only walls: they say nothing)
+DECLARED = {"floor_points": "floor", "wall_points": "wall"}
 #: 1-sigma of a dataset view's camera height: its truth was computed with that very height
 DATASET_HEIGHT_SIGMA_M = 0.0
 
@@ -114,6 +117,7 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
     view_dir, vid, method, max_n, *rest = args
     gravity = rest[0] if rest else True
     height_sigma = rest[1] if len(rest) > 1 else DATASET_HEIGHT_SIGMA_M
+    declared = rest[2] if len(rest) > 2 else False
     cv2.setNumThreads(1)
     try:
         with open(os.path.join(view_dir, vid + ".json")) as f:
@@ -137,7 +141,8 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
             located_by = {}
             for kind, px in queries.items():
                 if px:
-                    located = [None] * len(px) if scene is None else scene.locate(px)
+                    said = [DECLARED.get(kind)] * len(px) if declared else None
+                    located = [None] * len(px) if scene is None else scene.locate(px, said)
                     located_by[kind] = located
                     pred[kind] = [None if p is None or p.xyz is None else p.xyz.round(5).tolist()
                                   for p in located]

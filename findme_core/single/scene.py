@@ -36,8 +36,8 @@ from findme_core.geometry.uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_
                                               boundary_sigma_px, distances, point_sigmas)
 
 _PARALLEL = 1e-9
-_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE, _LOOSE_GRAVITY = \
-    range(1, 9)
+(_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE, _LOOSE_GRAVITY,
+ _NOT_WALL) = range(1, 10)
 #: default ``max_rel_sigma``: a point whose 1-sigma is more than half its distance is not
 #: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
 #: not fitted
@@ -55,6 +55,8 @@ REASONS = {
     _NOT_FINITE: "the pixel is not finite",
     _LOOSE: "the boundary places this point too loosely (its 1-sigma exceeds the allowed "
             "share of its distance): the wall's base is barely seen or lies near the horizon",
+    _NOT_WALL: "the chosen boundary puts the floor under this pixel, not a wall: choose a "
+               "hypothesis whose floor line runs below it",
     _LOOSE_GRAVITY: "gravity is too uncertain to place this point (its 1-sigma, mostly from "
                     "which way is down, exceeds the allowed share of its distance): the photo "
                     "does not show it clearly; give the phone's gravity",
@@ -206,9 +208,12 @@ class Scene:
         """
         return self._locate_all(pixels)[:5]
 
-    def _locate_all(self, pixels):
+    def _locate_all(self, pixels, surfaces=None):
         """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
-        (``uncertainty.point_sigmas``)."""
+        (``uncertainty.point_sigmas``). ``surfaces``: (N,) "floor", "wall" or None per pixel,
+        the surface the user says it is on: a floor pixel is put on the floor whatever the
+        boundary (below the horizon); a wall pixel the boundary puts on the floor gets no
+        answer."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         finite = np.isfinite(px).all(1)
@@ -217,6 +222,13 @@ class Scene:
                   & (pxs[:, 1] >= -0.5) & (pxs[:, 1] <= cam.height - 0.5))
         rays = cam.rays_level(pxs)
         t, surface, reason = self._solve(self._pieces, rays)
+        if surfaces is not None:
+            said = np.array([{"floor": 1, "wall": 2}.get(x, 0) for x in surfaces])
+            floor = (said == 1) & (rays[:, 1] > 0)
+            t = np.where(floor, self.height / np.where(floor, rays[:, 1], 1.0), t)
+            surface = np.where(floor, 1, surface)
+            reason = np.where(floor, 0, np.where(said == 1, _ABOVE_HORIZON, reason))
+            reason = np.where((said == 2) & (reason == 0) & (surface == 1), _NOT_WALL, reason)
         reason = np.where(inside, reason, np.where(finite, _OUTSIDE, _NOT_FINITE))
         ok = reason == 0
         surface = np.where(ok, surface, 0)
@@ -237,11 +249,11 @@ class Scene:
         sigma = np.where(ok, sigma, np.inf)
         return P, surface, sigma, parts, reason, jac
 
-    def locate(self, pixels) -> list[Located]:
+    def locate(self, pixels, surfaces=None) -> list[Located]:
         """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
-        point (``Located.error``), not raised."""
+        point (``Located.error``), not raised. ``surfaces``: as ``_locate_all``."""
         px = np.asarray(pixels, float).reshape(-1, 2)
-        P, surface, sigma, parts, reason, jacs = self._locate_all(px)
+        P, surface, sigma, parts, reason, jacs = self._locate_all(px, surfaces)
         R = self.camera.R_level_from_cam
         out = []
         for i, (u, v) in enumerate(px):

@@ -167,3 +167,30 @@ def test_one_blas_thread_per_process_set_before_numpy(monkeypatch):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env={**os.environ, "OPENCV_FOR_THREADS_NUM": "1"})
     assert out.stdout.strip() == "1"
+
+
+def test_locate_with_the_surface_you_tapped(level_jpg, level_view, tmp_path):
+    """``--point U,V,floor|wall`` and ``[u, v, "floor"]``: said "wall" on a floor pixel gets
+    no answer with what to do; said "floor" on a floor pixel is the floor's point; a surface
+    that is neither is refused with the value."""
+    cam = level_view.camera
+    lab = level_view.labels
+    vs, us = np.nonzero(lab == FLOOR)
+    u, v = int(us[len(us) // 2]), int(vs[len(vs) // 2])
+    flags = ["--intrinsics", intrinsics_flag(cam), "--gravity", "0,1,0", "--gravity-sigma", "0",
+             "--camera-height", level_view.camera_height]
+    out = as_json(run_findme("locate", level_jpg, *flags, f"--point={u},{v},floor",
+                             f"--point={u},{v},wall", f"--point={u},{v}", "--json"))
+    said, wall, plain = out["points"]
+    assert said["said"] == "floor" and plain["said"] is None and said["xyz_m"] == plain["xyz_m"]
+    assert np.allclose(said["xyz_m"], level_view.points_cam[v, u], atol=2e-3)
+    assert wall["xyz_m"] is None and "choose a hypothesis" in wall["error"]
+    pts = tmp_path / "p.json"
+    pts.write_text(json.dumps([[u, v, "floor"], [u, v]]))
+    text = run_findme("locate", level_jpg, *flags, "--points", pts).stdout
+    assert "floor (as you said)" in text
+    pts.write_text(json.dumps([[u, v, "ceiling"]]))
+    bad = run_findme("locate", level_jpg, *flags, "--points", pts, check=False)
+    assert bad.returncode == 2 and "'ceiling'" in bad.stderr
+    bad = run_findme("locate", level_jpg, *flags, f"--point={u},{v},3", check=False)
+    assert bad.returncode == 2 and "floor or wall" in bad.stderr

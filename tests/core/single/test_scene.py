@@ -236,3 +236,44 @@ def test_max_rel_sigma_must_be_positive(bad):
     cam = Camera.from_hfov(70, 640, 480)
     with pytest.raises(GeometryError, match="max_rel_sigma"):
         Scene(cam, 1.5, [[0, 400], [639, 400]], max_rel_sigma=bad)
+
+
+def test_a_tap_said_to_be_on_the_floor_is_put_on_it_whatever_the_boundary(tilted_view):
+    """A wrong boundary 60 px below the true one (a low cabinet's base taken for the floor
+    line, the floor seen beyond it): floor pixels between the two are put on a wall; said to
+    be floor, each is the rendered floor's point, its sigma with no boundary part, as a floor
+    point's."""
+    view = tilted_view
+    poly = view.ground_truth_boundary_polyline()
+    wrong = Scene(view.camera, view.camera_height, poly + np.array([0.0, 60.0]))
+    px = _pixels(view, lambda l: l == FLOOR, n=200)
+    # floor pixels less than 60 px below the true boundary: the wrong one puts them on a wall
+    under = px[[wrong.locate([q])[0].surface == "wall" for q in px]]
+    assert len(under) >= 5
+    auto = wrong.locate(under)
+    said = wrong.locate(under, ["floor"] * len(under))
+    off = []
+    for q, a, s in zip(under, auto, said):
+        truth = view.points_cam[int(q[1]), int(q[0])]
+        off.append(np.linalg.norm(a.xyz - truth))             # on the wrong wall
+        assert s.surface == "floor" and np.allclose(s.xyz, truth, atol=1e-4)
+        assert s.sigma_parts["boundary"] == 0.0
+    assert max(off) > 0.3
+
+
+def test_a_tap_said_to_be_on_a_wall_where_the_boundary_puts_floor_gets_no_answer(level_view):
+    """Said "wall" on a pixel the boundary puts on the floor: no answer, with the reason and
+    what to do; said "wall" on a wall pixel, or nothing said, changes nothing; said "floor"
+    above the horizon: no answer."""
+    view = level_view
+    scene = Scene(view.camera, view.camera_height, view.ground_truth_boundary_polyline())
+    floor = _pixels(view, lambda l: l == FLOOR, n=3)
+    wall = _pixels(view, lambda l: (l >= WALL_BASE) & (l < 50), n=3)
+    for p in scene.locate(floor, ["wall"] * 3):
+        assert p.xyz is None and "choose a hypothesis" in p.error
+    same = scene.locate(wall, ["wall", None, "wall"])
+    for p, q in zip(same, scene.locate(wall)):
+        assert p.surface == q.surface == "wall" and np.array_equal(p.xyz, q.xyz)
+        assert p.sigma_m == q.sigma_m
+    up = scene.locate([(320.0, 10.0)], ["floor"])[0]          # above a level camera's horizon
+    assert up.xyz is None and "horizon" in up.error
