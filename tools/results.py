@@ -213,6 +213,9 @@ def main(argv=None):
                  "noisy_refined_declared": ["--gravity-noise", str(PHONE_NOISE_DEG),
                                             "--gravity-refine", "--gravity-sigma",
                                             str(PHONE_NOISE_DEG)]}
+        said = ["--gravity-noise", str(PHONE_NOISE_DEG), "--gravity-refine", "--gravity-sigma",
+                str(PHONE_NOISE_DEG), "--declared-surface"]
+        subprocess.run(run + ["--out", str(t / "said.json")] + said, check=True)
         for name, flags in phone.items():
             subprocess.run(run + ["--out", str(t / f"{name}.json")] + flags, check=True)
         subprocess.run([sys.executable, str(Path(__file__).with_name("locate_report.py")),
@@ -225,6 +228,7 @@ def main(argv=None):
         ours_preds = json.loads((t / "ours.json").read_text())
         nograv_preds = json.loads((t / "nograv.json").read_text())
         phone_preds = json.loads((t / "noisy_refined_declared.json").read_text())
+        said_preds = json.loads((t / "said.json").read_text())
         ours = _score(a.split, scorer, t / "ours.json")
         nograv = _score(a.split, scorer, t / "nograv.json")
         auto_spots = _score(a.split, scorer, t / "auto.json")
@@ -308,7 +312,7 @@ def main(argv=None):
         "tell and gives its candidates, best first.", "",
         *_locate_rows(locate), "",
         *results_trust.section(a.split, ours, refit, loro, ours_preds, nograv_preds,
-                               phone_preds, trust_tools, PHONE_NOISE_DEG),
+                               phone_preds, trust_tools, PHONE_NOISE_DEG, said_preds),
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text("\n".join(lines) + "\n")

@@ -109,10 +109,11 @@ def run(split: Path, tmp: Path) -> dict:
 
 def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dict,
             ours_preds: dict, nograv_preds: dict, phone_preds: dict, tools: dict,
-            phone_deg: float) -> list[str]:
+            phone_deg: float, said_preds: dict) -> list[str]:
     """The markdown lines of the section. ``phone_preds``: a run with the gravity a phone's
     page sends (the dataset's tilted by a seeded N(0, ``phone_deg``), declared at that 1-sigma
-    and refined by the photo's lines, as the services do)."""
+    and refined by the photo's lines, as the services do); ``said_preds``: the same with every
+    floor and wall query point said to be on its surface (``--declared-surface``)."""
     ranker = [ln for ln in tools["ranker"].splitlines() if ln.startswith("  ")]
     return [
         "## Rooms never seen: leave one room out, and do the sigmas hold", "",
@@ -159,6 +160,13 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "beyond a low cabinet taken for its face). Within 1 / 2 / 3 sigma, in sample:", "",
         *surface_coverage.table(surface_coverage.collect(str(split), phone_preds),
                                 markdown=True), "",
+        "The same run with the surface said (`--declared-surface`: each floor and wall query "
+        "point located on its own surface, as a user who says what they tapped, `findme locate "
+        "--point U,V,floor`; a wall point the boundary puts on the floor gets no answer; TUM's "
+        "non-floor points say nothing):", "",
+        *[r for r in coverage_rows(split, said_preds)   # the rows of points and distances
+          if r.startswith("|---") or any(w in r.split("|")[1]
+                                         for w in ("quantity", "points", "distances"))], "",
         "**The plan's model errors** (`tools/calibrate_plan.py`: sigma = hypot(k * the joint "
         "refinement's, floor), raw coverage, fitted in sample, left out):", "", "```",
         *tools["plan_given"].strip().splitlines(), "", "gravity withheld:",
