@@ -83,10 +83,14 @@ def loro_rows(ours: dict, refit: dict, loro: dict) -> list[str]:
     return rows
 
 
-def coverage_rows(dataset: Path, preds: dict) -> list[str]:
+def coverage_rows(dataset: Path, preds: dict, only=None) -> list[str]:
     """Every stated sigma's coverage (``sigma_coverage``): as stated (its constants fitted on
-    all dev rooms) and leave one room out."""
-    return sc.table(sc.report(str(dataset), preds), markdown=True).splitlines()
+    all dev rooms) and leave one room out; ``only``: the quantities whose name has one of
+    these words."""
+    res = sc.report(str(dataset), preds)
+    if only is not None:
+        res = {k: r for k, r in res.items() if any(w in k for w in only)}
+    return sc.table(res, markdown=True).splitlines()
 
 
 def run(split: Path, tmp: Path) -> dict:
@@ -164,9 +168,7 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "point located on its own surface, as a user who says what they tapped, `findme locate "
         "--point U,V,floor`; a wall point the boundary puts on the floor gets no answer; TUM's "
         "non-floor points say nothing):", "",
-        *[r for r in coverage_rows(split, said_preds)   # the rows of points and distances
-          if r.startswith("|---") or any(w in r.split("|")[1]
-                                         for w in ("quantity", "points", "distances"))], "",
+        *coverage_rows(split, said_preds, only=("points", "distances")), "",
         "**The plan's model errors** (`tools/calibrate_plan.py`: sigma = hypot(k * the joint "
         "refinement's, floor), raw coverage, fitted in sample, left out):", "", "```",
         *tools["plan_given"].strip().splitlines(), "", "gravity withheld:",

@@ -79,32 +79,52 @@ def pitch_roll(g):
     return math.degrees(math.asin(float(np.clip(g[2], -1, 1)))), math.degrees(math.atan2(g[0], g[1]))
 
 
-def collect(dataset: str, preds: dict) -> dict:
-    """{quantity: [(group, |error|, stated sigma), ...]} of every stated sigma the
-    predictions carry."""
-    idx = json.load(open(os.path.join(dataset, "index.json")))
-    vdir = os.path.join(dataset, idx.get("views_dir", "views"))
-    out: dict = defaultdict(list)
+def _subsets(idx: dict) -> dict:
+    """{view or pair id: the first subset of the dataset's index that lists it}."""
     subset_of = {}
     for name, ss in idx["subsets"].items():
         for v in ss.get("views", []):
             subset_of.setdefault(v, name)
         for p in ss.get("pairs", []):
             subset_of[p] = name
-    fam = lambda s: "tum" if s.startswith("tum") else ("kitti" if s.startswith("kitti") else "zind")  # noqa: E731
+    return subset_of
+
+
+def views(dataset: str, preds: dict):
+    """(view id, its truth, its prediction, its family: tum, kitti or zind) of every predicted
+    view the dataset has, by id."""
+    idx = json.load(open(os.path.join(dataset, "index.json")))
+    vdir = os.path.join(dataset, idx.get("views_dir", "views"))
+    subset_of = _subsets(idx)
     for vid, p in sorted(preds.get("views", {}).items()):
         meta_path = os.path.join(vdir, vid + ".json")
         if not os.path.exists(meta_path):
             continue
-        meta = json.load(open(meta_path))
+        s = subset_of.get(vid, vid)
+        yield (vid, json.load(open(meta_path)), p,
+               "tum" if s.startswith("tum") else ("kitti" if s.startswith("kitti") else "zind"))
+
+
+def point_errors(meta: dict, pred: dict, kind: str):
+    """(index, |error| metres, stated sigma metres) of every answered point of ``kind``
+    (floor_points, ...) of one view with a positive finite sigma."""
+    xs, sigmas = pred.get(kind) or [], pred.get(kind + "_sigma_m") or []
+    for i, (q, x, s) in enumerate(zip(meta.get(kind) or [], xs, sigmas)):
+        if x is None or s is None or not math.isfinite(s) or s <= 0:
+            continue
+        yield i, float(np.linalg.norm(np.subtract(x, q["xyz_m"]))), s
+
+
+def collect(dataset: str, preds: dict) -> dict:
+    """{quantity: [(group, |error|, stated sigma), ...]} of every stated sigma the
+    predictions carry."""
+    idx = json.load(open(os.path.join(dataset, "index.json")))
+    out: dict = defaultdict(list)
+    subset_of = _subsets(idx)
+    for vid, meta, p, family in views(dataset, preds):
         g = group_of(vid)
-        family = fam(subset_of.get(vid, vid))
         for k in POINT_KINDS:
-            xs, ss_ = p.get(k) or [], p.get(k + "_sigma_m") or []
-            for q, x, s in zip(meta.get(k) or [], xs, ss_):
-                if x is None or s is None or not math.isfinite(s) or s <= 0:
-                    continue
-                err = float(np.linalg.norm(np.subtract(x, q["xyz_m"])))
+            for _, err, s in point_errors(meta, p, k):
                 out[f"{k.replace('_', ' ')} ({family})"].append((g, err, s))
         for d in p.get("distances") or []:
             i, j, ki, kj = d["a"], d["b"], d["kind_a"], d["kind_b"]

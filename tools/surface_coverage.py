@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from sigma_coverage import POINT_KINDS, coverage  # noqa: E402
+from sigma_coverage import POINT_KINDS, coverage, point_errors, views  # noqa: E402
 
 RIGHT = {"floor_points": "floor", "wall_points": "wall", "nonfloor_points": "wall"}
 
@@ -31,27 +30,15 @@ RIGHT = {"floor_points": "floor", "wall_points": "wall", "nonfloor_points": "wal
 def collect(dataset: str, preds: dict) -> dict:
     """{"<kind> (<family>)": {"right": z, "other": z}}, z the (n,) normalised errors
     |error| / sigma of the answered points on the query's own surface and on the other."""
-    idx = json.load(open(os.path.join(dataset, "index.json")))
-    vdir = os.path.join(dataset, idx.get("views_dir", "views"))
     out: dict = {}
-    for vid, p in sorted(preds.get("views", {}).items()):
-        path = os.path.join(vdir, vid + ".json")
-        if not os.path.exists(path):
-            continue
-        meta = json.load(open(path))
-        family = "tum" if vid.startswith("tum") else "zind"
+    for _, meta, p, family in views(dataset, preds):
         for k in POINT_KINDS:
             surfaces = p.get(k + "_surface")
             if surfaces is None:
                 continue
-            for q, x, s, surf in zip(meta.get(k) or [], p.get(k) or [], p.get(k + "_sigma_m") or [],
-                                     surfaces):
-                if x is None or s is None or not math.isfinite(s) or s <= 0:
-                    continue
-                z = float(np.linalg.norm(np.subtract(x, q["xyz_m"]))) / s
-                side = "right" if surf == RIGHT[k] else "other"
-                row = out.setdefault(f"{k.replace('_', ' ')} ({family})", {"right": [], "other": []})
-                row[side].append(z)
+            row = out.setdefault(f"{k.replace('_', ' ')} ({family})", {"right": [], "other": []})
+            for i, err, s in point_errors(meta, p, k):
+                row["right" if surfaces[i] == RIGHT[k] else "other"].append(err / s)
     return {k: {s: np.asarray(v, float) for s, v in r.items()} for k, r in out.items()}
 
 

@@ -178,10 +178,11 @@ def _say_sources(out: dict) -> None:
 def read_points(args) -> tuple[list[tuple[float, float]], list[str | None] | None]:
     """(pixels, the surface each was said to be on or None; None when none was)."""
     if args.point:
-        said = [str(p).rsplit(",", 1)[1].strip() if str(p).count(",") == 2 else None
-                for p in args.point]
-        pixels = [floats(p if s is None else str(p).rsplit(",", 1)[0], 2, "--point")
-                  for p, s in zip(args.point, said)]
+        pixels, said = [], []
+        for p in args.point:
+            uv, _, surface = p.rpartition(",") if p.count(",") == 2 else (p, "", None)
+            pixels.append(floats(uv, 2, "--point"))
+            said.append(None if surface is None else surface.strip())
         return pixels, _surfaces(said, "--point")
     try:
         with open(args.points, "rb") as f:

@@ -62,6 +62,7 @@ REASONS = {
                     "does not show it clearly; give the phone's gravity",
 }
 _SURFACES = {1: "floor", 2: "wall"}
+_SURFACE_CODES = {name: code for code, name in _SURFACES.items()}
 @dataclass(frozen=True)
 class Located:
     """3D position of one tapped pixel.
@@ -223,7 +224,7 @@ class Scene:
         rays = cam.rays_level(pxs)
         t, surface, reason = self._solve(self._pieces, rays)
         if surfaces is not None:
-            said = np.array([{"floor": 1, "wall": 2}.get(x, 0) for x in surfaces])
+            said = np.array([_SURFACE_CODES.get(x, 0) for x in surfaces])
             floor = (said == 1) & (rays[:, 1] > 0)
             t = np.where(floor, self.height / np.where(floor, rays[:, 1], 1.0), t)
             surface = np.where(floor, 1, surface)

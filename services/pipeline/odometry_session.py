@@ -13,7 +13,7 @@ such photos) in case a nearer anchor comes late (``fail``, ``reopen_after``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from findme_core.motion.trajectory import PlanarPose
 
@@ -73,8 +73,7 @@ class OdometrySession:
         p = self.photos.get(n)
         self.close(n, "failed")
         if p is not None and p.selection is not None and p.hset is not None:
-            self.failed[n] = (anchor, Photo(p.seen, time_ns=p.time_ns, hset=p.hset,
-                                            selection=p.selection, selected_at=p.selected_at))
+            self.failed[n] = (anchor, replace(p, frame=None, prepared=None))
             while len(self.failed) > self.keep_frames:
                 del self.failed[min(self.failed)]
 
