@@ -220,8 +220,9 @@ def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: L
     return n
 
 
-def measure(session, session_id: str, pixels, example: bool) -> None:
-    """Ask the measurement service for ``pixels`` (u, v) of photo 0 and print its answer;
+def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
+    """Ask the measurement service for ``pixels`` (u, v) of photo 0 (``said``: the surface
+    the user says each is on, "floor", "wall" or None; None for none) and print its answer;
     for the bundled ``example`` (no pixels given: its ground-truth floor points), its truth."""
     if not pixels and example:  # the example: its ground-truth floor points
         import json
@@ -231,6 +232,8 @@ def measure(session, session_id: str, pixels, example: bool) -> None:
         return
     req = schemas.MeasureRequest(session=session_id, index=0)
     req.pixels.extend(schemas.pixels_to_msg(pixels))
+    if said:
+        req.said.extend(schemas.surfaces_to_msg(said))
     for reply in session.get(bus.key(session_id, "measure"), payload=schemas.encode(req), timeout=10):
         if reply.ok is None:
             err = schemas.decode(schemas.Error, reply.err.payload.to_bytes())
@@ -240,7 +243,8 @@ def measure(session, session_id: str, pixels, example: bool) -> None:
         bus.put(session, bus.key(session_id, "measured", rep.index), reply.ok.payload.to_bytes())  # for the record
         unit = "m" if rep.metric else "h (camera heights)"
         for p in rep.points:
-            where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()} at "
+            where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()}"
+                     f"{' (as you said)' if p.said else ''} at "
                      f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
                      if not p.error else p.error)
             print(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): {where}")

@@ -248,11 +248,16 @@ _SURFACE = {"floor": schemas.SURFACE_FLOOR, "wall": schemas.SURFACE_WALL, None: 
 
 
 def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
-                      located: list[Located], height: float, height_sigma: float):
+                      located: list[Located], height: float, height_sigma: float,
+                      said: list[str | None] | None = None):
+    """The MeasureReply of ``located`` (one per requested pixel, in order; ``said``: the
+    surface the request said of each, or None) and the distances between consecutive
+    points."""
     r = schemas.MeasureReply(session=session, index=index, rank=rank, metric=metric)
-    for p in located:
+    for i, p in enumerate(located):
         mp = r.points.add(pixel=schemas.Pixel(u=float(p.pixel[0]), v=float(p.pixel[1])),
-                          surface=_SURFACE[p.surface], error=p.error or "")
+                          surface=_SURFACE[p.surface], error=p.error or "",
+                          said=_SURFACE[said[i]] if said else schemas.SURFACE_NONE)
         if p.xyz is not None:
             mp.xyz.CopyFrom(schemas.vec3_to_msg(p.xyz))
             mp.sigma_m = float(p.sigma_m)

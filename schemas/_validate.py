@@ -245,6 +245,11 @@ def _measure_request(m: measure_pb2.MeasureRequest) -> Problems:
         p.append("pixels is empty: nothing to measure")
     for i, px in enumerate(m.pixels):
         _pixel(p, f"pixels[{i}]", px)
+    if m.said and len(m.said) != len(m.pixels):
+        p.append(f"said has {len(m.said)} surfaces for {len(m.pixels)} pixels: "
+                 "give none or one per pixel")
+    for i, s in enumerate(m.said):
+        _enum(p, f"said[{i}]", measure_pb2.Surface, s, allow_zero=True)
     return p
 
 
@@ -259,6 +264,7 @@ def _measure_reply(m: measure_pb2.MeasureReply) -> Problems:
         name = f"points[{i}]"
         _pixel(p, f"{name}.pixel", pt.pixel)
         _enum(p, f"{name}.surface", measure_pb2.Surface, pt.surface, allow_zero=True)
+        _enum(p, f"{name}.said", measure_pb2.Surface, pt.said, allow_zero=True)
         if pt.error:
             if pt.HasField("xyz") or pt.HasField("sigma_m") or pt.surface:
                 p.append(f"{name} has an error, so must have no xyz, sigma_m or surface")
@@ -269,6 +275,10 @@ def _measure_reply(m: measure_pb2.MeasureReply) -> Problems:
                 _vec3(p, f"{name}.xyz", pt.xyz)
             if pt.surface == measure_pb2.SURFACE_NONE:
                 p.append(f"{name} has no error, so needs a surface (FLOOR or WALL)")
+            elif pt.said in (measure_pb2.SURFACE_FLOOR, measure_pb2.SURFACE_WALL) \
+                    and pt.said != pt.surface:
+                p.append(f"{name} was said to be on {measure_pb2.Surface.Name(pt.said)} "
+                         f"but is on {measure_pb2.Surface.Name(pt.surface)}")
             if pt.HasField("sigma_m"):
                 _nonneg(p, f"{name}.sigma_m", pt.sigma_m)
     n = len(m.points)

@@ -15,7 +15,7 @@ from google.protobuf.timestamp_pb2 import Timestamp
 
 from findme_core.errors import SchemaError
 
-from .v1 import common_pb2, motion_pb2
+from .v1 import common_pb2, measure_pb2, motion_pb2
 
 _NS = 1_000_000_000
 
@@ -33,6 +33,27 @@ def pixels_to_msg(pixels) -> list[common_pb2.Pixel]:
 def msg_to_pixels(pixels) -> np.ndarray:
     """Iterable of Pixel -> (N, 2) float64 array."""
     return np.array([(p.u, p.v) for p in pixels], dtype=float).reshape(-1, 2)
+
+
+_SURFACES = {None: measure_pb2.SURFACE_NONE, "floor": measure_pb2.SURFACE_FLOOR,
+             "wall": measure_pb2.SURFACE_WALL}
+_SURFACE_NAMES = {v: k for k, v in _SURFACES.items()}
+
+
+def surfaces_to_msg(said) -> list[int]:
+    """Per pixel "floor", "wall" or None ("as the boundary says") -> Surface values (for
+    ``MeasureRequest.said.extend``)."""
+    for s in said:
+        if not (s is None or isinstance(s, str) and s in _SURFACES):
+            raise SchemaError(f"a said surface must be floor, wall or None, got {s!r}")
+    return [_SURFACES[s] for s in said]
+
+
+def msg_to_surfaces(said) -> list[str | None] | None:
+    """Surface values -> per pixel "floor", "wall" or None; None when none is said (as
+    ``Scene.locate`` takes it)."""
+    out = [_SURFACE_NAMES.get(s) for s in said]
+    return out if any(out) else None
 
 
 def polyline_to_msg(points, kinds=None) -> common_pb2.Polyline:

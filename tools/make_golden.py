@@ -60,12 +60,13 @@ class Photo:
 @dataclass
 class Spec:
     """One golden session: photos, the user's choices (rank, height) per photo (None: the
-    selection service's auto choice), pixels to measure per photo."""
+    selection service's auto choice), pixels to measure per photo: (u, v), or (u, v,
+    "floor" | "wall") for a tap the user says is on that surface."""
 
     name: str
     photos: list[Photo]
     choices: dict[int, tuple[int, float | None]] = field(default_factory=dict)
-    measure: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    measure: dict[int, list[tuple]] = field(default_factory=dict)
     note: str = ""
 
 
@@ -114,9 +115,12 @@ def specs() -> list[Spec]:
         Spec("examples-pair", list(pair), measure={0: gt},
              note="the bundled example photos as findme run sees them (auto selection)"),
         Spec("synth-box-user", [box], choices={0: (2, 1.3)},
-             measure={0: [(320.0, 400.0), (500.0, 300.0), (320.0, 20.0)]},
+             measure={0: [(320.0, 400.0), (500.0, 300.0), (320.0, 20.0),
+                          (100.0, 200.0, "floor"), (320.0, 400.0, "wall")]},
              note="a rendered room with a cabinet, tilted phone; the user picks hypothesis 2 "
-                  "and gives the camera height with the choice; one tap above the horizon"),
+                  "and gives the camera height with the choice; one tap above the horizon; "
+                  "a wall pixel said to be floor (put on the floor) and a floor pixel said "
+                  "to be wall (no point: choose a lower floor line)"),
         Spec("bad-input", [broken, l_room], measure={1: [(160.0, 200.0), (60.0, 180.0)]},
              note="a corrupt photo (errors, the session goes on) then a small L-shaped room"),
         Spec("plain-turn", plain, measure={1: [(320.0, 400.0)]},
@@ -209,7 +213,10 @@ def run_session(spec: Spec, out_dir: Path) -> Path:
         wait_result(group, watch, lambda c: False, 120)
         for n, pixels in spec.measure.items():
             wait_result(group, watch, finished(n), 120)
-            req = schemas.MeasureRequest(session=sid, index=n, pixels=schemas.pixels_to_msg(pixels))
+            said = [p[2] if len(p) > 2 else None for p in pixels]
+            req = schemas.MeasureRequest(session=sid, index=n,
+                                         pixels=schemas.pixels_to_msg([p[:2] for p in pixels]),
+                                         said=schemas.surfaces_to_msg(said) if any(said) else [])
             payload, err = ask_measure(session, sid, req)
             if payload is None:
                 raise SystemExit(f"{spec.name}: measure photo {n}: {err}")

@@ -28,6 +28,28 @@ def floats(text: str, n: int, name: str) -> tuple[float, ...]:
     return vals
 
 
+SURFACES = ("floor", "wall")
+
+
+def surfaces(said: list, where: str) -> list[str | None] | None:
+    """Each point's said surface checked ("floor", "wall" or None); None when none is said."""
+    bad = [x for x in said if x is not None and x not in SURFACES]
+    if bad:
+        raise InputError(f"{where}: a point's surface must be floor or wall, got {bad[0]!r}")
+    return said if any(said) else None
+
+
+def said_points(texts, name: str) -> tuple[list[tuple[float, float]], list[str | None] | None]:
+    """Pixels given as ``U,V`` or ``U,V,floor|wall`` (the surface the user says the pixel
+    is on): (pixels, the surface said of each or None; None when none was)."""
+    pixels, said = [], []
+    for text in texts:
+        uv, _, surface = text.rpartition(",") if text.count(",") == 2 else (text, "", None)
+        pixels.append(floats(uv, 2, name))
+        said.append(None if surface is None else surface.strip())
+    return pixels, surfaces(said, name)
+
+
 def finite_float(text: str) -> float:
     """argparse type: a finite number (``nan`` and ``inf`` are refused, one line, exit 2)."""
     try:

@@ -15,7 +15,7 @@ from services.runtime.service import Group
 
 from ..report import Printer, example_paths, measure, read_photos, report_session
 from .bus_options import add_bus_args, lens_from_args, open_bus, setup_logging
-from .options import add_camera_args, finite_float, floats
+from .options import add_camera_args, finite_float, said_points
 
 PIPELINE = ("hypotheses", "selection", "measurement", "odometry", "mapper")
 
@@ -43,8 +43,9 @@ def register(sub) -> None:
     r.add_argument("--camera-height", type=finite_float, metavar="M",
                    help="camera height above the floor in metres (default: PHOTO.json's, else "
                         "unknown: lengths in camera heights)")
-    r.add_argument("--measure", action="append", metavar="U,V",
-                   help="pixels of photo 0 to measure at the end (repeatable)")
+    r.add_argument("--measure", action="append", metavar="U,V[,floor|wall]",
+                   help="a pixel of photo 0 to measure at the end (repeatable); with floor "
+                        "or wall: the surface you say it is on")
     add_service_args(r, out_help="where the session is recorded (default findme-run)")
     r.add_argument("--no-record", action="store_true",
                    help="do not record the session (default: <out>/<session>.mcap)")
@@ -58,6 +59,7 @@ def cmd_run(args) -> int:
     photos = args.photos or example_paths()
     Path(args.out).mkdir(parents=True, exist_ok=True)
     srcs, errors = read_photos(photos)   # read and validate every photo before starting
+    pixels, said = said_points(args.measure or [], "--measure")
     session = open_bus(args)
     group = Group(session)
     printer = Printer(session_id)
@@ -76,8 +78,7 @@ def cmd_run(args) -> int:
                 continue
         report_session(printer, capture, session_id, srcs, lens_from_args(args), "odometry" in names, 600,
                        "mapper" in names)
-        pixels = [floats(p, 2, "--measure") for p in args.measure or []]
-        measure(session, session_id, pixels, example=not args.photos)
+        measure(session, session_id, pixels, example=not args.photos, said=said)
     finally:
         sub.undeclare()
         group.stop()

@@ -1,7 +1,7 @@
 """``findme send``: photos from this machine to services running elsewhere, with their results.
 
     findme send [PHOTOS...] --connect ENDPOINT [--session S] [--ca CA.pem --user U]
-                [--measure U,V ...] [--config FILE.json5]
+                [--measure U,V[,floor|wall] ...] [--config FILE.json5]
 
 The client side of the many-process and phone + server deployments (compose/README.md):
 it joins the bus as a client of the router, checks that the services the report needs are
@@ -31,7 +31,7 @@ from services.runtime.service import Service
 
 from .. import report
 from .bus_options import add_bus_args, lens_from_args, open_bus, setup_logging
-from .options import floats
+from .options import said_points
 from .status import alive_services
 from .options import add_camera_args
 
@@ -129,8 +129,9 @@ def register(sub) -> None:
     p.add_argument("--camera-height", type=float, metavar="M",
                    help="camera height above the floor in metres (default: PHOTO.json's, "
                         "else unknown: lengths in camera heights)")
-    p.add_argument("--measure", action="append", metavar="U,V",
-                   help="pixels of photo 0 to measure at the end (repeatable)")
+    p.add_argument("--measure", action="append", metavar="U,V[,floor|wall]",
+                   help="a pixel of photo 0 to measure at the end (repeatable); with floor "
+                        "or wall: the surface you say it is on")
     p.add_argument("--timeout", type=float, default=120.0, metavar="S",
                    help="seconds to wait for each photo's results (default 120)")
     p.add_argument("--wait", type=float, default=5.0, metavar="S",
@@ -145,6 +146,7 @@ def cmd_send(args) -> int:
         raise InputError("send needs --connect ENDPOINT (e.g. tcp/127.0.0.1:7447) or --config")
     photos = args.photos or report.example_paths()
     srcs, errors = report.read_photos(photos)
+    pixels, said = said_points(args.measure or [], "--measure")
     prefix = f"{args.user}-" if args.user else "send-"
     session_id = args.session or f"{prefix}{uuid.uuid4().hex[:8]}"
     bus.key(session_id, "frame")                      # a valid session id, or say why now
@@ -171,8 +173,7 @@ def cmd_send(args) -> int:
                 raise BusError(_refused(args, session_id))
         report.report_session(printer, svc, session_id, srcs, lens_from_args(args),
                               "odometry" in needed, args.timeout, on_first=passed_on)
-        pixels = [floats(p, 2, "--measure") for p in args.measure or []]
-        report.measure(session, session_id, pixels, example=not args.photos)
+        report.measure(session, session_id, pixels, example=not args.photos, said=said)
     finally:
         if echo is not None:
             echo.close()

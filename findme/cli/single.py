@@ -20,7 +20,8 @@ from findme_core.single.search import SegKind
 
 from findme_io.camera_source import camera_json
 from findme_io.imageio import read_photo
-from .options import add_camera_args, camera_height, finite_float, floats, photo_camera_from
+from .options import (add_camera_args, camera_height, finite_float, photo_camera_from,
+                      said_points, surfaces)
 
 #: Extensions the selection image can be written as (what OpenCV encodes).
 OVERLAY_EXT = (".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tif", ".tiff")
@@ -178,12 +179,7 @@ def _say_sources(out: dict) -> None:
 def read_points(args) -> tuple[list[tuple[float, float]], list[str | None] | None]:
     """(pixels, the surface each was said to be on or None; None when none was)."""
     if args.point:
-        pixels, said = [], []
-        for p in args.point:
-            uv, _, surface = p.rpartition(",") if p.count(",") == 2 else (p, "", None)
-            pixels.append(floats(uv, 2, "--point"))
-            said.append(None if surface is None else surface.strip())
-        return pixels, _surfaces(said, "--point")
+        return said_points(args.point, "--point")
     try:
         with open(args.points, "rb") as f:
             raw = f.read(1_000_001)
@@ -218,14 +214,7 @@ def read_points(args) -> tuple[list[tuple[float, float]], list[str | None] | Non
             raise InputError(f"{args.points}: point {i} is not a finite pixel") from None
         if not all(math.isfinite(x) for x in out[-1]):
             raise InputError(f"{args.points}: point {i} is {p!r}, not finite")
-    return out, _surfaces(said, args.points)
-
-
-def _surfaces(said: list, where: str) -> list[str | None] | None:
-    bad = [s for s in said if s not in (None, "floor", "wall")]
-    if bad:
-        raise InputError(f"{where}: a point's surface must be floor or wall, got {bad[0]!r}")
-    return said if any(said) else None
+    return out, surfaces(said, args.points)
 
 
 def _no_constant(name: str):

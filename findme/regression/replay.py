@@ -102,9 +102,12 @@ def rename_session(r: Recorded, new: str) -> Recorded:
 
 
 def measure_request(reply) -> object:
-    """The MeasureRequest a recorded MeasureReply answered (its pixels, in order)."""
+    """The MeasureRequest a recorded MeasureReply answered (its pixels, in order, and the
+    surface said of each, if any was)."""
     req = schemas.MeasureRequest(session=reply.session, index=reply.index)
     req.pixels.extend(schemas.Pixel(u=p.pixel.u, v=p.pixel.v) for p in reply.points)
+    if any(p.said for p in reply.points):
+        req.said.extend(p.said for p in reply.points)
     return req
 
 

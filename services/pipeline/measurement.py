@@ -4,6 +4,12 @@
     motion/<a>/<b> whose photos agreed on gravity  ->  scene/<n> again, under it
     query findme/<session>/measure (MeasureRequest)  ->  MeasureReply
 
+A request may say the surface each pixel is on (``MeasureRequest.said``): the user knows
+whether they tapped the floor or a wall, and a boundary along a cabinet's top puts the floor
+beyond it on the cabinet's face. A point said floor is put on the floor whatever the
+boundary; one said wall where the boundary puts the floor gets no point, with what to do
+(``Scene.locate``). The reply repeats what was said of each point, so a replay asks the same.
+
 A photo whose gravity came from its own lines, unsure, may get a better one from a motion:
 the odometry's motions carry the gravity two photos agreed on through their matches. Its
 scene is then built again under it and its Scene published again (``measurement_gravity``:
@@ -84,7 +90,7 @@ class MeasurementHandler(Handler):
         self.sessions = SessionTable(lambda s: _Photos(max_photos), idle_s, max_sessions, clock)
         self.wait_s, self.clock = wait_s, clock
         self._waiting: set[str] = set()   # sessions with a selection waiting for its inputs
-        self.answered = self.built = self.rebuilt = 0
+        self.answered = self.built = self.rebuilt = self.said = 0
         self.regravitated = self.not_regravitated = 0   # under a motion's agreed gravity
 
     def on_message(self, key, msg):
@@ -268,10 +274,12 @@ class MeasurementHandler(Handler):
             self.sessions.get(k.session)   # used now
         held = st.scenes[req.index]
         st.scenes.move_to_end(req.index)
-        located = held.scene.locate(schemas.msg_to_pixels(req.pixels))
+        said = schemas.msg_to_surfaces(req.said)   # the surface said of each pixel, if any
+        located = held.scene.locate(schemas.msg_to_pixels(req.pixels), said)
         self.answered += 1
+        self.said += said is not None
         return measure_reply_msg(k.session, req.index, held.rank, held.metric, located,
-                                 held.scene.height, held.scene.height_sigma)
+                                 held.scene.height, held.scene.height_sigma, said)
 
     def _published_scene(self, session: str, n: int) -> Held | None:
         """Photo n's scene rebuilt from its Scene message on the bus (the same camera,
@@ -290,5 +298,6 @@ class MeasurementHandler(Handler):
     def counters(self):
         return {"scenes": self.built, "sessions": len(self.sessions),
                 "evicted": self.sessions.evicted, "measure_queries": self.answered,
+                "measure_queries_said": self.said,
                 "scenes_rebuilt": self.rebuilt, "scenes_regravitated": self.regravitated,
                 "scenes_not_regravitated": self.not_regravitated}

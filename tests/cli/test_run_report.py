@@ -35,6 +35,13 @@ def test_example_pair_positions_and_increasing_trajectory_times(tmp_path):
     assert len(stamps) == 2 and stamps[0] < stamps[1], stamps
 
 
+def test_a_bad_surface_to_measure_on_is_refused_before_any_work(tmp_path):
+    p = run_findme("run", "--no-record", "--measure", "247,378,ceiling", check=False)
+    assert p.returncode == 2 and "--measure: a point's surface must be floor or wall, got " \
+        "'ceiling'" in p.stderr, p.stderr
+    assert "photo 0" not in p.stdout     # refused before the photos went out
+
+
 def test_without_a_camera_height_lengths_are_in_camera_heights(tmp_path):
     """The example photos without their sidecars (so without a camera height): no length is
     printed in metres; each photo still gets its position line."""

@@ -69,12 +69,14 @@ def sample_messages() -> list[tuple[str, object]]:
                     polyline=poly1, time_ns=T0 + 4_210_000_000)
 
     req = S.MeasureRequest(session=SESSION, index=3,
-                           pixels=S.pixels_to_msg([(320.0, 420.5), (500.25, 250.0), (10, 5)]))
+                           pixels=S.pixels_to_msg([(320.0, 420.5), (500.25, 250.0), (10, 5)]),
+                           said=[S.SURFACE_FLOOR, S.SURFACE_NONE, S.SURFACE_NONE])
     reply = S.MeasureReply(
         session=SESSION, index=3, rank=2, metric=True,
         points=[
             S.MeasuredPoint(pixel=S.Pixel(u=320.0, v=420.5), surface=S.SURFACE_FLOOR,
-                            xyz=S.Vec3(x=0.004, y=1.21, z=2.87), sigma_m=0.06),
+                            xyz=S.Vec3(x=0.004, y=1.21, z=2.87), sigma_m=0.06,
+                            said=S.SURFACE_FLOOR),
             S.MeasuredPoint(pixel=S.Pixel(u=500.25, v=250.0), surface=S.SURFACE_WALL,
                             xyz=S.Vec3(x=1.52, y=0.18, z=4.4), sigma_m=0.21),
             S.MeasuredPoint(pixel=S.Pixel(u=10, v=5),

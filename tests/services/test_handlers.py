@@ -13,6 +13,7 @@ from findme_core.errors import HypothesisError, ImageError, InputError
 from findme_core.motion.pair import photo_lines
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
+from findme.regression.replay import measure_request
 from services.pipeline.hypotheses import HypothesesHandler
 from services.pipeline.measurement import MeasurementHandler
 from services.runtime.authority import KeyAuthorityError
@@ -174,6 +175,42 @@ def test_measurement_scene_and_query(pipeline):
         assert np.allclose(schemas.msg_to_vec3(p.xyz), t.xyz, atol=1e-4)
     assert "outside" in rep.points[2].error and rep.distances[1].error
     assert rep.distances[0].distance_m == pytest.approx(np.linalg.norm(truth[0].xyz - truth[1].xyz))
+
+
+def test_measurement_takes_the_surface_said(pipeline):
+    """Each pixel's said surface reaches ``Scene.locate`` and comes back in the reply: a
+    wall pixel said floor is put on the floor (the floor beyond a cabinet a boundary runs
+    along), a floor pixel said wall gets no point, with what to do; nothing said is as
+    before; a replay's request, made from the reply, says the same."""
+    view, frame, hset, sel = pipeline
+    m = MeasurementHandler()
+    m.fetch = {}.get
+    m.on_message("findme/t1/hypotheses/0", hset)
+    m.on_message("findme/t1/selection/0", sel)
+    px = [[320, 470], [600, 300], [320, 470], [600, 300]]
+    plain = schemas.MeasureRequest(session="t1", index=0, pixels=schemas.pixels_to_msg(px))
+    before = m.on_query("findme/t1/measure", plain)
+    assert [p.surface for p in before.points] == [schemas.SURFACE_FLOOR, schemas.SURFACE_WALL] * 2
+    assert not any(p.said for p in before.points)
+    said = [None, "floor", "wall", None]
+    req = schemas.MeasureRequest(session="t1", index=0, pixels=schemas.pixels_to_msg(px),
+                                 said=schemas.surfaces_to_msg(said))
+    rep = m.on_query("findme/t1/measure", req)
+    assert [p.said for p in rep.points] == schemas.surfaces_to_msg(said)
+    poly, kinds = schemas.msg_to_polyline(hset.hypotheses[0].polyline)
+    truth = Scene(msg_camera(hset.camera), view.camera_height, poly, kinds).locate(px, said)
+    assert rep.points[1].surface == schemas.SURFACE_FLOOR
+    assert np.allclose(schemas.msg_to_vec3(rep.points[1].xyz), truth[1].xyz, atol=1e-4)
+    assert not np.allclose(schemas.msg_to_vec3(rep.points[1].xyz),
+                           schemas.msg_to_vec3(before.points[1].xyz), atol=0.1)
+    assert "floor line runs below it" in rep.points[2].error
+    assert rep.points[2].surface == schemas.SURFACE_NONE and not rep.points[2].HasField("xyz")
+    for i in (0, 3):
+        assert rep.points[i] == before.points[i]
+    schemas.decode(schemas.MeasureReply, schemas.encode(rep))   # valid on the bus
+    assert schemas.encode(measure_request(rep)) == schemas.encode(req)
+    assert schemas.encode(measure_request(before)) == schemas.encode(plain)
+    assert m.counters()["measure_queries_said"] == 1
 
 
 def test_measurement_asks_for_the_frame_when_the_set_lacks_its_height(pipeline):

@@ -83,7 +83,7 @@ def test_capture_time_from_exif(photos):
 def test_send_prints_the_run_report_and_export_gives_capture_times(bus, photos, tmp_path):
     ep, procs, rec = bus
     p = run_findme("send", *map(str, photos), "--connect", ep, "--session", "sent-1",
-                   "--measure", "495,276", "--measure", "247,378", check=False)
+                   "--measure", "495,276", "--measure", "247,378,floor", check=False)
     assert p.returncode == 0, p.stderr
     out = p.stdout
     for line in ("photo 0: 10 hypotheses", "photo 1: hypothesis 1 selected (auto)",
@@ -91,8 +91,10 @@ def test_send_prints_the_run_report_and_export_gives_capture_times(bus, photos, 
                  "photo 0: at x +0.000 m, z +0.000 m", "photo 1: at x +0.3"):
         assert line in out, out     # each photo's position line, as findme run prints it
     assert_example_motion(out)
+    assert "measure photo 0 pixel (247, 378): floor (as you said) at" in out, out
+    assert "measure photo 0 pixel (495, 276): floor at" in out, out
     ref = run_findme("run", *map(str, photos), "--no-record", "--measure", "495,276",
-                     "--measure", "247,378").stdout
+                     "--measure", "247,378,floor").stdout
     same = [ln for ln in out.splitlines()
             if ln.startswith(("motion", "measure", "distance")) or ": at x " in ln]
     assert same and all(ln in ref.splitlines() for ln in same), (same, ref)
