@@ -5,16 +5,19 @@
  * Talks to the gateway (services/gateway.py) over one WebSocket = one session:
  *   binary  [u32 big-endian n][n bytes JSON header][photo bytes]   a photo
  *   text    {"type": "select", index, rank, camera_height_m}         another hypothesis
- *   text    {"type": "measure", id, index, pixels: [[u, v], ...]}    3D of tapped pixels
- * and gets JSON: hello, frame, refused, hypotheses, selection, scene, measure, motion, pose,
- * trajectory, plan (drawn by plan.js), error. Pixels follow the bus convention: (0, 0) is the centre of the
- * top-left pixel.
+ *   text    {"type": "measure", id, index, pixels: [[u, v], ...],    3D of tapped pixels
+ *            surfaces: [null | "floor" | "wall", ...]}               (optional) one per pixel:
+ *                                                                    what the user says it is on
+ * and gets JSON: hello, frame, refused, hypotheses, selection, scene, measure (each point
+ * with what was said of it: said), motion, pose, trajectory, plan (drawn by plan.js), error.
+ * Pixels follow the bus convention: (0, 0) is the centre of the top-left pixel.
  */
 import {$, clearBusy, notify, photoAt, renderBusy, send, setBusy, setStatus, state,
         ERROR_HINTS} from './common.js';
 import {initCapture} from './capture.js';
 import {expectMotion, renderMotion} from './motion.js';
-import {initResults, measure, render, show} from './results.js';
+import {measure} from './points.js';
+import {initResults, render, show} from './results.js';
 import {autoRotation, currentGravity, deviceGravityFromMotion, deviceGravityFromOrientation,
         deviceToCamera, initSettings, rotation} from './settings.js';
 
@@ -62,7 +65,7 @@ const HANDLERS = {
     const p = {index: m.index, url: pend ? pend.url : '', name: pend ? pend.name : '',
                width: m.width, height: m.height, hyps: null, reason: '', rank: 0, by: '',
                sceneRank: 0, metric: false, height_m: m.camera_height_m, points: [],
-               reply: null, measureId: 0, camera: null,
+               surfaces: [], reply: null, measureId: 0, camera: null,
                sentGravity: pend ? pend.gravity : null,
                gravitySent: pend ? pend.gravitySource : null, serverGravity: m.gravity};
     state.photos.push(p);

@@ -5,8 +5,8 @@
  * and number formatting (metres or feet and inches), the messages box, the busy indicator
  * and sending to the server. The parts of the page: settings.js (camera settings: lens,
  * height, gravity and the phone's motion sensors), capture.js (taking or picking a photo and
- * sending it), results.js (the photo with its boundary hypotheses, tapped points and their
- * 3D), motion.js (where you moved), plan.js (the room's floor plan) and app.js (the
+ * sending it), results.js (the photo with its boundary hypotheses and the taps on it),
+ * points.js (the tapped points, what the user says they are on, and their 3D), motion.js (where you moved), plan.js (the room's floor plan) and app.js (the
  * connection, the server's messages and the wiring).
  */
 export const $ = (id) => document.getElementById(id);
@@ -17,6 +17,7 @@ export const state = {
   ws: null, session: null, services: [], seq: 0, measureSeq: 0,
   limits: {max_upload_bytes: 15 * 1024 * 1024, max_measure_pixels: 64, max_photos: 100},
   photos: [], current: -1, pending: new Map(), busy: new Map(), units: 'm',
+  tapAs: null,   // what the user says the next taps are on: null (as the boundary says), 'floor', 'wall'
   motions: new Map(), poses: new Map(), trajectory: null, motionTimer: null,
   sensors: {on: false, samples: [], source: ''},
 };

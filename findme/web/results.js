@@ -1,10 +1,12 @@
 /* Find Me phone client: the result of a photo (ES module): its tabs, the photo with its
  * boundary hypotheses (the chosen one on top, the others on request), the hypothesis chips,
- * where its lens and gravity came from, and the points tapped on it with their 3D position,
- * distances and 1-sigma (asked of the measurement service through the gateway).
+ * where its lens and gravity came from, and the taps on it (points.js holds the points, what
+ * the user says they are on, their 3D position, distances and 1-sigma, asked of the
+ * measurement service through the gateway).
  */
-import {$, DEG, el, fmtCoord, fmtLen, fmtSigma, notify, photoAt, send, setBusy, state} from './common.js';
+import {$, DEG, el, fmtLen, notify, photoAt, send, setBusy, state} from './common.js';
 import {renderMotion} from './motion.js';
+import {addPoint, clearPoints, drawPoints, initPoints, measure, renderPoints} from './points.js';
 import {heightFromForm} from './settings.js';
 
 export const COLORS = ['#e6194b', '#3cb44b', '#4363d8', '#f58231', '#911eb4', '#00a5b8',
@@ -20,13 +22,6 @@ export function selectRank(rank) {
     p.rank = rank;
     setBusy('scene', 'Building the 3D scene…');
     render();
-  }
-}
-export function measure(p) {
-  if (!p.points.length) { p.reply = null; return; }
-  p.measureId = ++state.measureSeq;
-  if (send({type: 'measure', id: p.measureId, index: p.index, pixels: p.points})) {
-    setBusy('measure', 'Measuring…');
   }
 }
 export function onTap(ev) {
@@ -48,8 +43,7 @@ export function onTap(ev) {
   }
   const u = Math.min(p.width - 1, Math.max(0, Math.round(x * p.width / r.width - 0.5)));
   const v = Math.min(p.height - 1, Math.max(0, Math.round(y * p.height / r.height - 0.5)));
-  p.points.push([u, v]);
-  p.reply = null;
+  addPoint(p, u, v);
   render();
   if (p.sceneRank) measure(p);
 }
@@ -158,55 +152,15 @@ export function drawPolyline(svg, h, color, selected) {
   g.append(t);
   svg.append(g);
 }
-export function drawPoints(svg, p) {
-  const r = Math.max(p.width, p.height) / 110;
-  p.points.forEach(([u, v], i) => {
-    if (i > 0) {
-      const [u0, v0] = p.points[i - 1];
-      svg.append(el('svg:line', {x1: u0, y1: v0, x2: u, y2: v, class: 'tape',
-                                 'vector-effect': 'non-scaling-stroke'}));
-    }
-    const pt = p.reply && p.reply.points[i];
-    svg.append(el('svg:circle', {cx: u, cy: v, r, class: `pt ${pt ? pt.surface : 'pending'}`}));
-    svg.append(el('svg:text', {x: u + 1.3 * r, y: v - 1.3 * r, class: 'pt-label'}, String(i + 1)));
-  });
-}
-export function renderPoints(p) {
-  const reply = p.reply;
-  $('points').replaceChildren(...p.points.map(([u, v], i) => {
-    const pt = reply && reply.points[i];
-    const li = el('li', {'data-u': u, 'data-v': v});
-    if (!pt) { li.textContent = `pixel (${u}, ${v}) — measuring…`; return li; }
-    li.dataset.surface = pt.surface;
-    if (pt.error) { li.textContent = `pixel (${u}, ${v}): ${pt.error}`; li.className = 'bad'; return li; }
-    const [x, y, z] = pt.xyz;
-    Object.assign(li.dataset, {x: x, y: y, z: z});
-    const unit = reply.metric ? (state.units === 'm' ? 'm' : 'ft') : 'camera heights';
-    li.textContent = `${pt.surface} · x ${fmtCoord(x)} y ${fmtCoord(y)} z ${fmtCoord(z)} ${unit} · ` +
-                     `${fmtLen(Math.hypot(x, y, z), 2)} from the camera${fmtSigma(pt.sigma_m)}`;
-    return li;
-  }));
-  $('distances').replaceChildren(...(reply ? reply.distances : []).map((d) => {
-    const li = el('li', {'data-a': d.a, 'data-b': d.b});
-    if (d.error || d.distance_m === null) {
-      li.textContent = `${d.a + 1} → ${d.b + 1}: ${d.error || 'no distance'}`;
-      li.className = 'bad';
-      return li;
-    }
-    li.dataset.distanceM = d.distance_m;
-    li.append(`${d.a + 1} → ${d.b + 1}: `, el('b', {class: 'dist'}, reply.metric ? fmtLen(d.distance_m)
-              : `${d.distance_m.toFixed(3)} camera heights`), fmtSigma(d.sigma_m));
-    return li;
-  }));
-}
 
 // ------------------------------------------------------------------ wiring
 export function initResults() {
+  initPoints();
   $('stage').addEventListener('click', onTap);
   $('show-all').addEventListener('change', render);
   $('clear-btn').addEventListener('click', () => {
     const p = photoAt(state.current);
-    if (p) { p.points = []; p.reply = null; render(); }
+    if (p) { clearPoints(p); render(); }
   });
   $('height').addEventListener('change', () => {  // a new height re-builds the scene
     const p = photoAt(state.current);

@@ -76,7 +76,7 @@ WEB_FILES = {"/": ("index.html", "text/html"), "/app.js": ("app.js", "text/javas
 WEB_FILES["/plan.js"] = ("plan.js", "text/javascript")   # the floor plan drawing
 #: the page's parts (ES modules app.js imports; findme/web/common.js says what each does)
 WEB_FILES.update({f"/{name}.js": (f"{name}.js", "text/javascript")
-                  for name in ("common", "settings", "capture", "results", "motion")})
+                  for name in ("common", "settings", "capture", "results", "points", "motion")})
 
 
 class GatewayHandler(Handler):

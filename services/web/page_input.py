@@ -2,7 +2,8 @@
 
     binary  [u32 big-endian n][n bytes UTF-8 JSON header][image]      a photo
     text    {"type": "select", index, rank, camera_height_m}          another hypothesis
-    text    {"type": "measure", id, index, pixels: [[u, v], ...]}     3D of tapped pixels
+    text    {"type": "measure", id, index, pixels: [[u, v], ...],     3D of tapped pixels
+             surfaces: [null | "floor" | "wall", ...]}                (optional) one per pixel
     text    {"type": "ping"}
 
 Limits: upload bytes (``MAX_UPLOAD_BYTES``), header and text sizes, decoded pixels
@@ -26,6 +27,11 @@ server's clock is used instead when it is more than a day off).
 A JPEG with an EXIF rotation is decoded upright and re-encoded (quality 95) so that the
 frame's pixels are the ones the browser shows and taps refer to. Pixels follow the bus
 convention: (0, 0) is the centre of the top-left pixel.
+
+A measure's ``surfaces`` (optional) says, per pixel, the surface the user tapped: null (as
+the chosen boundary says), "floor" (on the floor whatever the boundary says, below the
+horizon) or "wall" (no point where the boundary puts the floor, saying what to do); the
+session passes them on as the MeasureRequest's ``said``.
 
 Pure functions: no bus, no server; ``parse_command`` returns a new dict built from its own
 parse of the text.
@@ -63,6 +69,8 @@ FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)
 #: (``imageio.reduction``: at most an eighth): every byte is read, a fraction decoded.
 CHECK_SIZE = 16
 CODE = schemas.ErrorCode
+#: What a page may say a tapped pixel is on (null: as the boundary says).
+SURFACES = (None, "floor", "wall")
 
 
 class GatewayError(FindmeError):
@@ -295,4 +303,25 @@ def parse_command(text: str) -> dict:
         raise _bad(f"{len(px)} points in one request, over the limit of {MAX_MEASURE_PIXELS}",
                    CODE.ERROR_CODE_TOO_LARGE)
     cmd["pixels"] = [_vector(p, 2, "a pixel") for p in px]
+    cmd["surfaces"] = _surfaces(cmd["surfaces"], len(px)) if "surfaces" in cmd else None
     return cmd
+
+
+def _shown(v) -> str:
+    """A page's value as the JSON it sent (shortened)."""
+    text = json.dumps(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _surfaces(sf, n: int) -> list:
+    """A measure's ``surfaces``: a list of n entries, each None, "floor" or "wall"."""
+    if not isinstance(sf, list):
+        raise _bad(f'surfaces must be a list of null, "floor" or "wall", one per pixel; '
+                   f"got {_shown(sf)}")
+    if len(sf) != n:
+        raise _bad(f"surfaces gives {len(sf)} for {n} pixels: give one per pixel "
+                   "(null: as the boundary says)")
+    for i, s in enumerate(sf):
+        if not (s is None or isinstance(s, str) and s in SURFACES):
+            raise _bad(f'surfaces[{i}] must be null, "floor" or "wall", got {_shown(s)}')
+    return list(sf)

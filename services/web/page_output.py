@@ -12,7 +12,8 @@ codes upper-case, without their prefix), unset optional fields ``None``, and an 
 is given relative to the session (``frame/3``). A scene also carries its boundary's walls on
 the floor (``walls_m``, the photo's level frame) for the page's floor map, and a hypothesis
 set says why its photo does not look like a room view (``not_room_view``,
-``findme_core.single.room_view``; "" when it does).
+``findme_core.single.room_view``; "" when it does). Each measured point says what the user said
+it is on (``said``: "floor", "wall", or None when nothing was said of it).
 
 Pure: no bus, no server; the message is only read.
 """
@@ -35,6 +36,13 @@ def _opt(m, name):
 
 def _kind_name(k: int) -> str:
     return schemas.SegKind.Name(k).removeprefix("SEG_KIND_").lower()
+
+
+def _said(s: int) -> str | None:
+    """What a request said of a point: "floor", "wall", or None (nothing said)."""
+    if s == schemas.SURFACE_NONE:
+        return None
+    return schemas.Surface.Name(s).removeprefix("SURFACE_").lower()
 
 
 def _pose(p) -> dict:
@@ -123,7 +131,8 @@ def to_page(session: str, msg) -> dict | None:
                 "points": [{"pixel": [p.pixel.u, p.pixel.v],
                             "surface": schemas.Surface.Name(p.surface).removeprefix("SURFACE_").lower(),
                             "xyz": [p.xyz.x, p.xyz.y, p.xyz.z] if p.HasField("xyz") else None,
-                            "sigma_m": _opt(p, "sigma_m"), "error": p.error} for p in msg.points],
+                            "sigma_m": _opt(p, "sigma_m"), "error": p.error,
+                            "said": _said(p.said)} for p in msg.points],
                 "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
                                "sigma_m": _opt(d, "sigma_m"), "error": d.error}
                               for d in msg.distances]}

@@ -7,11 +7,16 @@ own session:
     page -> session                         session -> bus
     binary upload (page_input)              findme/<s>/frame/<n>      (n = 0, 1, ... per page)
     {"type": "select", index, rank, ...}    findme/<s>/selection/<n>  (by USER)
-    {"type": "measure", id, index, pixels}  query findme/<s>/measure  -> {"type": "measure", ...}
-                                            (the reply also on findme/<s>/measured/<n>, for the record)
+    {"type": "measure", id, index, pixels,  query findme/<s>/measure  -> {"type": "measure", ...}
+     surfaces (optional)}                   (the reply also on findme/<s>/measured/<n>, for the record)
 
     bus -> page: the ``FORWARDED`` kinds on findme/<s>/** (everything but frames), as JSON
     (page_output).
+
+A measure's ``surfaces`` (null, "floor" or "wall" per pixel: what the user says each tapped
+point is on) become the MeasureRequest's ``said``, one per pixel, only when at least one is
+said; a request that says nothing is the same as before there was a ``said``. Each point of
+the reply tells the page what was said of it (``said``).
 
 When photo n's hypotheses arrive and the page has not selected one for it yet, rank 1 is
 selected (by AUTO: "the best one preselected"); the user's tap on another publishes a new
@@ -229,6 +234,9 @@ class PageSession:
             return
         req = schemas.MeasureRequest(session=self.sid, index=n)
         req.pixels.extend(schemas.pixels_to_msg(cmd["pixels"]))
+        surfaces = cmd.get("surfaces")
+        if surfaces and any(surfaces):   # nothing said: no ``said`` at all
+            req.said.extend(schemas.surfaces_to_msg(surfaces))
         self.in_flight += 1
         try:
             reply, err = await asyncio.to_thread(self._query, key, schemas.encode(req), n)

@@ -140,6 +140,50 @@ def test_parse_command():
         assert code_of(parse_command, text)[0] == code, text
 
 
+def test_parse_command_takes_what_the_user_says_each_pixel_is_on():
+    """A measure's optional surfaces: one per pixel, each null, "floor" or "wall"; anything
+    else refused (MALFORMED) with the offending value and its place named."""
+    def measure(**extra):
+        return json.dumps({"type": "measure", "id": 1, "index": 0,
+                           "pixels": [[1, 2], [3, 4]], **extra})
+    assert parse_command(measure())["surfaces"] is None                  # nothing said
+    assert parse_command(measure(surfaces=[None, "floor"]))["surfaces"] == [None, "floor"]
+    assert parse_command(measure(surfaces=["wall", "floor"]))["surfaces"] == ["wall", "floor"]
+    assert parse_command(measure(surfaces=[None, None]))["surfaces"] == [None, None]
+    for surfaces, words in [
+            (["floor"], "surfaces gives 1 for 2 pixels: give one per pixel"),
+            (["floor", "wall", None], "surfaces gives 3 for 2 pixels"),
+            ([], "surfaces gives 0 for 2 pixels"),
+            (["floor", "ceiling"], 'surfaces[1] must be null, "floor" or "wall", got "ceiling"'),
+            ([3, None], 'surfaces[0] must be null, "floor" or "wall", got 3'),
+            ([None, True], 'surfaces[1] must be null, "floor" or "wall", got true'),
+            (["Floor", None], 'surfaces[0] must be null, "floor" or "wall", got "Floor"'),
+            ([["floor"], None], 'surfaces[0] must be null, "floor" or "wall", got ["floor"]'),
+            ("floor", 'surfaces must be a list of null, "floor" or "wall", one per pixel; '
+                      'got "floor"'),
+            ({"0": "floor"}, 'got {"0": "floor"}'),
+            (None, "got null")]:
+        code, text = code_of(parse_command, measure(surfaces=surfaces))
+        assert code == "MALFORMED" and words in text, (surfaces, text)
+    code, text = code_of(parse_command, measure(surfaces=["x" * 500, None]))
+    assert code == "MALFORMED" and len(text) < 120 and '"xxx' in text, text
+
+
+def test_to_page_measure_says_what_was_said():
+    reply = schemas.MeasureReply(session="s", index=0, rank=1, metric=True, points=[
+        schemas.MeasuredPoint(pixel=schemas.Pixel(u=1, v=2), surface=schemas.SURFACE_FLOOR,
+                              xyz=schemas.Vec3(x=0, y=1.5, z=2), sigma_m=0.1,
+                              said=schemas.SURFACE_FLOOR),
+        schemas.MeasuredPoint(pixel=schemas.Pixel(u=3, v=4), surface=schemas.SURFACE_WALL,
+                              xyz=schemas.Vec3(x=0, y=0, z=3), sigma_m=0.5),
+        schemas.MeasuredPoint(pixel=schemas.Pixel(u=5, v=6), said=schemas.SURFACE_WALL,
+                              error="choose a hypothesis whose floor line runs below it")])
+    points = to_page("s", reply)["points"]
+    assert [(p["surface"], p["said"]) for p in points] == [("floor", "floor"), ("wall", None),
+                                                           ("none", "wall")]
+    assert "floor line runs below it" in points[2]["error"]
+
+
 def test_to_page_messages():
     e = schemas.Error(session="s", key="findme/s/frame/3", code=CODE.ERROR_CODE_BAD_IMAGE,
                       message="corrupt", service="hypotheses/1")
@@ -204,6 +248,65 @@ def test_one_page_sees_only_its_own_session():
     finally:
         gw.stop()
         zs.close()
+
+
+def test_a_measure_passes_what_was_said_on_and_back():
+    """On a live bus, with a stand-in measurement service that echoes what was said: a
+    measure whose surfaces say something becomes a MeasureRequest with one ``said`` per
+    pixel (NONE for null); one that says nothing (no surfaces, or all null) is byte for
+    byte the request it was before ``said`` existed; the page's reply carries ``said``."""
+    import aiohttp
+
+    zs = bus.open_session()
+    seen = []
+
+    def stand_in(query):   # the measurement service's query, answered from the request
+        raw = query.payload.to_bytes()
+        req = schemas.decode(schemas.MeasureRequest, raw)
+        seen.append(raw)
+        said = list(req.said) or [schemas.SURFACE_NONE] * len(req.pixels)
+        reply = schemas.MeasureReply(session=req.session, index=req.index, rank=1, metric=True)
+        for px, s in zip(req.pixels, said):
+            reply.points.add(pixel=px, surface=s or schemas.SURFACE_WALL, said=s,
+                             xyz=schemas.Vec3(x=0, y=0, z=2), sigma_m=0.1)
+        query.reply(str(query.key_expr), schemas.encode(reply))
+
+    q = zs.declare_queryable("findme/*/measure", stand_in)
+    gw = Gateway(zs, "127.0.0.1", 0)
+    url = gw.start()
+
+    async def run():
+        async with aiohttp.ClientSession() as http:
+            async with http.ws_connect(url.replace("http", "ws") + "ws") as ws:
+                sid = (await ws.receive_json(timeout=10))["session"]
+                await ws.send_bytes(upload_bytes({"id": "a"}, ROOM_A))
+                assert (await ws.receive_json(timeout=10))["type"] == "frame"
+                replies = []
+                for i, extra in enumerate([{"surfaces": [None, "floor", "wall"]}, {},
+                                           {"surfaces": [None, None, None]}]):
+                    await ws.send_str(json.dumps({"type": "measure", "id": i, "index": 0,
+                                                  "pixels": [[1, 2], [3, 4], [5, 6]], **extra}))
+                    while (m := await ws.receive_json(timeout=10))["type"] != "measure":
+                        pass
+                    assert m["id"] == i and not m["error"], m
+                    replies.append(m)
+                return sid, replies
+
+    try:
+        sid, replies = asyncio.run(run())
+    finally:
+        gw.stop()
+        q.undeclare()
+        zs.close()
+    reqs = [schemas.decode(schemas.MeasureRequest, r) for r in seen]
+    assert list(reqs[0].said) == [schemas.SURFACE_NONE, schemas.SURFACE_FLOOR,
+                                  schemas.SURFACE_WALL]
+    plain = schemas.MeasureRequest(session=sid, index=0)
+    plain.pixels.extend(schemas.pixels_to_msg([(1, 2), (3, 4), (5, 6)]))
+    assert seen[1] == seen[2] == schemas.encode(plain)          # nothing said: as before
+    assert [p["said"] for p in replies[0]["points"]] == [None, "floor", "wall"]
+    assert [p["surface"] for p in replies[0]["points"]] == ["wall", "floor", "wall"]
+    assert [p["said"] for p in replies[1]["points"]] == [None] * 3
 
 
 def test_a_scene_carries_its_walls_on_the_floor():

@@ -1,0 +1,137 @@
+"""The user says which surface they tap (floor / wall / as the boundary says): through the
+gateway to the measurement service of ``findme app`` and back, and on the phone page.
+
+room_a with its sidecar camera: with hypothesis 1, pixel (320, 100) is on the wall and
+(320, 400) on the floor (each checked in the same request, said nothing). Said floor, the
+wall pixel is put on the floor; said wall, the floor pixel gets no point and the service
+says what to do. Every wait is on a message or a page selector (no sleeps)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from importlib import resources
+
+import aiohttp
+import pytest
+
+from test_web_app import PHONE, SIDE_A, close, tap_pixel, type_camera, upload
+
+pytestmark = pytest.mark.timeout(120)
+
+ROOM_A = resources.files("findme") / "examples" / "room_a.jpg"
+WALL_PX, FLOOR_PX = (320, 100), (320, 400)
+
+
+def upload_bytes(header: dict, image: bytes) -> bytes:
+    h = json.dumps(header).encode()
+    return len(h).to_bytes(4, "big") + h + image
+
+
+async def next_of(ws, kind: str, timeout: float = 60, **match):
+    """The next message of type ``kind`` (with ``match``'s values) on the page's socket."""
+    while True:
+        m = await ws.receive_json(timeout=timeout)
+        if m["type"] == "error":
+            raise AssertionError(f"the server refused: {m}")
+        if m["type"] == kind and all(m.get(k) == v for k, v in match.items()):
+            return m
+
+
+def test_said_surfaces_reach_the_service_and_come_back(app):
+    """A measure with surfaces, through a real gateway and measurement service: the reply
+    to the page says what was said of each point, a wall pixel said floor comes back on
+    the floor (with a floor point's sigma, not the wall's), a floor pixel said wall comes
+    back with no point and what to do."""
+    k = SIDE_A["intrinsics"]
+    lens = {"kind": "intrinsics", **{n: k[n] for n in ("fx", "fy", "cx", "cy", "width", "height")}}
+    header = {"id": "a", "lens": lens,
+              "gravity": SIDE_A["gravity_cam"], "camera_height_m": 1.42}
+
+    async def run():
+        async with aiohttp.ClientSession() as http, http.ws_connect(app.url + "ws") as ws:
+            assert (await ws.receive_json(timeout=10))["type"] == "hello"
+            await ws.send_bytes(upload_bytes(header, ROOM_A.read_bytes()))
+            await next_of(ws, "scene", index=0, rank=1)
+            await ws.send_str(json.dumps({
+                "type": "measure", "id": 1, "index": 0,
+                "pixels": [WALL_PX, FLOOR_PX, WALL_PX, FLOOR_PX],
+                "surfaces": [None, None, "floor", "wall"]}))
+            return await next_of(ws, "measure", id=1)
+
+    reply = asyncio.run(run())
+    assert not reply["error"], reply
+    wall, floor, said_floor, said_wall = reply["points"]
+    assert (wall["surface"], wall["said"]) == ("wall", None)          # as the boundary says
+    assert (floor["surface"], floor["said"]) == ("floor", None)
+    assert (said_floor["surface"], said_floor["said"]) == ("floor", "floor"), said_floor
+    assert not said_floor["error"] and said_floor["xyz"] is not None
+    assert said_floor["sigma_m"] < wall["sigma_m"] / 2, (said_floor, wall)
+    assert said_wall["said"] == "wall" and said_wall["xyz"] is None
+    assert "choose a hypothesis whose floor line runs below it" in said_wall["error"], said_wall
+
+
+def test_the_page_says_which_surface_you_tap(browser, app, shots):
+    """Phone page: pick "floor", tap the wall pixel: the request says surfaces ["floor"],
+    the list item and the dot say it, the service's answer puts it on the floor "as you
+    said". The choice holds for the next taps until changed; "as the boundary says" taps
+    send null; "Clear points" clears what was said, and a request with nothing said has no
+    surfaces at all."""
+    context = browser.new_context(**PHONE)
+    page = context.new_page()
+    page.js_errors = []
+    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    page.goto(app.url)
+    page.wait_for_selector('#status[data-state="connected"]')
+    assert page.is_checked('#tap-as input[value=""]')                # the default
+    type_camera(page, SIDE_A)
+    upload(page, str(ROOM_A), 0)
+    page.evaluate("""() => { window.__sent = [];
+        const ws = FindMe.state.ws, send = ws.send.bind(ws);
+        ws.send = (d) => { if (typeof d === 'string') window.__sent.push(JSON.parse(d)); send(d); }; }""")
+
+    def measures(n):
+        page.wait_for_function(
+            "n => window.__sent.filter(m => m.type === 'measure').length >= n", arg=n)
+        return [m for m in page.evaluate("window.__sent") if m["type"] == "measure"]
+
+    page.locator("#tap-as label", has_text="floor").tap()
+    assert page.is_checked('#tap-as input[value="floor"]')
+    page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
+    tap_pixel(page, *WALL_PX)
+    first = measures(1)[-1]
+    assert first["surfaces"] == ["floor"] and len(first["pixels"]) == 1, first
+    page.wait_for_selector('#points li[data-said="floor"]')
+    assert page.locator("#overlay circle.pt.said").count() == 1
+    li = page.wait_for_selector('#points li[data-said="floor"][data-x]')
+    assert li.get_attribute("data-surface") == "floor"
+    assert li.inner_text().startswith("floor (as you said) · "), li.inner_text()
+    shots(page, "11-phone-said-floor", at="#stage")
+
+    page.locator("#tap-as label", has_text="as the boundary says").tap()
+    page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
+    tap_pixel(page, *FLOOR_PX)
+    second = measures(2)[-1]
+    assert second["surfaces"] == ["floor", None], second
+    page.wait_for_selector('#points li[data-said=""][data-x]')
+    assert page.locator("#overlay circle.pt.said").count() == 1
+    assert not page.inner_text('#points li[data-said=""]').endswith("(as you said)")
+
+    page.locator("#tap-as label", has_text="wall").tap()
+    page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
+    tap_pixel(page, *FLOOR_PX)
+    assert measures(3)[-1]["surfaces"] == ["floor", None, "wall"]
+    bad = page.wait_for_selector('#points li.bad[data-said="wall"]')
+    assert "floor line runs below it" in bad.inner_text(), bad.inner_text()
+    shots(page, "12-phone-said-wall-on-the-floor", at="#stage")
+
+    page.click("#clear-btn")
+    assert page.locator("#points li").count() == 0
+    assert page.evaluate("FindMe.state.photos[0].surfaces") == []
+    page.locator("#tap-as label", has_text="as the boundary says").tap()
+    page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
+    tap_pixel(page, *FLOOR_PX)
+    last = measures(4)[-1]
+    assert "surfaces" not in last and len(last["pixels"]) == 1, last
+    page.wait_for_selector('#points li[data-said=""][data-surface="floor"]')
+    close(page)
