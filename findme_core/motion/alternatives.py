@@ -23,6 +23,16 @@ def distinct_top(cy, ct, total, k: int) -> np.ndarray:
     return order[np.sort(first)[:k]]
 
 
+def rival(cy, total, yaw: float, sep: float) -> int | None:
+    """Index of the best-scoring candidate (yaw (C,) radians, score (C,)) whose yaw is more
+    than ``sep`` radians from ``yaw`` (a clearly different motion: another wall taken for
+    this one in a symmetric room), None when there is none; ties broken as ``ties.order``."""
+    far = np.flatnonzero(np.abs(np.angle(np.exp(1j * (np.asarray(cy) - yaw)))) > sep)
+    if len(far) == 0:
+        return None
+    return int(far[ties.order(np.asarray(total)[far])[0]])
+
+
 def spread_over(m: PlanarMotion) -> PlanarMotion:
     """``m`` with its sigmas widened to cover its alternatives: the variance of the mixture of
     it and them, weighted by score (the 1-sigma of an answer the evidence cannot tell from

@@ -20,10 +20,11 @@ from findme_core.errors import MotionError
 from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y
 from findme_core.motion import one_sided, photometric, register
-from findme_core.motion.alternatives import distinct_top, spread_over
+from findme_core.motion.alternatives import distinct_top, rival, spread_over
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
-from findme_core.motion.fit import Fit, Turned, YawScale, common_depth_sigma, known_yaw_score
+from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
+                                    scene_depth)
 from findme_core.motion.model import MotionInputs, MotionParams, PlanarMotion, motion_result
 
 
@@ -52,7 +53,7 @@ class Registration:
                        else (oa.angle - ob.angle, min(oa.support, ob.support)))
         self.rng = np.random.default_rng(params.seed)
         self.normal = None        # (floor normal in A, yaw) when the features correct gravity
-        self.depth = None         # the scene's depth scale (``_scene_depth``), metres
+        self.depth = None         # the scene's depth scale (``fit.scene_depth``), metres
         self.seeds = np.argsort(matches.ratio, kind="stable")[:params.max_direction_seeds]
         self.rp = register.RegisterParams(weight=params.layout_weight,
                                           violation=params.layout_violation)
@@ -115,25 +116,6 @@ class Registration:
                             _inflate(self.lifts[1], sel, self.n, self.h[1], self.p, nb, self.b),
                             self.dy, self.h[0], self.pix)
 
-    def _scene_depth(self):
-        """Depth scale of the scene, metres: the median horizontal distance of the two
-        photos' boundary samples (chosen layouts) and lifted points, weighted by 1 / sigma^2
-        (a boundary near the horizon is far and says little); None without either."""
-        d, w = [np.zeros(0)], [np.zeros(0)]
-        for lays, L in ((self.la, self.P.la), (self.lb, self.P.lb)):
-            d.append(np.hypot(L.points[L.valid, 0], L.points[L.valid, 2]))
-            w.append(L.sigma[L.valid] ** -2.0)
-            if lays:
-                k = (lays[0].kind == 0) & np.isfinite(lays[0].range)
-                d.append(lays[0].range[k])
-                w.append(lays[0].sigma[k] ** -2.0)
-        d, w = np.concatenate(d), np.concatenate(w)
-        if len(d) == 0:
-            return None
-        o = np.argsort(d)
-        c = np.cumsum(w[o])
-        return float(d[o][np.searchsorted(c, 0.5 * c[-1])])
-
     def _candidates(self, yaws, free):
         none = (np.zeros((0, 3)), np.zeros((0, self.n), bool), np.zeros(0))
         per_yaw = [self._directions(y) if self.feats else none for y in yaws]
@@ -143,7 +125,7 @@ class Registration:
         if len(best[2]):
             first |= best[1][0]
         self.P = self._lift(first)
-        self.depth = self._scene_depth()
+        self.depth = scene_depth(self.P, self.la, self.lb)
         self.fit = Fit(self.P, self.la, self.lb, self.orient, self.depth, self.p, self.rp,
                        self.turned)
         uses = (self.P.usable(False), self.P.usable(True))   # floor points first
@@ -230,10 +212,7 @@ class Registration:
                 break
             if any(self._same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
                 continue
-            q, cov = self.fit.refine(cy[i], ct[i], which[i])
-            s, w = self.fit.score(q[0], q[1:4])
-            ph, corr, n = self._photometric(q[:1], q[None, 1:4])
-            results.append((q, cov, float(s[0] + ph[0]), w[0], (float(corr[0]), int(n[0]))))
+            results.append(self._refined(cy[i], ct[i], which[i]))
         results = [results[i] for i in ties.order(np.array([r[2] for r in results]))]
         out = []
         for r in results:
@@ -253,7 +232,43 @@ class Registration:
             raise first
         alts = tuple(o for o, _ in out[:k] + out[k + 1:]
                      if o.score >= self.p.alternative_ratio * best.score)
+        alts += self._rival(best, alts, cy, ct, total, which)
         return spread_over(replace(best, alternatives=alts))
+
+    def _rival(self, best, alts, cy, ct, total, which) -> tuple:
+        """The best candidate turned more than ``rival_sep_deg`` from ``best``, refined, when
+        the photos do not prefer ``best`` to it (as many matches agree, the appearance
+        correlates about as well): () or (it,). Only the layouts and room orientations chose
+        ``best`` then, and they look alike turned a quarter or half turn in a symmetric
+        room. Dev pairs (2026-11-30): all 5 answers off by over 20 deg had one."""
+        sep = np.radians(self.p.rival_sep_deg)
+        i = rival(cy, total, best.yaw, sep)
+        if i is None or any(abs(np.angle(np.exp(1j * (a.yaw - cy[i])))) <= sep for a in alts):
+            return ()
+        if self._support(cy[i], ct[i]) < self._support(best.yaw, (best.x, best.dy, best.z)):
+            return ()
+        o = self._result(*self._refined(cy[i], ct[i], which[i]))
+        (cb, nb), (co, no) = best.appearance, o.appearance
+        # the appearance prefers ``best`` when the two correlations differ by more than
+        # their standard error (1 / sqrt(n) each); nothing seen: the layouts decide
+        if not (nb > 0 and no > 0 and cb - co <= np.sqrt(1.0 / nb + 1.0 / no)) or self._same(
+                o.yaw, (o.x, o.z), best.yaw, (best.x, best.z)):
+            return ()
+        return (o,)
+
+    def _refined(self, yaw, t3, pair):
+        """(q = (yaw, x, dy, z), its covariance, score, layout pair, appearance) of one
+        candidate refined (``Fit.refine``) and scored again with its appearance."""
+        q, cov = self.fit.refine(yaw, t3, pair)
+        s, w = self.fit.score(q[0], q[1:4])
+        ph, corr, n = self._photometric(q[:1], q[None, 1:4])
+        return q, cov, float(s[0] + ph[0]), w[0], (float(corr[0]), int(n[0]))
+
+    def _support(self, yaw, t3) -> int:
+        """Matches consistent with one motion: epipolar, or transferred from either photo's
+        lifted points (``Fit.inliers``)."""
+        e_in, ta, tb = self.fit.inliers(yaw, np.asarray(t3, float))
+        return int((e_in | ta | tb).sum())
 
     def _photometric(self, yaw, t3):
         """(C,) score of C motions by the photos' appearance (``photometric``: the

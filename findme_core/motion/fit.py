@@ -37,6 +37,27 @@ def known_yaw_score(a, Rb, m, T, pix: float, thr: float, ab=None, far=None):
     return msac(np.where(inl, r, thr), thr), inl
 
 
+def scene_depth(P: MotionInputs, layouts_a, layouts_b) -> float | None:
+    """Depth scale of a pair's scene, metres: the median horizontal distance of the two
+    photos' boundary samples (their first layouts) and lifted points (``P.la``, ``P.lb``),
+    weighted by 1 / sigma^2 (a boundary near the horizon is far and says little); None
+    without either."""
+    d, w = [np.zeros(0)], [np.zeros(0)]
+    for lays, L in ((layouts_a, P.la), (layouts_b, P.lb)):
+        d.append(np.hypot(L.points[L.valid, 0], L.points[L.valid, 2]))
+        w.append(L.sigma[L.valid] ** -2.0)
+        if lays:
+            k = (lays[0].kind == 0) & np.isfinite(lays[0].range)
+            d.append(lays[0].range[k])
+            w.append(lays[0].sigma[k] ** -2.0)
+    d, w = np.concatenate(d), np.concatenate(w)
+    if len(d) == 0:
+        return None
+    o = np.argsort(d)
+    c = np.cumsum(w[o])
+    return float(d[o][np.searchsorted(c, 0.5 * c[-1])])
+
+
 def common_depth_sigma(lifted) -> float:
     """Relative 1-sigma that a baseline's length shares with the depths of the lifted points
     it rests on.

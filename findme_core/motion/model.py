@@ -84,6 +84,16 @@ class MotionParams:
             walls mean no common wall.
         alternative_ratio: other refined motions scoring at least this fraction of the best
             are its alternatives.
+        rival_sep_deg: the best candidate turned more than this from the answer is an
+            alternative too, whatever its score, when the photos do not prefer the answer
+            to it: as many matches agree with it and the appearance correlates about as
+            well (``estimator.Registration._rival``). ``tools/choose_alternatives.py
+            --param rival_sep_deg`` (2026-11-30, dataset gravity): 10, 20 and 30 give the
+            same coverage, in sample zind-pairs-level 0.65 / 0.79 / 0.84 -> 0.70 / 0.86 /
+            0.89 within 1 / 2 / 3 sigma, zind-pairs-tilted 0.91 -> 0.94 within 3, TUM and
+            KITTI unchanged; the tool picks 30 (of equal losses the fewest alternatives).
+            Left out, room06 (the wrong answers) takes 180, i.e. none: on the other rooms
+            the rule changes nothing.
         duplicate_px: matches within this many pixels of a more distinctive one (their
             distances in A and in B add up to less than twice it) are its copies (one corner
             at several ORB pyramid levels) and count once (``features.distinct``). Dev
@@ -143,6 +153,7 @@ class MotionParams:
     max_baseline_m: float = 30.0
     min_layout_samples: int = 8
     alternative_ratio: float = 0.8
+    rival_sep_deg: float = 30.0
     duplicate_px: float = 4.0
     lift_min_elev_deg: float = 3.0
     photometric_weight: float = 0.04

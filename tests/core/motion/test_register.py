@@ -202,3 +202,36 @@ def test_prepared_photos_serve_every_motion_even_without_a_single_keypoint(monke
         dt, dyaw = _err(out["findme"].motion, poses[i], poses[j])
         assert dt < 0.02 and dyaw < 0.5 and out["findme"].matches == 0
     assert len(detected) == 3                                    # nothing computed again
+
+
+@pytest.mark.parametrize("walls", ["blank", "painted"])
+def test_a_rival_the_photos_cannot_rule_out_is_an_alternative_whatever_its_score(walls):
+    """The square room's quarter-turn twins with the score rule switched off (no motion
+    scores 1.01 times the best): the twin still comes out, and the answer's 1-sigma spans
+    it, when neither the matches (none here) nor the photos' appearance prefers the answer
+    (blank walls: both correlate 0); with painted walls the appearance rules the twin out
+    and the answer stands alone. With the rival rule off too, a blank room's answer would
+    claim a degree or two it does not have."""
+    pa, pb = Pose(0.0, -1.5, 1.45, 0.0, 25.0), Pose(1.2, 1.0, 1.45, 45.0, 30.0)
+    room = Room.rectangle(5.0, 5.0)
+    (va, la), (vb, lb) = view_layout(room, pa), view_layout(room, pb)
+    surfaces = [motion_photometric.surface(np.full_like(v.image, 128) if walls == "blank"
+                                           else v.image, v.camera, lay)
+                for v, lay in ((va, la), (vb, lb))]
+
+    def run(**p):
+        return estimate(no_matches(), va.camera, vb.camera, 1.45, 1.45, None, None,
+                        layouts=([la], [lb]), surfaces=surfaces,
+                        orientations=(exact_orientation(pa), exact_orientation(pb)),
+                        params=MotionParams(alternative_ratio=1.01, **p))
+    m, off = run(), run(rival_sep_deg=180.0)
+    assert not off.alternatives
+    if walls == "blank":
+        assert math.degrees(off.sigma_yaw) < 5.0                  # what the rule corrects
+        (twin,) = m.alternatives
+        turn = abs((math.degrees(twin.yaw - m.yaw) + 180) % 360 - 180)
+        assert abs(turn - 90.0) < 0.5 and math.degrees(m.sigma_yaw) > 30.0
+        assert min(_err(c, pa, pb)[1] for c in (m, twin)) < 1e-5   # the truth is one of them
+    else:
+        assert not m.alternatives and math.degrees(m.sigma_yaw) < 2.0
+        assert _err(m, pa, pb)[1] < 1e-5
