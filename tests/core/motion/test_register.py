@@ -86,18 +86,26 @@ def test_symmetric_room_gives_the_ambiguity_as_candidates():
     assert math.degrees(m.sigma_yaw) > 30.0
 
 
-@pytest.mark.parametrize("walls", ["blank", "painted"])
-def test_symmetric_room_ambiguity_resolved_by_appearance_only_when_the_walls_show_it(walls):
-    """The square room above with each photo's surfaces (``photometric``) and still no
-    feature match: blank walls and floor say nothing, so both quarter-turn twins remain
-    (sigma over 30 deg); the rendered floor and pictures on the walls look right only under
-    the true motion, which then comes out alone, its 1-sigma a degree or two."""
+def _square_room(walls: str):
+    """The square room's two photos (A sees the far wall and both far corners, B one
+    corner): poses, (view, layout) each, and each photo's surfaces (``photometric``) with
+    its rendered image or ("blank") a uniform grey one."""
     pa, pb = Pose(0.0, -1.5, 1.45, 0.0, 25.0), Pose(1.2, 1.0, 1.45, 45.0, 30.0)
     room = Room.rectangle(5.0, 5.0)
     (va, la), (vb, lb) = view_layout(room, pa), view_layout(room, pb)
     surfaces = [motion_photometric.surface(np.full_like(v.image, 128) if walls == "blank"
                                            else v.image, v.camera, lay)
                 for v, lay in ((va, la), (vb, lb))]
+    return pa, pb, (va, la), (vb, lb), surfaces
+
+
+@pytest.mark.parametrize("walls", ["blank", "painted"])
+def test_symmetric_room_ambiguity_resolved_by_appearance_only_when_the_walls_show_it(walls):
+    """The square room above with each photo's surfaces (``photometric``) and still no
+    feature match: blank walls and floor say nothing, so both quarter-turn twins remain
+    (sigma over 30 deg); the rendered floor and pictures on the walls look right only under
+    the true motion, which then comes out alone, its 1-sigma a degree or two."""
+    pa, pb, (va, la), (vb, lb), surfaces = _square_room(walls)
     m = estimate(no_matches(), va.camera, vb.camera, 1.45, 1.45, None, None,
                  layouts=([la], [lb]), orientations=(exact_orientation(pa), exact_orientation(pb)),
                  surfaces=surfaces)
@@ -212,12 +220,7 @@ def test_a_rival_the_photos_cannot_rule_out_is_an_alternative_whatever_its_score
     (blank walls: both correlate 0); with painted walls the appearance rules the twin out
     and the answer stands alone. With the rival rule off too, a blank room's answer would
     claim a degree or two it does not have."""
-    pa, pb = Pose(0.0, -1.5, 1.45, 0.0, 25.0), Pose(1.2, 1.0, 1.45, 45.0, 30.0)
-    room = Room.rectangle(5.0, 5.0)
-    (va, la), (vb, lb) = view_layout(room, pa), view_layout(room, pb)
-    surfaces = [motion_photometric.surface(np.full_like(v.image, 128) if walls == "blank"
-                                           else v.image, v.camera, lay)
-                for v, lay in ((va, la), (vb, lb))]
+    pa, pb, (va, la), (vb, lb), surfaces = _square_room(walls)
 
     def run(**p):
         return estimate(no_matches(), va.camera, vb.camera, 1.45, 1.45, None, None,
