@@ -75,9 +75,10 @@ class Photo:
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
-            feats: features.Features | None = None) -> Photo:
+            feats: features.Features | None = None, gravity: str = "exact") -> Photo:
     """Per-photo stage: hypotheses, rank-1 layout and scene, features (``feats`` when
-    already detected with ``params.features``)."""
+    already detected with ``params.features``); ``gravity``: the kind of the camera's
+    gravity (``Photo.gravity``)."""
     hs = hypothesize(image, camera, params.method, 1, camera_height=height)
     L, sc, why = None, None, hs.reason
     if hs.hypotheses:
@@ -88,7 +89,8 @@ def analyse(image, camera: Camera, height: float, params: SessionParams = Sessio
         except FindmeError as e:
             L, sc, why = None, None, str(e)
     return Photo(camera, float(height), L, sc,
-                 feats if feats is not None else features.detect(image, params.features), why)
+                 feats if feats is not None else features.detect(image, params.features), why,
+                 gravity=gravity)
 
 
 class Relations(NamedTuple):

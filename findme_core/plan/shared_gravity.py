@@ -21,7 +21,7 @@ radians inside, degrees in parameters (``_deg``) and messages. Pure numpy; no I/
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -247,16 +247,15 @@ def analyse_plain(images, cameras, heights, estimates, params=None,
     kinds = kinds or ["exact"] * len(images)
     feats = [features.detect(im, params.features) for im in images]
     if all(e is None for e in estimates):
-        return [replace(session.analyse(im, c, h, params, f), gravity=k)
+        return [session.analyse(im, c, h, params, f, gravity=k)
                 for im, c, h, f, k in zip(images, cameras, heights, feats, kinds)], None
     sg = agree(cameras, estimates, feats, shared)
     photos = []
     for im, c, h, f, v, k in zip(images, cameras, heights, feats, verdicts(estimates, sg), kinds):
         if v is None:
-            photos.append(replace(session.analyse(im, c, h, params, f), gravity=k))
+            photos.append(session.analyse(im, c, h, params, f, gravity=k))
         elif isinstance(v, str):
             photos.append(session.Photo(c, float(h), None, None, f, v, gravity="image"))
         else:
-            photo = session.analyse(im, c.with_gravity(v), h, params, f)
-            photos.append(replace(photo, gravity="image"))
+            photos.append(session.analyse(im, c.with_gravity(v), h, params, f, gravity="image"))
     return photos, sg
