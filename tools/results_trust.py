@@ -164,10 +164,11 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "beyond a low cabinet taken for its face). Within 1 / 2 / 3 sigma, in sample:", "",
         *surface_coverage.table(surface_coverage.collect(str(split), phone_preds),
                                 markdown=True), "",
-        "The same run with the surface said (`--declared-surface`: each floor and wall query "
-        "point located on its own surface, as a user who says what they tapped, `findme locate "
-        "--point U,V,floor`; a wall point the boundary puts on the floor gets no answer; TUM's "
-        "non-floor points say nothing):", "",
+        "The same run with the surface said (`--declared-surface`: each query point located on "
+        "the surface a user who tapped it would say, `findme locate --point U,V,floor`: floor "
+        "and wall points on theirs, TUM's non-floor points on a wall where their surface is "
+        "vertical and nothing said where it is not, a cabinet's top; a point said wall that the "
+        "boundary puts on the floor gets no answer):", "",
         *coverage_rows(split, said_preds, only=("points", "distances")), "",
         "**The plan's model errors** (`tools/calibrate_plan.py`: sigma = hypot(k * the joint "
         "refinement's, floor), raw coverage, fitted in sample, left out):", "", "```",

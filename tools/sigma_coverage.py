@@ -115,6 +115,16 @@ def point_errors(meta: dict, pred: dict, kind: str):
         yield i, float(np.linalg.norm(np.subtract(x, q["xyz_m"]))), s
 
 
+def point_quantity(kind: str, query: dict, family: str) -> str:
+    """The row a query point's coverage is counted in: its kind and family; TUM's non-floor
+    points split by their surface, vertical (a cabinet's front: the product's wall model)
+    or not (a cabinet's top: neither floor nor wall, which the product has no model for)."""
+    name = kind.replace("_", " ")
+    if kind == "nonfloor_points" and "vertical_surface" in query:
+        name += ", vertical" if query["vertical_surface"] else ", not vertical"
+    return f"{name} ({family})"
+
+
 def collect(dataset: str, preds: dict) -> dict:
     """{quantity: [(group, |error|, stated sigma), ...]} of every stated sigma the
     predictions carry."""
@@ -124,8 +134,8 @@ def collect(dataset: str, preds: dict) -> dict:
     for vid, meta, p, family in views(dataset, preds):
         g = group_of(vid)
         for k in POINT_KINDS:
-            for _, err, s in point_errors(meta, p, k):
-                out[f"{k.replace('_', ' ')} ({family})"].append((g, err, s))
+            for i, err, s in point_errors(meta, p, k):
+                out[point_quantity(k, meta[k][i], family)].append((g, err, s))
         for d in p.get("distances") or []:
             i, j, ki, kj = d["a"], d["b"], d["kind_a"], d["kind_b"]
             pa, pb = (meta.get(ki) or [])[i], (meta.get(kj) or [])[j]

@@ -53,8 +53,9 @@ def register(sub) -> None:
                         "(default 0: a dataset's heights are the ones its truth was made "
                         "with; a height a user types is known to about 0.03 m)")
     p.add_argument("--declared-surface", action="store_true",
-                   help="locate each floor / wall query point on that surface, as a user "
-                        "who says what they tapped (findme locate --point U,V,floor)")
+                   help="locate each query point on the surface a user who tapped it would say: "
+                        "floor and wall points on theirs, TUM's non-floor points on a wall where "
+                        "they are vertical (findme locate --point U,V,floor)")
     p.set_defaults(func=cmd_eval)
 
 

@@ -15,8 +15,9 @@ services do with a phone's gravity: combine it with the photo's vanishing direct
 gravity is tilted by a random N(0, DEG) in pitch and in roll, seeded by the view's id.
 ``--no-gravity`` withholds every view's ``gravity_cam``: gravity then comes from the image
 (vanishing directions) or is assumed level, as for a photo without sensors.
-``--declared-surface`` locates each floor and wall query point on that surface, as a user who
-says what they tapped (``Scene.locate``'s ``surfaces``). Pairs
+``--declared-surface`` locates each query point on the surface a user who tapped it would say
+(``views.declared_surfaces``: floor and wall points on theirs, TUM's non-floor points on a wall
+where their surface is vertical; ``Scene.locate``'s ``surfaces``). Pairs
 take the gravity their views end with, as the services do. Each view's prediction says which
 gravity it used (``gravity_cam``), where it came from (``gravity_source``: input,
 input+image, image or level), its 1-sigma (``gravity_sigma_deg``) and the 1-sigma of every 3D

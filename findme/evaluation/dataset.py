@@ -26,8 +26,8 @@ def evaluate(dataset: str, out: str, method: str, max_n: int, motion_methods: li
     """Predictions of every view, pair and room of ``dataset`` (a findme-eval folder) into
     ``out`` (the first motion method's pairs; each other one's into ``OUT.<name>.json``),
     in ``workers`` processes; prints what it wrote and the first failures. ``declared``:
-    each query point is located on the surface its kind says (``views.DECLARED``), as a user
-    who says what they tapped.
+    each query point is located on the surface a user who tapped it would say
+    (``views.declared_surfaces``).
 
     Raises:
         InputError: ``dataset`` has no index.json.

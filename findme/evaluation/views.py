@@ -28,7 +28,7 @@ POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 #: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``
 SIGMA_PARTS = ("boundary", "height", "pixel", "gravity")
 #: the surface a user tapping a dataset's query point would say it is on (``--declared-surface``;
-#: TUM's non-floor points are not only walls: they say nothing)
+#: TUM's non-floor points: ``declared_surfaces``)
 DECLARED = {"floor_points": "floor", "wall_points": "wall"}
 #: 1-sigma of a dataset view's camera height: its truth was computed with that very height
 DATASET_HEIGHT_SIGMA_M = 0.0
@@ -100,6 +100,21 @@ def _gravity_input(gravity) -> GravityInput:
     return gravity if isinstance(gravity, GravityInput) else GravityInput(given=bool(gravity))
 
 
+def declared_surfaces(meta: dict) -> dict:
+    """{kind: [surface said or None per query point]}: what a user tapping each would say it
+    is on (``--declared-surface``): a floor point "floor", a wall point "wall", a TUM
+    non-floor point "wall" where its surface is vertical (a cabinet's front) and nothing
+    where it is not (a cabinet's top: neither floor nor wall)."""
+    out = {}
+    for kind in POINT_KINDS:
+        qs = meta.get(kind) or []
+        if kind == "nonfloor_points":
+            out[kind] = ["wall" if q.get("vertical_surface") else None for q in qs]
+        else:
+            out[kind] = [DECLARED.get(kind)] * len(qs)
+    return out
+
+
 def view_camera(meta: dict, image, gravity: GravityInput | bool = True
                 ) -> tuple[Camera, Provenance]:
     """A view's camera from its intrinsics, and its gravity as ``gravity`` gives it
@@ -139,9 +154,10 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
             except FindmeError:  # e.g. a level-camera polyline crossing a tilted horizon:
                 scene = None     # its points have no answer, its hypotheses still count
             located_by = {}
+            said_by = declared_surfaces(meta) if declared else {}
             for kind, px in queries.items():
                 if px:
-                    said = [DECLARED.get(kind)] * len(px) if declared else None
+                    said = said_by.get(kind)
                     located = [None] * len(px) if scene is None else scene.locate(px, said)
                     located_by[kind] = located
                     pred[kind] = [None if p is None or p.xyz is None else p.xyz.round(5).tolist()
