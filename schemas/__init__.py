@@ -32,7 +32,7 @@ from ._codec import (
     validate,
 )
 from ._validate import (IMAGE_FORMATS, MAX_ALTERNATIVES, MAX_GRAVITY_ALTERNATIVES,
-                        MAX_LAYOUT_PAIRS, SESSION_PATTERN, is_valid_session)
+                        MAX_LAYOUT_PAIRS, MAX_MEASURE_PIXELS, SESSION_PATTERN, is_valid_session)
 from .helpers import (
     level_frame_id,
     msg_to_pixels,
@@ -102,6 +102,7 @@ __all__ = [
     "VERSION", "MESSAGE_TYPES", "SchemaError", "WrongTypeError", "Payload",
     "encode", "decode", "decode_any", "schema_of", "validate",
     "IMAGE_FORMATS", "SESSION_PATTERN", "is_valid_session", "MAX_ALTERNATIVES", "MAX_GRAVITY_ALTERNATIVES", "MAX_LAYOUT_PAIRS",
+    "MAX_MEASURE_PIXELS",
     "pixels_to_msg", "msg_to_pixels", "surfaces_to_msg", "msg_to_surfaces",
     "polyline_to_msg", "msg_to_polyline", "vec3_to_msg",
     "msg_to_vec3", "ns_to_timestamp", "timestamp_to_ns", "level_frame_id", "yaw_quaternion",

@@ -33,6 +33,9 @@ MAX_LINES = 4096
 #: Alternatives a Motion may carry, and wall / corner pairs of its layout evidence.
 MAX_ALTERNATIVES = 8
 MAX_LAYOUT_PAIRS = 64
+#: Pixels one MeasureRequest may ask for (taps, not an image: locating 100,000 pixels costs
+#: the measurement service ~5 s of CPU and ~150 MB, 2026-11-30).
+MAX_MEASURE_PIXELS = 1024
 #: Gravity alternatives a Camera may carry.
 MAX_GRAVITY_ALTERNATIVES = 8
 
@@ -243,6 +246,9 @@ def _measure_request(m: measure_pb2.MeasureRequest) -> Problems:
     _session(p, m.session)
     if not m.pixels:
         p.append("pixels is empty: nothing to measure")
+    if len(m.pixels) > MAX_MEASURE_PIXELS:
+        p.append(f"{len(m.pixels)} pixels in one request, over the limit of {MAX_MEASURE_PIXELS}")
+        return p   # each would cost its own problems; the count says enough
     for i, px in enumerate(m.pixels):
         _pixel(p, f"pixels[{i}]", px)
     if m.said and len(m.said) != len(m.pixels):

@@ -82,7 +82,9 @@ class MeasurementHandler(Handler):
                     answers=("findme/{session}/scene/{n}",)),
               # a skipped motion leaves a photo under its own gravity (its sigma says so)
               Input("findme/*/motion/*/*", schemas.Motion, state=True))
-    queries = (Input("findme/*/measure", schemas.MeasureRequest),)
+    # a request is taps: MAX_MEASURE_PIXELS pixels are ~21 kB; at most 4 of a session wait
+    queries = (Input("findme/*/measure", schemas.MeasureRequest, depth=4,
+                     max_bytes=32 * 1024),)
     tick_s = 0.5
 
     def __init__(self, idle_s: float = 600.0, max_sessions: int = 1000, max_photos: int = 256,

@@ -39,6 +39,8 @@ class Input:
     network that comes back); without it only identical payloads are (a user may change a
     selection). Only while the key is remembered (``Service(seen_s=...)``, 180 s).
     max_bytes: larger payloads are refused with TOO_LARGE before they are queued.
+    For a query (``Handler.queries``) ``depth`` is how many of a session's queries may wait
+    (more are answered OVERLOADED at once) and ``max_bytes`` bounds its payload the same way.
     """
 
     key: str

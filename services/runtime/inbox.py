@@ -47,7 +47,8 @@ class Inbox:
         self.cv = threading.Condition()
         self.intake = Intake(session_depth, session_bytes, total_bytes)
         self.seen = SessionTable(lambda s: OrderedDict(), idle_s=seen_s, max_sessions=100000)
-        self.queries: deque = deque()
+        self.queries: deque = deque()    # (Input, zenoh.Query, session)
+        self.query_sessions: dict[str, int] = {}   # queries waiting per session
         self.reports: deque = deque()
         self.frames_in = self.dropped = 0
         self.busy = 0            # worker threads handling something now
@@ -121,6 +122,33 @@ class Inbox:
             self.cv.notify_all()
             return True
 
+    def offer_query(self, inp: Input, key: str, size: int, query) -> FindmeError | None:
+        """(under ``cv``) Queue a query on ``key`` of ``size`` payload bytes, or the reason it
+        is refused at once (counted; the caller answers the asker with it): over
+        ``inp.max_bytes``, or ``inp.depth`` of its session's queries already waiting (one
+        client's flood of queries must not hold up everyone's messages: queries go first)."""
+        self.frames_in += 1
+        session = session_of(key)
+        if size > inp.max_bytes:
+            self.count("queries_too_large")
+            return BusError(f"the query on {key} is {size / 1e3:.0f} kB, over the "
+                            f"{inp.max_bytes / 1e3:.0f} kB limit of {self.handler.name}")
+        waiting = self.query_sessions.get(session, 0)
+        if waiting >= inp.depth:
+            self.count("queries_overloaded")
+            return Overloaded(f"{waiting} queries of session {session!r} already wait at "
+                              f"{self.handler.name}: ask again when they are answered")
+        self.query_sessions[session] = waiting + 1
+        self.queries.append((inp, query, session))
+        self.cv.notify_all()
+        return None
+
+    def query_taken(self, session: str) -> None:
+        """(under ``cv``) One query of ``session`` left the queue."""
+        n = self.query_sessions.pop(session, 0) - 1
+        if n > 0:
+            self.query_sessions[session] = n
+
     def _refuse(self, inp: Input, key: str, exc: FindmeError, cause: str) -> None:
         """(under ``cv``) An input not handled: answered if it must be, always counted."""
         self.dropped += 1
@@ -174,6 +202,8 @@ class Inbox:
                 now = time.monotonic()
                 if self.queries:
                     kind, item = "query", self.queries.popleft()
+                    self.query_taken(item[2])
+                    item = item[:2]
                 elif tick_s is not None and now >= self.next_tick:
                     self.next_tick = now + tick_s
                     kind, item = "tick", now

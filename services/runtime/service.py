@@ -219,11 +219,14 @@ class Service:
 
     def _on_query(self, q: Input):
         def cb(query: zenoh.Query) -> None:
+            key = str(query.key_expr)
+            size = 0 if query.payload is None else len(query.payload)
             with self._cv:
-                self.inbox.frames_in += 1
                 self.idle.clear()
-                self.inbox.queries.append((q, query))
-                self._cv.notify_all()
+                refused = self.inbox.offer_query(q, key, size, query)
+            if refused is not None:   # answered at once, from this callback: never queued
+                query.reply_err(schemas.encode(error_message(key, refused, self.ident)[1]))
+                query.drop()
         return cb
 
     def _on_status(self, query: zenoh.Query) -> None:

@@ -196,6 +196,8 @@ INVALID = [
     ("findme.v1.MeasureRequest", lambda m: m.said.append(S.SURFACE_WALL),
      "said has 4 surfaces for 3 pixels: give none or one per pixel"),
     ("findme.v1.MeasureRequest", lambda m: m.said.__setitem__(1, 7), "said[1] has unknown value 7"),
+    ("findme.v1.MeasureRequest", lambda m: m.pixels.extend([S.Pixel(u=1, v=2)] * 1030),
+     "1033 pixels in one request, over the limit of 1024"),
     ("findme.v1.MeasureReply", lambda m: setattr(m.points[0], "said", S.SURFACE_WALL),
      "points[0] was said to be on SURFACE_WALL but is on SURFACE_FLOOR"),
     ("findme.v1.MeasureReply", lambda m: setattr(m.points[1], "said", 9),

@@ -196,3 +196,69 @@ def test_stop_lets_go_of_a_sweep_waiting_on_a_silent_store(zsession):
     finally:
         store.undeclare()
         held.clear()
+
+
+class AskGate(Handler):
+    """Test handler with a query (a MeasureRequest on findme/<s>/measure) that blocks on an
+    event: at most 2 of a session's queries wait, each at most 400 bytes."""
+
+    name = "askgate"
+    inputs = ()
+    queries = (Input("findme/*/measure", schemas.MeasureRequest, depth=2, max_bytes=400),)
+
+    def __init__(self):
+        self.entered, self.release = threading.Event(), threading.Event()
+
+    def on_query(self, key, req):
+        self.entered.set()
+        self.release.wait(30)
+        return schemas.MeasureReply(session=req.session, index=req.index)
+
+
+def test_queries_are_bounded_per_session_and_in_size(zsession):
+    """A query over its size limit, and one more of a session than may wait, are answered at
+    once (TOO_LARGE, OVERLOADED) while the worker is busy; another session's query still
+    waits its turn and is answered, as are the session's queries that were let in; each
+    refusal is counted."""
+    svc = Service(AskGate(), zsession).start()
+    g = svc.handler
+    answers: dict = {}
+    done = {}
+    arrived = threading.Condition()
+
+    def ask(name, session, pixels):
+        done[name] = threading.Event()
+        req = schemas.MeasureRequest(session=session, index=0,
+                                     pixels=schemas.pixels_to_msg([[1.0, 2.0]] * pixels))
+
+        def run():
+            for r in zsession.get(f"findme/{session}/measure", payload=schemas.encode(req),
+                                  timeout=30):
+                answers[name] = ("ok" if r.ok is not None else
+                                 schemas.decode(schemas.Error, r.err.payload.to_bytes()).code)
+            with arrived:
+                done[name].set()
+                arrived.notify_all()
+        threading.Thread(target=run, daemon=True).start()
+
+    ask("first", "qa", 1)
+    assert g.entered.wait(10)                 # the worker holds it: none of qa's waits
+    for name in ("a1", "a2", "a3"):
+        ask(name, "qa", 1)
+    ask("big", "qb", 40)                      # 40 pixels: ~800 bytes
+    ask("other", "qb", 1)
+    assert done["big"].wait(10) and answers["big"] == schemas.ErrorCode.ERROR_CODE_TOO_LARGE
+    # one of a1-a3 is refused at once: two may wait
+    with svc._cv:
+        assert svc._cv.wait_for(lambda: svc.inbox.more.get("queries_overloaded") == 1, 10)
+    with arrived:
+        assert arrived.wait_for(lambda: any(done[n].is_set() for n in ("a1", "a2", "a3")), 10)
+        refused = [n for n in ("a1", "a2", "a3") if done[n].is_set()]
+    assert [answers[n] for n in refused] == [schemas.ErrorCode.ERROR_CODE_OVERLOADED]
+    assert not done["other"].is_set()        # qb's query waits its turn, not refused
+    g.release.set()
+    for n in ("first", "other", *(n for n in ("a1", "a2", "a3") if n not in refused)):
+        assert done[n].wait(10) and answers[n] == "ok", (n, answers)
+    st = svc.status()
+    assert st.counters["queries_too_large"] == 1 and st.counters["queries_overloaded"] == 1
+    svc.stop()
