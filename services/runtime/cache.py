@@ -75,10 +75,13 @@ class OutputCache:
 class CacheServer:
     """Answers ``get`` on a handler's ``cache_keys`` from its ``OutputCache`` and the
     handler's own ``cached`` (the store): an exact key in Zenoh's callback (a dict lookup),
-    a key expression with wildcards (a scan) on this server's thread, never Zenoh's."""
+    a key expression with wildcards (a scan) on this server's thread, never Zenoh's. At most
+    ``max_scans`` scans wait; beyond, a scan is closed with no reply from this service (the
+    asker gets the others'), counted in ``refused``."""
 
-    def __init__(self, cache: OutputCache, handler, ident: str):
+    def __init__(self, cache: OutputCache, handler, ident: str, max_scans: int = 256):
         self.cache, self.handler, self.ident = cache, handler, ident
+        self.max_scans, self.refused = max_scans, 0
         self._cv = threading.Condition()
         self._scans: deque = deque()
 
@@ -87,8 +90,15 @@ class CacheServer:
             self.reply(query)
             return
         with self._cv:
-            self._scans.append(query)
-            self._cv.notify_all()
+            if len(self._scans) >= self.max_scans:
+                self.refused += 1
+            else:
+                self._scans.append(query)
+                self._cv.notify_all()
+                return
+        log.warning("%s: %d scans of the cache wait: %s closed unanswered", self.ident,
+                    self.max_scans, query.key_expr)
+        query.drop()
 
     def reply(self, query: zenoh.Query) -> None:
         key, params = str(query.key_expr), query.parameters

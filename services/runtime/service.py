@@ -268,6 +268,7 @@ class Service:
         if self._peers is not None:
             more["peers"] = len(self._peers.instances() | {self.instance})
         more.update({k: int(v) for k, v in self.handler.counters().items()})
+        more["cache_scans_refused"] = self._cache_server.refused
         more.update(decode_stats())
         return schemas.ServiceStatus(
             service=self.handler.name, instance=self.instance, started_ns=self.started_ns,

@@ -2,11 +2,13 @@
 bounds, how long a message may wait (a burst vs a standing queue), bounded expiring session
 state, the store's window and listing, the output cache's listing, and rendezvous sharding."""
 
+import threading
+
 import pytest
 
 import schemas
 from services.runtime import inbox as inbox_mod
-from services.runtime.cache import OutputCache
+from services.runtime.cache import CacheServer, OutputCache
 from services.runtime.handler import Handler, Input
 from services.runtime.inbox import Inbox
 from services.runtime.intake import Intake, Item
@@ -183,3 +185,39 @@ def test_output_cache_forgets_what_is_older_than_its_age():
     now[0] = 11_000_000_000
     c.put("findme/s/pose/1", b"b")
     assert c.get("findme/s/pose/0") is None and c.get("findme/s/pose/1") == b"b"
+
+
+class _Query:
+    """A stand-in for zenoh.Query: its key expression, its replies, whether it was closed."""
+
+    def __init__(self, key):
+        self.key_expr, self.parameters, self.replies, self.dropped = key, {}, [], False
+
+    def reply(self, key, payload):
+        self.replies.append((key, payload))
+
+    def drop(self):
+        self.dropped = True
+
+
+def test_cache_scans_waiting_are_bounded_and_counted():
+    """Wildcard queries wait for the scan thread; beyond ``max_scans`` one is closed at once
+    with no reply from this service and counted, while exact keys are still answered in the
+    callback and the waiting scans are answered when the thread runs."""
+    cache = OutputCache()
+    cache.put("findme/s/scene/0", b"x")
+    server = CacheServer(cache, Handler(), "t", max_scans=2)
+    scans = [_Query("findme/s/**") for _ in range(3)]
+    for q in scans:
+        server.on_query(q)
+    assert [q.dropped for q in scans] == [False, False, True] and server.refused == 1
+    exact = _Query("findme/s/scene/0")
+    server.on_query(exact)
+    assert exact.replies == [("findme/s/scene/0", b"x")] and exact.dropped
+    stop = threading.Event()
+    t = threading.Thread(target=server.run, args=(stop,))
+    t.start()
+    stop.set()
+    server.wake()
+    t.join(10)
+    assert all(q.replies == [("findme/s/scene/0", b"x")] and q.dropped for q in scans[:2])
