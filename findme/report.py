@@ -232,8 +232,7 @@ def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
         return
     req = schemas.MeasureRequest(session=session_id, index=0)
     req.pixels.extend(schemas.pixels_to_msg(pixels))
-    if said:
-        req.said.extend(schemas.surfaces_to_msg(said))
+    req.said.extend(schemas.surfaces_to_msg(said))
     for reply in session.get(bus.key(session_id, "measure"), payload=schemas.encode(req), timeout=10):
         if reply.ok is None:
             err = schemas.decode(schemas.Error, reply.err.payload.to_bytes())

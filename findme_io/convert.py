@@ -244,9 +244,6 @@ def msg_room_view(msg, camera_height: float | None = None):
     return judge(hs, msg_camera(msg.camera), camera_height)
 
 
-_SURFACE = {"floor": schemas.SURFACE_FLOOR, "wall": schemas.SURFACE_WALL, None: schemas.SURFACE_NONE}
-
-
 def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
                       located: list[Located], height: float, height_sigma: float,
                       said: list[str | None] | None = None):
@@ -256,8 +253,8 @@ def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
     r = schemas.MeasureReply(session=session, index=index, rank=rank, metric=metric)
     for i, p in enumerate(located):
         mp = r.points.add(pixel=schemas.Pixel(u=float(p.pixel[0]), v=float(p.pixel[1])),
-                          surface=_SURFACE[p.surface], error=p.error or "",
-                          said=_SURFACE[said[i]] if said else schemas.SURFACE_NONE)
+                          surface=schemas.surface_value(p.surface), error=p.error or "",
+                          said=schemas.surface_value(said[i] if said else None))
         if p.xyz is not None:
             mp.xyz.CopyFrom(schemas.vec3_to_msg(p.xyz))
             mp.sigma_m = float(p.sigma_m)

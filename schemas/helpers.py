@@ -40,19 +40,29 @@ _SURFACES = {None: measure_pb2.SURFACE_NONE, "floor": measure_pb2.SURFACE_FLOOR,
 _SURFACE_NAMES = {v: k for k, v in _SURFACES.items()}
 
 
+def surface_value(name: str | None) -> int:
+    """"floor", "wall" or None -> its Surface value (SURFACE_NONE for None)."""
+    if not (name is None or isinstance(name, str) and name in _SURFACES):
+        raise SchemaError(f"a surface must be floor, wall or None, got {name!r}")
+    return _SURFACES[name]
+
+
+def surface_name(value: int) -> str | None:
+    """A Surface value -> "floor", "wall" or None (SURFACE_NONE, or a value not known)."""
+    return _SURFACE_NAMES.get(value)
+
+
 def surfaces_to_msg(said) -> list[int]:
-    """Per pixel "floor", "wall" or None ("as the boundary says") -> Surface values (for
-    ``MeasureRequest.said.extend``)."""
-    for s in said:
-        if not (s is None or isinstance(s, str) and s in _SURFACES):
-            raise SchemaError(f"a said surface must be floor, wall or None, got {s!r}")
-    return [_SURFACES[s] for s in said]
+    """Per pixel "floor", "wall" or None ("as the boundary says") -> Surface values for
+    ``MeasureRequest.said.extend``: [] when ``said`` is None or says nothing (the
+    request's "nothing said")."""
+    return [surface_value(s) for s in said] if said and any(said) else []
 
 
 def msg_to_surfaces(said) -> list[str | None] | None:
     """Surface values -> per pixel "floor", "wall" or None; None when none is said (as
     ``Scene.locate`` takes it)."""
-    out = [_SURFACE_NAMES.get(s) for s in said]
+    out = [surface_name(s) for s in said]
     return out if any(out) else None
 
 

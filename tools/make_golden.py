@@ -216,7 +216,7 @@ def run_session(spec: Spec, out_dir: Path) -> Path:
             said = [p[2] if len(p) > 2 else None for p in pixels]
             req = schemas.MeasureRequest(session=sid, index=n,
                                          pixels=schemas.pixels_to_msg([p[:2] for p in pixels]),
-                                         said=schemas.surfaces_to_msg(said) if any(said) else [])
+                                         said=schemas.surfaces_to_msg(said))
             payload, err = ask_measure(session, sid, req)
             if payload is None:
                 raise SystemExit(f"{spec.name}: measure photo {n}: {err}")

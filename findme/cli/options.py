@@ -12,6 +12,7 @@ import math
 from findme_core.errors import CameraError, InputError
 from findme_core.geometry.camera import DEFAULT_HFOV_DEG
 from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
+from findme_core.single.scene import SURFACES
 
 
 def floats(text: str, n: int, name: str) -> tuple[float, ...]:
@@ -26,9 +27,6 @@ def floats(text: str, n: int, name: str) -> tuple[float, ...]:
     if not all(math.isfinite(v) for v in vals):
         raise InputError(f"{name} must be finite numbers, got {text!r}")
     return vals
-
-
-SURFACES = ("floor", "wall")
 
 
 def surfaces(said: list, where: str) -> list[str | None] | None:

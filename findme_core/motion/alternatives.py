@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from findme_core.geometry import ties
+from findme_core.geometry.planar import wrap
 from findme_core.motion.model import PlanarMotion
 
 
@@ -27,7 +28,7 @@ def rival(cy, total, yaw: float, sep: float) -> int | None:
     """Index of the best-scoring candidate (yaw (C,) radians, score (C,)) whose yaw is more
     than ``sep`` radians from ``yaw`` (a clearly different motion: another wall taken for
     this one in a symmetric room), None when there is none; ties broken as ``ties.order``."""
-    far = np.flatnonzero(np.abs(np.angle(np.exp(1j * (np.asarray(cy) - yaw)))) > sep)
+    far = np.flatnonzero(np.abs(wrap(np.asarray(cy) - yaw)) > sep)
     if len(far) == 0:
         return None
     return int(far[ties.order(np.asarray(total)[far])[0]])

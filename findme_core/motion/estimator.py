@@ -18,7 +18,7 @@ import numpy as np
 
 from findme_core.errors import MotionError
 from findme_core.geometry import ties
-from findme_core.geometry.planar import bearings, rot_y
+from findme_core.geometry.planar import bearings, rot_y, wrap
 from findme_core.motion import one_sided, photometric, register
 from findme_core.motion.alternatives import distinct_top, rival, spread_over
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
@@ -243,7 +243,7 @@ class Registration:
         room. Dev pairs (2026-11-30): all 5 answers off by over 20 deg had one."""
         sep = np.radians(self.p.rival_sep_deg)
         i = rival(cy, total, best.yaw, sep)
-        if i is None or any(abs(np.angle(np.exp(1j * (a.yaw - cy[i])))) <= sep for a in alts):
+        if i is None or any(abs(wrap(a.yaw - cy[i])) <= sep for a in alts):
             return ()
         if self._support(cy[i], ct[i]) < self._support(best.yaw, (best.x, best.dy, best.z)):
             return ()

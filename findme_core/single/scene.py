@@ -61,7 +61,9 @@ REASONS = {
                     "which way is down, exceeds the allowed share of its distance): the photo "
                     "does not show it clearly; give the phone's gravity",
 }
-_SURFACES = {1: "floor", 2: "wall"}
+#: The surfaces a located point can be on (and a user can say it is on), by code 1, 2.
+SURFACES = ("floor", "wall")
+_SURFACES = dict(enumerate(SURFACES, 1))
 _SURFACE_CODES = {name: code for code, name in _SURFACES.items()}
 @dataclass(frozen=True)
 class Located:

@@ -48,6 +48,7 @@ import time
 import schemas
 from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, decode_photo, encode_jpeg
 from findme_core.errors import CameraError, FindmeError, ImageError, InputError
+from findme_core.single import scene
 
 from findme_io.convert import image_format, make_frame
 from findme_io.frame_photo import frame_camera
@@ -70,7 +71,7 @@ FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)
 CHECK_SIZE = 16
 CODE = schemas.ErrorCode
 #: What a page may say a tapped pixel is on (null: as the boundary says).
-SURFACES = (None, "floor", "wall")
+SURFACES = (None, *scene.SURFACES)
 
 
 class GatewayError(FindmeError):

@@ -38,13 +38,6 @@ def _kind_name(k: int) -> str:
     return schemas.SegKind.Name(k).removeprefix("SEG_KIND_").lower()
 
 
-def _said(s: int) -> str | None:
-    """What a request said of a point: "floor", "wall", or None (nothing said)."""
-    if s == schemas.SURFACE_NONE:
-        return None
-    return schemas.Surface.Name(s).removeprefix("SURFACE_").lower()
-
-
 def _pose(p) -> dict:
     return {"index": p.index, "x_m": p.x_m, "z_m": p.z_m, "yaw_rad": p.yaw_rad,
             "sigma_x_m": _opt(p, "sigma_x_m"), "sigma_z_m": _opt(p, "sigma_z_m"),
@@ -132,7 +125,7 @@ def to_page(session: str, msg) -> dict | None:
                             "surface": schemas.Surface.Name(p.surface).removeprefix("SURFACE_").lower(),
                             "xyz": [p.xyz.x, p.xyz.y, p.xyz.z] if p.HasField("xyz") else None,
                             "sigma_m": _opt(p, "sigma_m"), "error": p.error,
-                            "said": _said(p.said)} for p in msg.points],
+                            "said": schemas.surface_name(p.said)} for p in msg.points],
                 "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
                                "sigma_m": _opt(d, "sigma_m"), "error": d.error}
                               for d in msg.distances]}

@@ -234,9 +234,7 @@ class PageSession:
             return
         req = schemas.MeasureRequest(session=self.sid, index=n)
         req.pixels.extend(schemas.pixels_to_msg(cmd["pixels"]))
-        surfaces = cmd.get("surfaces")
-        if surfaces and any(surfaces):   # nothing said: no ``said`` at all
-            req.said.extend(schemas.surfaces_to_msg(surfaces))
+        req.said.extend(schemas.surfaces_to_msg(cmd.get("surfaces")))   # nothing said: none
         self.in_flight += 1
         try:
             reply, err = await asyncio.to_thread(self._query, key, schemas.encode(req), n)
