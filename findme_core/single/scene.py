@@ -12,7 +12,10 @@ floor at y = h) inside, camera frame (OpenCV) at the interface. Metres.
 Each boundary segment covers an interval of azimuth (angle of the horizontal ray,
 atan2(x, z)). A tapped pixel's azimuth selects its segment; it is on the floor if its ray
 meets the floor before the wall, else on the wall. OPEN segments (floor continues past the
-image) have floor but no known wall; NONE segments (no floor in view) have neither.
+image) have floor but no known wall; NONE segments (no floor in view) have neither. A WALL
+segment that lies wholly outside the image (the hypothesis continued the boundary below or
+above the photo's edge) is a wall nobody saw the base of: ``locate`` gives its points no answer
+(reason ``REASONS[10]``) rather than a distance that is an inference.
 
 A point whose 1-sigma (``uncertainty``) exceeds ``max_rel_sigma`` of its distance is not
 placed: an honest "unknown" (reason ``REASONS[7]``) rather than a guess. On real photos these
@@ -31,13 +34,14 @@ import numpy as np
 from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
 from findme_core.single.search import SegKind
+from findme_core.single.seen import walls_seen
 # the uncertainty of the points lives in ``uncertainty``; re-exported here, where it began
 from findme_core.geometry.uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_PX,  # noqa: F401
                                               boundary_sigma_px, distances, point_sigmas)
 
 _PARALLEL = 1e-9
 (_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE, _LOOSE_GRAVITY,
- _NOT_WALL) = range(1, 10)
+ _NOT_WALL, _UNSEEN) = range(1, 11)
 #: default ``max_rel_sigma``: a point whose 1-sigma is more than half its distance is not
 #: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
 #: not fitted
@@ -60,6 +64,9 @@ REASONS = {
     _LOOSE_GRAVITY: "gravity is too uncertain to place this point (its 1-sigma, mostly from "
                     "which way is down, exceeds the allowed share of its distance): the photo "
                     "does not show it clearly; give the phone's gravity",
+    _UNSEEN: "the base of the wall in this direction is outside the photo (the chosen boundary "
+             "runs below or above the image there), so its distance is inferred, not measured: "
+             "take the photo with the floor meeting this wall in view",
 }
 #: The surfaces a located point can be on (and a user can say it is on), by code 1, 2.
 SURFACES = ("floor", "wall")
@@ -165,7 +172,7 @@ class Scene:
             raise HypothesisError("the boundary has no floor or wall segment")
         a0, a1 = az[:-1][keep], az[1:][keep]
         return (np.minimum(a0, a1), np.maximum(a0, a1), self.kinds[keep].astype(int),
-                normal[keep], offset[keep])
+                normal[keep], offset[keep], walls_seen(poly, cam.height, wall, normal, offset)[keep])
 
     # ------------------------------------------------------------------ queries
     def _solve(self, pieces, rays):
@@ -173,7 +180,7 @@ class Scene:
         failure reason); the point is t * ray. Surfaces: 1 floor, 2 wall, 0 none."""
         n = len(rays)
         az = np.arctan2(rays[:, 0], rays[:, 2])
-        a0, a1, kind, normal, offset = pieces
+        a0, a1, kind, normal, offset, seen = pieces
         inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
         # outside every interval: the nearest end piece (walls extend past the image)
         gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
@@ -196,6 +203,7 @@ class Scene:
         reason[bad & behind] = _BEHIND
         reason[bad & (reason == 0)] = _ABOVE_HORIZON
         reason[none] = _NO_FLOOR
+        reason[~bad & ~floor & ~seen[k]] = _UNSEEN   # on a wall whose base is not in view
         surface[bad] = 0
         return np.where(bad, np.nan, t_out), surface, reason
 
@@ -208,15 +216,18 @@ class Scene:
             sigma: (N,) 1-sigma radius (m; inf where no answer),
             parts: dict of (N,) sigma components "height", "boundary", "pixel", "gravity",
             reason: (N,) failure reason code (0 = answered; see ``REASONS``).
-        """
-        return self._locate_all(pixels)[:5]
 
-    def _locate_all(self, pixels, surfaces=None):
+        Unlike ``locate``, points on a wall whose base is not in view are answered: the
+        motion's lifting weighs each point by its sigma and was measured with them.
+        """
+        return self._locate_all(pixels, unseen=True)[:5]
+
+    def _locate_all(self, pixels, surfaces=None, unseen: bool = False):
         """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
         (``uncertainty.point_sigmas``). ``surfaces``: (N,) "floor", "wall" or None per pixel,
         the surface the user says it is on: a floor pixel is put on the floor whatever the
         boundary (below the horizon); a wall pixel the boundary puts on the floor gets no
-        answer."""
+        answer. ``unseen``: answer points on walls whose base is outside the photo too."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         finite = np.isfinite(px).all(1)
@@ -225,6 +236,8 @@ class Scene:
                   & (pxs[:, 1] >= -0.5) & (pxs[:, 1] <= cam.height - 0.5))
         rays = cam.rays_level(pxs)
         t, surface, reason = self._solve(self._pieces, rays)
+        if unseen:
+            reason = np.where(reason == _UNSEEN, 0, reason)
         if surfaces is not None:
             said = np.array([_SURFACE_CODES.get(x, 0) for x in surfaces])
             floor = (said == 1) & (rays[:, 1] > 0)

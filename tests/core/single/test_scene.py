@@ -277,3 +277,35 @@ def test_a_tap_said_to_be_on_a_wall_where_the_boundary_puts_floor_gets_no_answer
         assert p.sigma_m == q.sigma_m
     up = scene.locate([(320.0, 10.0)], ["floor"])[0]          # above a level camera's horizon
     assert up.xyz is None and "horizon" in up.error
+
+
+def test_a_wall_whose_base_is_not_in_the_photo_is_not_measured():
+    """A boundary continued below the image's bottom edge (its last segment wholly outside)
+    puts a wall there that nobody saw the base of: ``locate`` refuses its points (every
+    pixel of that column is above its base) and says why; the seen wall, the floor, a tap
+    said to be on the floor and the lifting's ``locate_level`` are answered."""
+    cam = Camera.from_hfov(70, 640, 480)
+    poly = [[0, 400], [300, 470], [300.5, 500], [639, 600]]   # the last segment: v > 479
+    scene = Scene(cam, 1.5, poly)
+    seen, unseen, low, floor = scene.locate([(100, 200), (500, 200), (500, 470), (100, 450)])
+    assert seen.surface == "wall" and seen.xyz is not None
+    for p in (unseen, low):
+        assert p.xyz is None and p.surface is None
+        assert "outside the photo" in p.error and "not measured" in p.error
+    assert floor.surface == "floor" and floor.xyz[1] == pytest.approx(1.5)
+    said = scene.locate([(500, 200), (500, 470)], ["wall", "floor"])
+    assert said[0].xyz is None and "outside the photo" in said[0].error
+    assert said[1].surface == "floor"
+    P, surface, _, _, reason = scene.locate_level([(500, 200)])
+    assert reason[0] == 0 and surface[0] == 2 and np.isfinite(P[0]).all()
+
+
+def test_a_wall_split_into_segments_is_seen_if_any_of_it_is():
+    """One straight wall given as many short segments (a dense polyline), most of them
+    below the image: the wall is seen, so every point on it is answered."""
+    cam = Camera.from_hfov(70, 640, 480)
+    u = np.arange(0.0, 640.0)
+    poly = np.column_stack([u, 440 + 0.2 * u])      # crosses the bottom edge at u ~ 195
+    scene = Scene(cam, 1.5, poly)
+    out = scene.locate([(50, 200), (600, 200)])
+    assert all(p.surface == "wall" for p in out), [p.error for p in out]
