@@ -23,14 +23,16 @@ MIN_SEEN_PX = 1.0
 
 
 def seen_px(poly: np.ndarray, height: int) -> np.ndarray:
-    """(M - 1,) length in pixels of each segment of the (M, 2) polyline with 0 <= v <=
-    height - 1 (the polyline's u lies within the image by construction)."""
+    """(M - 1,) length in pixels of each segment of the (M, 2) polyline inside the image's
+    rows, -0.5 <= v <= height - 0.5 (pixel centres at integers; the polyline's u lies within
+    the image by construction)."""
     a, b = poly[:-1], poly[1:]
     dv = b[:, 1] - a[:, 1]
+    top, bottom = -0.5, height - 0.5
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_lo = np.where(dv != 0, (0.0 - a[:, 1]) / dv, np.where(a[:, 1] >= 0, -np.inf, np.inf))
-        t_hi = np.where(dv != 0, (height - 1.0 - a[:, 1]) / dv,
-                        np.where(a[:, 1] <= height - 1.0, np.inf, -np.inf))
+        t_lo = np.where(dv != 0, (top - a[:, 1]) / dv, np.where(a[:, 1] >= top, -np.inf, np.inf))
+        t_hi = np.where(dv != 0, (bottom - a[:, 1]) / dv,
+                        np.where(a[:, 1] <= bottom, np.inf, -np.inf))
     t0 = np.clip(np.maximum(np.minimum(t_lo, t_hi), 0.0), 0.0, 1.0)
     t1 = np.clip(np.minimum(np.maximum(t_lo, t_hi), 1.0), 0.0, 1.0)
     return np.maximum(t1 - t0, 0.0) * np.hypot(b[:, 0] - a[:, 0], dv)

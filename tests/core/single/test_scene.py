@@ -309,3 +309,16 @@ def test_a_wall_split_into_segments_is_seen_if_any_of_it_is():
     scene = Scene(cam, 1.5, poly)
     out = scene.locate([(50, 200), (600, 200)])
     assert all(p.surface == "wall" for p in out), [p.error for p in out]
+
+
+def test_a_segment_is_seen_where_it_crosses_the_image_rows():
+    """``seen_px``: the length inside -0.5 <= v <= H - 0.5 (the last row's pixels reach
+    H - 0.5), whatever the direction of the segment."""
+    from findme_core.single.seen import seen_px
+    got = seen_px(np.array([[0, 479.3], [100, 479.3], [200, 479.6], [300, 579.5],
+                            [400, 379.5], [500, -10.0], [639, 9.5]], float), 480)
+    assert got[0] == pytest.approx(100.0)                       # in the last row
+    assert got[2] == 0.0                                       # wholly below
+    assert got[3] == pytest.approx(np.hypot(100, 200) / 2)      # half of it above 479.5
+    assert got[4] == pytest.approx(np.hypot(100, 389.5) * 380 / 389.5)
+    assert got[5] == pytest.approx(np.hypot(139, 19.5) * 10 / 19.5)   # from the top edge
