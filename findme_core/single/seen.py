@@ -16,8 +16,8 @@ import numpy as np
 #: a WALL segment of the boundary with less of its length inside the image than this (pixels)
 #: was not seen: the hypothesis continued it below (or above) the photo's edge, so the
 #: distance of the wall on it is an inference (``scene.Scene.locate`` refuses its points;
-#: measured 2026-11-30 on the dev split with a phone's gravity: 250 of the 6541 ZInD wall
-#: points said to be on a wall, 12 % of them beyond 3 sigma against 6.6 % of all). One pixel:
+#: measured 2026-11-30 on the dev split with a phone's gravity: 235 of the 6541 ZInD wall
+#: points said to be on a wall, 13 % of them beyond 3 sigma against 6.6 % of all). One pixel:
 #: any part seen counts; not fitted.
 MIN_SEEN_PX = 1.0
 
