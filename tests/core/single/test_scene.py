@@ -6,6 +6,7 @@ from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
 from findme_core.single.scene import REASONS, Scene, boundary_sigma_px, distances
 from findme_core.single.search import SegKind
+from findme_core.single.seen import seen_px
 from findme_core.synth.render import FLOOR, WALL_BASE
 
 
@@ -314,7 +315,6 @@ def test_a_wall_split_into_segments_is_seen_if_any_of_it_is():
 def test_a_segment_is_seen_where_it_crosses_the_image_rows():
     """``seen_px``: the length inside -0.5 <= v <= H - 0.5 (the last row's pixels reach
     H - 0.5), whatever the direction of the segment."""
-    from findme_core.single.seen import seen_px
     got = seen_px(np.array([[0, 479.3], [100, 479.3], [200, 479.6], [300, 579.5],
                             [400, 379.5], [500, -10.0], [639, 9.5]], float), 480)
     assert got[0] == pytest.approx(100.0)                       # in the last row
