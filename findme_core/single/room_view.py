@@ -39,16 +39,18 @@ import numpy as np
 from findme_core.geometry.camera import Camera
 from findme_core.single.hypotheses import HypothesisSet
 from findme_core.single.search import SegKind
+from findme_core.single.seen import (FLOOR_COLUMNS_SAMPLED, MIN_FLOOR_COLUMNS, MIN_FLOOR_FRACTION,
+                                     floor_under)
 
 
 @dataclass(frozen=True)
 class RoomViewParams:
     top_down_deg: float = 65.0        # dev split: every view looks down at most 42.5 deg
-    min_floor_fraction: float = 0.03  # of the photo's height, in one column
-    min_floor_columns: float = 0.10   # of the photo's columns
+    min_floor_fraction: float = MIN_FLOOR_FRACTION  # of the photo's height, in one column
+    min_floor_columns: float = MIN_FLOOR_COLUMNS    # of the photo's columns
     near_median_h: float = 0.7        # camera heights: 1 m for a phone held 1.4 m up
     near_farthest_h: float = 1.0
-    columns: int = 64                 # columns sampled across the photo
+    columns: int = FLOOR_COLUMNS_SAMPLED  # columns sampled across the photo
 
 
 @dataclass(frozen=True)
@@ -75,12 +77,7 @@ def judge(hs: HypothesisSet, camera: Camera, camera_height: float | None = None,
                         "enough to see the floor and the foot of the walls)", cues)
     best = hs.hypotheses[0]
     W, H = hs.width, hs.height
-    us = (np.arange(params.columns) + 0.5) * (W - 1) / params.columns
-    poly = np.asarray(best.polyline, float)
-    vs = np.interp(us, poly[:, 0], poly[:, 1])
-    seg = np.clip(np.searchsorted(poly[:, 0], us, side="right") - 1, 0, len(best.kinds) - 1)
-    kinds = np.asarray(best.kinds)[seg]
-    floor = np.where(kinds == SegKind.NONE, 0.0, H - np.clip(vs, 0.0, H)) / H
+    us, vs, kinds, floor = floor_under(best.polyline, best.kinds, W, H, params.columns)
     cues["floor_columns"] = float(np.mean(floor >= params.min_floor_fraction))
     if cues["floor_columns"] < params.min_floor_columns:
         where = ("no floor is in the photo" if np.mean(kinds == SegKind.NONE) >= 0.5 else

@@ -15,10 +15,12 @@ meets the floor before the wall, else on the wall. OPEN segments (floor continue
 image) have floor but no known wall; NONE segments (no floor in view) have neither. A WALL
 segment that lies wholly outside the image (the hypothesis continued the boundary below or
 above the photo's edge) is a wall nobody saw the base of: ``locate`` gives its points no answer
-(reason ``REASONS[10]``) rather than a distance that is an inference.
+(``Reason.UNSEEN``) rather than a distance that is an inference; so does every wall of a
+photo that shows almost no floor under its boundary (``Reason.NO_FLOOR_VIEW``,
+``seen.shows_floor``). The texts a user reads are ``answers``'.
 
 A point whose 1-sigma (``uncertainty``) exceeds ``max_rel_sigma`` of its distance is not
-placed: an honest "unknown" (reason ``REASONS[7]``) rather than a guess. On real photos these
+placed: an honest "unknown" (``Reason.LOOSE``) rather than a guess. On real photos these
 are mostly wall points above a boundary chosen near the horizon (a counter's or a sill's edge
 taken for the floor line), where a pixel is worth metres.
 
@@ -33,48 +35,20 @@ import numpy as np
 
 from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
+# the answers' texts live in ``answers``; re-exported here, where they began
+from findme_core.single.answers import (FLOOR_PAST_LINE, NOTES, REASONS,  # noqa: F401
+                                        SURFACE_CODES, SURFACE_NAMES, SURFACES, Reason)
 from findme_core.single.search import SegKind
-from findme_core.single.seen import walls_seen
+from findme_core.single.seen import shows_floor, walls_seen
 # the uncertainty of the points lives in ``uncertainty``; re-exported here, where it began
 from findme_core.geometry.uncertainty import (BOUNDARY_SIGMA_WORK_PX, WORK_SIZE_PX,  # noqa: F401
                                               boundary_sigma_px, distances, point_sigmas)
 
 _PARALLEL = 1e-9
-(_ABOVE_HORIZON, _PARALLEL_RAY, _BEHIND, _NO_FLOOR, _OUTSIDE, _NOT_FINITE, _LOOSE, _LOOSE_GRAVITY,
- _NOT_WALL, _UNSEEN) = range(1, 11)
 #: default ``max_rel_sigma``: a point whose 1-sigma is more than half its distance is not
 #: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
 #: not fitted
 MAX_REL_SIGMA = 0.5
-#: Why a pixel has no 3D position (``Scene.locate_level``'s reason codes). A point said to be
-#: on a wall that the boundary puts on the floor, or on a wall nobody saw the base of, is not
-#: answered from the next hypothesis that would place it: measured 2026-11-30 (dev split, a
-#: phone's gravity), such answers held 0.60 and 0.79 of the points within 3 sigma.
-REASONS = {
-    _ABOVE_HORIZON: "the pixel is at or above the horizon, so it is not on the floor, and no "
-                    "wall is known in its direction",
-    _PARALLEL_RAY: "the pixel's ray runs parallel to the wall: it never meets it",
-    _BEHIND: "the wall's plane lies behind the camera in this direction: the point would be "
-             "behind the camera",
-    _NO_FLOOR: "no floor is visible in this direction under the chosen boundary, so the wall's "
-               "distance is unknown",
-    _OUTSIDE: "the pixel is outside the image",
-    _NOT_FINITE: "the pixel is not finite",
-    _LOOSE: "the boundary places this point too loosely (its 1-sigma exceeds the allowed "
-            "share of its distance): the wall's base is barely seen or lies near the horizon",
-    _NOT_WALL: "the chosen boundary puts the floor under this pixel, not a wall: choose a "
-               "hypothesis whose floor line runs below it",
-    _LOOSE_GRAVITY: "gravity is too uncertain to place this point (its 1-sigma, mostly from "
-                    "which way is down, exceeds the allowed share of its distance): the photo "
-                    "does not show it clearly; give the phone's gravity",
-    _UNSEEN: "the base of the wall in this direction is outside the photo (the chosen boundary "
-             "runs below or above the image there), so its distance is inferred, not measured: "
-             "take the photo with the floor meeting this wall in view",
-}
-#: The surfaces a located point can be on (and a user can say it is on), by code 1, 2.
-SURFACES = ("floor", "wall")
-_SURFACES = dict(enumerate(SURFACES, 1))
-_SURFACE_CODES = {name: code for code, name in _SURFACES.items()}
 @dataclass(frozen=True)
 class Located:
     """3D position of one tapped pixel.
@@ -91,6 +65,7 @@ class Located:
         gravity_jac: (2, 3) camera-frame displacement of the point (metres) for a 1-sigma
             tilt of gravity along each principal axis of its covariance (every point of a
             photo moves together: ``distances`` uses it), None when gravity is exact.
+        note: what the user should know of an answered point (``NOTES``), else None.
     """
 
     pixel: tuple[float, float]
@@ -100,6 +75,7 @@ class Located:
     sigma_parts: dict | None = None
     error: str | None = None
     gravity_jac: np.ndarray | None = None
+    note: str | None = None
 
 
 class Scene:
@@ -140,6 +116,7 @@ class Scene:
                                 f"{max_rel_sigma!r}")
         self.max_rel_sigma = None if max_rel_sigma is None else float(max_rel_sigma)
         self._pieces = self._build(poly)
+        self.shows_floor = shows_floor(poly, kinds, camera.width, camera.height)
         # the boundary part is linearised: the scene under the boundary moved down (and, for
         # a steep boundary, sideways) by at most one pixel, the displacement scaled up to
         # ``boundary_sigma_px``
@@ -202,11 +179,11 @@ class Scene:
         reason = np.zeros(n, int)
         none = kind[k] == SegKind.NONE
         bad = ~np.isfinite(t_out) | none
-        reason[bad & parallel] = _PARALLEL_RAY
-        reason[bad & behind] = _BEHIND
-        reason[bad & (reason == 0)] = _ABOVE_HORIZON
-        reason[none] = _NO_FLOOR
-        reason[~bad & ~floor & ~seen[k]] = _UNSEEN   # on a wall whose base is not in view
+        reason[bad & parallel] = Reason.PARALLEL_RAY
+        reason[bad & behind] = Reason.BEHIND
+        reason[bad & (reason == 0)] = Reason.ABOVE_HORIZON
+        reason[none] = Reason.NO_FLOOR
+        reason[~bad & ~floor & ~seen[k]] = Reason.UNSEEN   # on a wall whose base is not in view
         surface[bad] = 0
         return np.where(bad, np.nan, t_out), surface, reason
 
@@ -220,17 +197,20 @@ class Scene:
             parts: dict of (N,) sigma components "height", "boundary", "pixel", "gravity",
             reason: (N,) failure reason code (0 = answered; see ``REASONS``).
 
-        Unlike ``locate``, points on a wall whose base is not in view are answered: the
-        motion's lifting weighs each point by its sigma and was measured with them.
+        Unlike ``locate``, points on a wall whose base is not in view (or in a photo that
+        shows almost no floor) are answered: the motion's lifting weighs each point by its
+        sigma and was measured with them.
         """
         return self._locate_all(pixels, unseen=True)[:5]
 
     def _locate_all(self, pixels, surfaces=None, unseen: bool = False):
         """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
-        (``uncertainty.point_sigmas``). ``surfaces``: (N,) "floor", "wall" or None per pixel,
+        (``uncertainty.point_sigmas``) and the (N,) note codes (``NOTES``; 0: none).
+        ``surfaces``: (N,) "floor", "wall" or None per pixel,
         the surface the user says it is on: a floor pixel is put on the floor whatever the
         boundary (below the horizon); a wall pixel the boundary puts on the floor gets no
-        answer. ``unseen``: answer points on walls whose base is outside the photo too."""
+        answer. ``unseen``: answer points on walls whose base is outside the photo (or in a photo
+        that shows almost no floor) too."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         finite = np.isfinite(px).all(1)
@@ -240,15 +220,19 @@ class Scene:
         rays = cam.rays_level(pxs)
         t, surface, reason = self._solve(self._pieces, rays)
         if unseen:
-            reason = np.where(reason == _UNSEEN, 0, reason)
+            reason = np.where(reason == Reason.UNSEEN, 0, reason)
+        elif not self.shows_floor:   # no wall's foot is seen (``seen.shows_floor``)
+            reason = np.where((reason == 0) & (surface == 2), Reason.NO_FLOOR_VIEW, reason)
+        note = np.zeros(len(px), int)
         if surfaces is not None:
-            said = np.array([_SURFACE_CODES.get(x, 0) for x in surfaces])
+            said = np.array([SURFACE_CODES.get(x, 0) for x in surfaces])
             floor = (said == 1) & (rays[:, 1] > 0)
+            note[floor & (surface != 1)] = FLOOR_PAST_LINE   # the line puts no floor here
             t = np.where(floor, self.height / np.where(floor, rays[:, 1], 1.0), t)
             surface = np.where(floor, 1, surface)
-            reason = np.where(floor, 0, np.where(said == 1, _ABOVE_HORIZON, reason))
-            reason = np.where((said == 2) & (reason == 0) & (surface == 1), _NOT_WALL, reason)
-        reason = np.where(inside, reason, np.where(finite, _OUTSIDE, _NOT_FINITE))
+            reason = np.where(floor, 0, np.where(said == 1, Reason.ABOVE_HORIZON, reason))
+            reason = np.where((said == 2) & (reason == 0) & (surface == 1), Reason.NOT_WALL, reason)
+        reason = np.where(inside, reason, np.where(finite, Reason.OUTSIDE, Reason.NOT_FINITE))
         ok = reason == 0
         surface = np.where(ok, surface, 0)
         P = t[:, None] * rays
@@ -261,18 +245,19 @@ class Scene:
                 loose = ok & ~(sigma <= self.max_rel_sigma * np.linalg.norm(P, axis=1))
             by_gravity = parts["gravity"] >= np.maximum.reduce(
                 [x for k, x in parts.items() if k != "gravity"])
-            reason = np.where(loose, np.where(by_gravity, _LOOSE_GRAVITY, _LOOSE), reason)
+            reason = np.where(loose, np.where(by_gravity, Reason.LOOSE_GRAVITY, Reason.LOOSE),
+                              reason)
             ok &= ~loose
             surface = np.where(ok, surface, 0)
             P[~ok] = np.nan
         sigma = np.where(ok, sigma, np.inf)
-        return P, surface, sigma, parts, reason, jac
+        return P, surface, sigma, parts, reason, jac, np.where(ok, note, 0)
 
     def locate(self, pixels, surfaces=None) -> list[Located]:
         """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
         point (``Located.error``), not raised. ``surfaces``: as ``_locate_all``."""
         px = np.asarray(pixels, float).reshape(-1, 2)
-        P, surface, sigma, parts, reason, jacs = self._locate_all(px, surfaces)
+        P, surface, sigma, parts, reason, jacs, notes = self._locate_all(px, surfaces)
         R = self.camera.R_level_from_cam
         out = []
         for i, (u, v) in enumerate(px):
@@ -280,14 +265,15 @@ class Scene:
                 out.append(Located((u, v), None, None, error=self._reason_text(reason[i], u, v)))
                 continue
             jac = jacs[i] if np.any(self.gravity_cov) else None
-            out.append(Located((u, v), _SURFACES[surface[i]], R.T @ P[i], float(sigma[i]),
-                               {k: float(x[i]) for k, x in parts.items()}, gravity_jac=jac))
+            out.append(Located((u, v), SURFACE_NAMES[surface[i]], R.T @ P[i], float(sigma[i]),
+                               {k: float(x[i]) for k, x in parts.items()}, gravity_jac=jac,
+                               note=NOTES.get(int(notes[i]))))
         return out
 
     def _reason_text(self, code: int, u: float, v: float) -> str:
-        if code == _OUTSIDE:
+        if code == Reason.OUTSIDE:
             return f"pixel ({u:g}, {v:g}) is outside the {self.camera.width}x{self.camera.height} image"
-        if code == _NOT_FINITE:
+        if code == Reason.NOT_FINITE:
             return f"pixel ({u}, {v}) is not finite"
         return REASONS[code]
 

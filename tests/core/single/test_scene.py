@@ -6,7 +6,7 @@ from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
 from findme_core.single.scene import REASONS, Scene, boundary_sigma_px, distances
 from findme_core.single.search import SegKind
-from findme_core.single.seen import seen_px
+from findme_core.single.seen import floor_under, seen_px, shows_floor
 from findme_core.synth.render import FLOOR, WALL_BASE
 
 
@@ -243,7 +243,8 @@ def test_a_tap_said_to_be_on_the_floor_is_put_on_it_whatever_the_boundary(tilted
     """A wrong boundary 60 px below the true one (a low cabinet's base taken for the floor
     line, the floor seen beyond it): floor pixels between the two are put on a wall; said to
     be floor, each is the rendered floor's point, its sigma with no boundary part, as a floor
-    point's."""
+    point's, with a note that the chosen line runs below it. A floor pixel below the wrong
+    line, said floor or not, and a wall pixel carry no note."""
     view = tilted_view
     poly = view.ground_truth_boundary_polyline()
     wrong = Scene(view.camera, view.camera_height, poly + np.array([0.0, 60.0]))
@@ -259,7 +260,13 @@ def test_a_tap_said_to_be_on_the_floor_is_put_on_it_whatever_the_boundary(tilted
         off.append(np.linalg.norm(a.xyz - truth))             # on the wrong wall
         assert s.surface == "floor" and np.allclose(s.xyz, truth, atol=1e-4)
         assert s.sigma_parts["boundary"] == 0.0
+        assert "floor line runs below this point" in s.note and "choose a hypothesis" in s.note
+        assert a.note is None                                  # nothing said: nothing to note
     assert max(off) > 0.3
+    below = px[[p.surface == "floor" for p in wrong.locate(px)]]
+    assert len(below) >= 5
+    assert all(p.surface == "floor" and p.note is None
+               for p in wrong.locate(below, ["floor"] * len(below)))
 
 
 def test_a_tap_said_to_be_on_a_wall_where_the_boundary_puts_floor_gets_no_answer(level_view):
@@ -322,3 +329,41 @@ def test_a_segment_is_seen_where_it_crosses_the_image_rows():
     assert got[3] == pytest.approx(np.hypot(100, 200) / 2)      # half of it above 479.5
     assert got[4] == pytest.approx(np.hypot(100, 389.5) * 380 / 389.5)
     assert got[5] == pytest.approx(np.hypot(139, 19.5) * 10 / 19.5)   # from the top edge
+
+
+def test_a_photo_showing_almost_no_floor_measures_no_wall():
+    """A boundary hugging the photo's bottom edge (under 3 % of its height of floor in every
+    column: ``room_view``'s "no floor-wall boundary in view"): no wall's foot is seen, so its
+    wall points are refused with the reason, also when said to be on a wall; a pixel said
+    floor is answered, and the lifting's ``locate_level`` answers the wall pixels. The same
+    wall with floor in view is measured."""
+    cam = Camera.from_hfov(70, 640, 480)
+    sliver = Scene(cam, 1.5, [[0, 470], [639, 472]])
+    assert not sliver.shows_floor
+    wall, said_wall, said_floor = sliver.locate([(320, 200), (320, 300), (320, 475)],
+                                                [None, "wall", "floor"])
+    for p in (wall, said_wall):
+        assert p.xyz is None and "almost no floor" in p.error and "step back" in p.error
+    assert said_floor.surface == "floor" and said_floor.xyz is not None
+    P, surface, _, _, reason = sliver.locate_level([(320, 200)])
+    assert reason[0] == 0 and surface[0] == 2 and np.isfinite(P[0]).all()
+    seen = Scene(cam, 1.5, [[0, 400], [639, 402]])
+    assert seen.shows_floor and seen.locate([(320, 200)])[0].surface == "wall"
+
+
+def test_the_floor_under_a_boundary_counts_columns_of_floor_in_view():
+    """``seen.floor_under`` / ``shows_floor``: the share of the image's height under the
+    boundary per sampled column, 0 on a NONE segment; the photo shows floor when at least
+    10 % of its columns show at least 3 % of its height."""
+    poly = np.array([[0, 240.0], [63.9, 240.0], [639, 479.5]])
+    us, vs, kinds, floor = floor_under(poly, [SegKind.WALL, SegKind.WALL], 640, 480, columns=64)
+    assert len(us) == 64 and np.all(np.diff(us) > 0)
+    assert floor[0] == pytest.approx(0.5) and floor[-1] < 0.03
+    assert shows_floor(poly, [SegKind.WALL, SegKind.WALL], 640, 480)
+    none = [SegKind.NONE, SegKind.NONE]           # no floor in view anywhere
+    assert np.all(floor_under(poly, none, 640, 480)[3] == 0.0)
+    assert not shows_floor(poly, none, 640, 480)
+    # floor in the first 7 of 64 sampled columns (10.9 %), then in the first 6 (9.4 %)
+    W = [SegKind.WALL] * 3
+    assert shows_floor([[0, 384], [70, 384], [70.5, 500], [639, 500]], W, 640, 480)
+    assert not shows_floor([[0, 384], [60, 384], [60.5, 500], [639, 500]], W, 640, 480)
