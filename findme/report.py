@@ -245,6 +245,7 @@ def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
             where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()}"
                      f"{' (as you said)' if p.said else ''} at "
                      f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
+                     + (f"\n  note: {p.note}" if p.note else "")
                      if not p.error else p.error)
             print(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): {where}")
         for d in rep.distances:

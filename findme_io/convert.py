@@ -254,7 +254,8 @@ def measure_reply_msg(session: str, index: int, rank: int, metric: bool,
     for i, p in enumerate(located):
         mp = r.points.add(pixel=schemas.Pixel(u=float(p.pixel[0]), v=float(p.pixel[1])),
                           surface=schemas.surface_value(p.surface), error=p.error or "",
-                          said=schemas.surface_value(said[i] if said else None))
+                          said=schemas.surface_value(said[i] if said else None),
+                          note=p.note or "")
         if p.xyz is not None:
             mp.xyz.CopyFrom(schemas.vec3_to_msg(p.xyz))
             mp.sigma_m = float(p.sigma_m)

@@ -272,8 +272,8 @@ def _measure_reply(m: measure_pb2.MeasureReply) -> Problems:
         _enum(p, f"{name}.surface", measure_pb2.Surface, pt.surface, allow_zero=True)
         _enum(p, f"{name}.said", measure_pb2.Surface, pt.said, allow_zero=True)
         if pt.error:
-            if pt.HasField("xyz") or pt.HasField("sigma_m") or pt.surface:
-                p.append(f"{name} has an error, so must have no xyz, sigma_m or surface")
+            if pt.HasField("xyz") or pt.HasField("sigma_m") or pt.surface or pt.note:
+                p.append(f"{name} has an error, so must have no xyz, sigma_m, surface or note")
         else:
             if not pt.HasField("xyz"):
                 p.append(f"{name} has neither xyz nor error")

@@ -40,3 +40,24 @@ def test_predictions_without_surfaces_say_so(tmp_path, capsys):
     preds.write_text(json.dumps({"views": {}}))
     assert scov.main([str(tmp_path), str(preds)]) == 1
     assert "_surface" in capsys.readouterr().err
+
+
+def test_wall_points_are_split_by_whether_a_floor_point_of_their_view_got_a_note(tmp_path):
+    (tmp_path / "views").mkdir()
+    truth = {"floor_points": [{"px": [1, 9], "xyz_m": [0, 1, 2]}],
+             "wall_points": [{"px": [1, 1], "xyz_m": [0, 0, 4]}] * 2}
+    views = {"zt_r01_p1_v0": ["the chosen floor line runs below this point"], "zt_r02_p1_v0": [None],
+             "zt_r03_p1_v0": None}                    # no note list: predicted without said surfaces
+    for vid in views:
+        (tmp_path / "views" / f"{vid}.json").write_text(json.dumps({"id": vid, **truth}))
+    (tmp_path / "index.json").write_text(json.dumps({"subsets": {"zind-tilted": {"views": list(views)}}}))
+    preds = {"views": {vid: {"floor_points": [[0, 1, 2]], "floor_points_sigma_m": [0.1],
+                             "wall_points": [[0, 0, 4.1], [0, 0, 5 + i]], "wall_points_sigma_m": [0.2, 0.5],
+                             **({} if n is None else {"floor_points_note": n})}
+                       for i, (vid, n) in enumerate(views.items())}}
+    res = scov.by_note(str(tmp_path), preds)
+    assert np.allclose(res["wall points (zind)"]["noted"], [0.5, 2.0])
+    assert np.allclose(res["wall points (zind)"]["not"], [0.5, 4.0])
+    assert scov.note_table(res) == [
+        "wall points (zind): views with a floor point noted n 2: 0.500 / 1.000 / 1.000; the other "
+        "views n 2: 0.500 / 0.500 / 0.500 (within 1 / 2 / 3 sigma)"]

@@ -10,6 +10,11 @@ other surface means the chosen boundary is wrong under it by far more than that 
 top taken for the floor line; floor seen beyond a low cabinet taken for its face). Reads the
 dataset's ground truth: a tool, not the product. Needs predictions with ``<kind>_surface``
 (``findme eval`` since 2026-11-30).
+
+Second table (with ``--declared-surface`` predictions, which carry ``floor_points_note``): is
+the note "the chosen floor line runs below this point you said is on the floor" a warning
+worth heeding? The coverage of the wall points of the views where a floor point got it,
+against the views where none did.
 """
 
 from __future__ import annotations
@@ -40,6 +45,30 @@ def collect(dataset: str, preds: dict) -> dict:
             for i, err, s in point_errors(meta, p, k):
                 row["right" if surfaces[i] == RIGHT[k] else "other"].append(err / s)
     return {k: {s: np.asarray(v, float) for s, v in r.items()} for k, r in out.items()}
+
+
+def by_note(dataset: str, preds: dict) -> dict:
+    """{"wall points (<family>)": {"noted": z, "not": z}}: the normalised errors of the
+    answered wall points of the views where at least one floor point carries a note and of
+    the views where none does (views without ``floor_points_note`` are left out)."""
+    out: dict = {}
+    for _, meta, p, family in views(dataset, preds):
+        notes = p.get("floor_points_note")
+        if notes is None:
+            continue
+        row = out.setdefault(f"wall points ({family})", {"noted": [], "not": []})
+        side = "noted" if any(notes) else "not"
+        row[side].extend(err / s for _, err, s in point_errors(meta, p, "wall_points"))
+    return {k: {s: np.asarray(v, float) for s, v in r.items()} for k, r in out.items()}
+
+
+def note_table(res: dict) -> list[str]:
+    """One line per family: n and coverage of the noted views' and the other views' points."""
+    def cell(z):
+        return f"n {len(z)}: " + (" / ".join(f"{c:.3f}" for c in coverage(z)) if len(z) else "–")
+    return [f"{k}: views with a floor point noted {cell(r['noted'])}; the other views "
+            f"{cell(r['not'])} (within 1 / 2 / 3 sigma)" for k, r in sorted(res.items())
+            if len(r["noted"]) + len(r["not"])]
 
 
 def table(res: dict, markdown: bool = False) -> list[str]:
@@ -73,6 +102,9 @@ def main(argv=None) -> int:
         print("no point carries its surface (<kind>_surface): run findme eval again", file=sys.stderr)
         return 1
     print("\n".join(table(res, a.markdown)))
+    noted = by_note(a.dataset, json.load(open(a.predictions)))
+    if noted:
+        print("\n".join(note_table(noted)))
     return 0
 
 

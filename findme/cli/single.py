@@ -230,7 +230,7 @@ def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool,
     return {**src,
         "points": [{"pixel": [r(p.pixel[0]), r(p.pixel[1])], "surface": p.surface,
                     "xyz_m": None if p.xyz is None else [r(x) for x in p.xyz],
-                    "sigma_m": r(p.sigma_m), "error": p.error,
+                    "sigma_m": r(p.sigma_m), "error": p.error, "note": p.note,
                     "said": None if surfaces is None else surfaces[i],
                     "sigma_parts_m": None if p.sigma_parts is None else
                     {k: r(v) for k, v in p.sigma_parts.items()}} for i, p in enumerate(located)],
@@ -273,7 +273,8 @@ def cmd_locate(args) -> int:
             x, y, z = p["xyz_m"]
             print(f"  {i + 1}. ({p['pixel'][0]:g}, {p['pixel'][1]:g})  {p['surface']:5s}"
                   + (" (as you said) " if p["said"] else " ") +
-                  f"x {x:+.3f} y {y:+.3f} z {z:+.3f} {unit}  (± {p['sigma_m']:.3f})")
+                  f"x {x:+.3f} y {y:+.3f} z {z:+.3f} {unit}  (± {p['sigma_m']:.3f})"
+                  + (f"\n     note: {p['note']}" if p["note"] else ""))
     for i, (d, s) in enumerate(zip(out["distances_m"], out["distance_sigma_m"])):
         if d is not None:
             print(f"  distance {i + 1}-{i + 2}: {d:.3f} {unit} (± {s:.3f})")

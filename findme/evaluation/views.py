@@ -168,6 +168,8 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
                         None if p is None or p.xyz is None else
                         [round(p.sigma_parts[k], 5) for k in SIGMA_PARTS] for p in located]
                     pred[kind + "_surface"] = [None if p is None else p.surface for p in located]
+                    if said is not None:   # notes come only with a said surface
+                        pred[kind + "_note"] = [None if p is None else p.note for p in located]
             if scene is not None:
                 pred["distances"] = _distances(located_by, scene)
         return vid, pred, None

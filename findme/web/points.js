@@ -69,6 +69,8 @@ export function renderPoints(p) {
     li.textContent = `${surfaceText(pt, said)} · x ${fmtCoord(x)} y ${fmtCoord(y)} ` +
                      `z ${fmtCoord(z)} ${unit} · ` +
                      `${fmtLen(Math.hypot(x, y, z), 2)} from the camera${fmtSigma(pt.sigma_m)}`;
+    // what the user should know of the answer (the chosen line contradicts what was said)
+    if (pt.note) li.append(el('div', {class: 'note'}, pt.note));
     return li;
   }));
   $('distances').replaceChildren(...(reply ? reply.distances : []).map((d) => {

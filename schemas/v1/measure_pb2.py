@@ -25,21 +25,21 @@ _sym_db = _symbol_database.Default()
 from schemas.v1 import common_pb2 as schemas_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x18schemas/v1/measure.proto\x12\tfindme.v1\x1a\x17schemas/v1/common.proto\"\x84\x01\n\x0eMeasureRequest\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12 \n\x06pixels\x18\x04 \x03(\x0b\x32\x10.findme.v1.Pixel\x12 \n\x04said\x18\x05 \x03(\x0e\x32\x12.findme.v1.Surface\"\xc6\x01\n\rMeasuredPoint\x12\x1f\n\x05pixel\x18\x01 \x01(\x0b\x32\x10.findme.v1.Pixel\x12#\n\x07surface\x18\x02 \x01(\x0e\x32\x12.findme.v1.Surface\x12\x1c\n\x03xyz\x18\x03 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\x14\n\x07sigma_m\x18\x04 \x01(\x01H\x00\x88\x01\x01\x12\r\n\x05\x65rror\x18\x05 \x01(\t\x12 \n\x04said\x18\x06 \x01(\x0e\x32\x12.findme.v1.SurfaceB\n\n\x08_sigma_m\"y\n\x08\x44istance\x12\t\n\x01\x61\x18\x01 \x01(\r\x12\t\n\x01\x62\x18\x02 \x01(\r\x12\x17\n\ndistance_m\x18\x03 \x01(\x01H\x00\x88\x01\x01\x12\x14\n\x07sigma_m\x18\x04 \x01(\x01H\x01\x88\x01\x01\x12\r\n\x05\x65rror\x18\x05 \x01(\tB\r\n\x0b_distance_mB\n\n\x08_sigma_m\"\xbd\x01\n\x0cMeasureReply\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12(\n\x06points\x18\x04 \x03(\x0b\x32\x18.findme.v1.MeasuredPoint\x12&\n\tdistances\x18\x05 \x03(\x0b\x32\x13.findme.v1.Distance\x12\r\n\x05\x65rror\x18\x06 \x01(\t\x12\x0c\n\x04rank\x18\x07 \x01(\r\x12\x0e\n\x06metric\x18\x08 \x01(\x08*@\n\x07Surface\x12\x10\n\x0cSURFACE_NONE\x10\x00\x12\x11\n\rSURFACE_FLOOR\x10\x01\x12\x10\n\x0cSURFACE_WALL\x10\x02\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x18schemas/v1/measure.proto\x12\tfindme.v1\x1a\x17schemas/v1/common.proto\"\x84\x01\n\x0eMeasureRequest\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12 \n\x06pixels\x18\x04 \x03(\x0b\x32\x10.findme.v1.Pixel\x12 \n\x04said\x18\x05 \x03(\x0e\x32\x12.findme.v1.Surface\"\xd4\x01\n\rMeasuredPoint\x12\x1f\n\x05pixel\x18\x01 \x01(\x0b\x32\x10.findme.v1.Pixel\x12#\n\x07surface\x18\x02 \x01(\x0e\x32\x12.findme.v1.Surface\x12\x1c\n\x03xyz\x18\x03 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\x14\n\x07sigma_m\x18\x04 \x01(\x01H\x00\x88\x01\x01\x12\r\n\x05\x65rror\x18\x05 \x01(\t\x12 \n\x04said\x18\x06 \x01(\x0e\x32\x12.findme.v1.Surface\x12\x0c\n\x04note\x18\x07 \x01(\tB\n\n\x08_sigma_m\"y\n\x08\x44istance\x12\t\n\x01\x61\x18\x01 \x01(\r\x12\t\n\x01\x62\x18\x02 \x01(\r\x12\x17\n\ndistance_m\x18\x03 \x01(\x01H\x00\x88\x01\x01\x12\x14\n\x07sigma_m\x18\x04 \x01(\x01H\x01\x88\x01\x01\x12\r\n\x05\x65rror\x18\x05 \x01(\tB\r\n\x0b_distance_mB\n\n\x08_sigma_m\"\xbd\x01\n\x0cMeasureReply\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12(\n\x06points\x18\x04 \x03(\x0b\x32\x18.findme.v1.MeasuredPoint\x12&\n\tdistances\x18\x05 \x03(\x0b\x32\x13.findme.v1.Distance\x12\r\n\x05\x65rror\x18\x06 \x01(\t\x12\x0c\n\x04rank\x18\x07 \x01(\r\x12\x0e\n\x06metric\x18\x08 \x01(\x08*@\n\x07Surface\x12\x10\n\x0cSURFACE_NONE\x10\x00\x12\x11\n\rSURFACE_FLOOR\x10\x01\x12\x10\n\x0cSURFACE_WALL\x10\x02\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'schemas.v1.measure_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_SURFACE']._serialized_start=715
-  _globals['_SURFACE']._serialized_end=779
+  _globals['_SURFACE']._serialized_start=729
+  _globals['_SURFACE']._serialized_end=793
   _globals['_MEASUREREQUEST']._serialized_start=65
   _globals['_MEASUREREQUEST']._serialized_end=197
   _globals['_MEASUREDPOINT']._serialized_start=200
-  _globals['_MEASUREDPOINT']._serialized_end=398
-  _globals['_DISTANCE']._serialized_start=400
-  _globals['_DISTANCE']._serialized_end=521
-  _globals['_MEASUREREPLY']._serialized_start=524
-  _globals['_MEASUREREPLY']._serialized_end=713
+  _globals['_MEASUREDPOINT']._serialized_end=412
+  _globals['_DISTANCE']._serialized_start=414
+  _globals['_DISTANCE']._serialized_end=535
+  _globals['_MEASUREREPLY']._serialized_start=538
+  _globals['_MEASUREREPLY']._serialized_end=727
 # @@protoc_insertion_point(module_scope)

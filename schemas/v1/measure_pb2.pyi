@@ -32,20 +32,22 @@ class MeasureRequest(_message.Message):
     def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., pixels: _Optional[_Iterable[_Union[_common_pb2.Pixel, _Mapping]]] = ..., said: _Optional[_Iterable[_Union[Surface, str]]] = ...) -> None: ...
 
 class MeasuredPoint(_message.Message):
-    __slots__ = ("pixel", "surface", "xyz", "sigma_m", "error", "said")
+    __slots__ = ("pixel", "surface", "xyz", "sigma_m", "error", "said", "note")
     PIXEL_FIELD_NUMBER: _ClassVar[int]
     SURFACE_FIELD_NUMBER: _ClassVar[int]
     XYZ_FIELD_NUMBER: _ClassVar[int]
     SIGMA_M_FIELD_NUMBER: _ClassVar[int]
     ERROR_FIELD_NUMBER: _ClassVar[int]
     SAID_FIELD_NUMBER: _ClassVar[int]
+    NOTE_FIELD_NUMBER: _ClassVar[int]
     pixel: _common_pb2.Pixel
     surface: Surface
     xyz: _common_pb2.Vec3
     sigma_m: float
     error: str
     said: Surface
-    def __init__(self, pixel: _Optional[_Union[_common_pb2.Pixel, _Mapping]] = ..., surface: _Optional[_Union[Surface, str]] = ..., xyz: _Optional[_Union[_common_pb2.Vec3, _Mapping]] = ..., sigma_m: _Optional[float] = ..., error: _Optional[str] = ..., said: _Optional[_Union[Surface, str]] = ...) -> None: ...
+    note: str
+    def __init__(self, pixel: _Optional[_Union[_common_pb2.Pixel, _Mapping]] = ..., surface: _Optional[_Union[Surface, str]] = ..., xyz: _Optional[_Union[_common_pb2.Vec3, _Mapping]] = ..., sigma_m: _Optional[float] = ..., error: _Optional[str] = ..., said: _Optional[_Union[Surface, str]] = ..., note: _Optional[str] = ...) -> None: ...
 
 class Distance(_message.Message):
     __slots__ = ("a", "b", "distance_m", "sigma_m", "error")

@@ -125,6 +125,7 @@ def to_page(session: str, msg) -> dict | None:
                             "surface": schemas.Surface.Name(p.surface).removeprefix("SURFACE_").lower(),
                             "xyz": [p.xyz.x, p.xyz.y, p.xyz.z] if p.HasField("xyz") else None,
                             "sigma_m": _opt(p, "sigma_m"), "error": p.error,
+                            "note": p.note or None,
                             "said": schemas.surface_name(p.said)} for p in msg.points],
                 "distances": [{"a": d.a, "b": d.b, "distance_m": _opt(d, "distance_m"),
                                "sigma_m": _opt(d, "sigma_m"), "error": d.error}

@@ -76,7 +76,8 @@ def sample_messages() -> list[tuple[str, object]]:
         points=[
             S.MeasuredPoint(pixel=S.Pixel(u=320.0, v=420.5), surface=S.SURFACE_FLOOR,
                             xyz=S.Vec3(x=0.004, y=1.21, z=2.87), sigma_m=0.06,
-                            said=S.SURFACE_FLOOR),
+                            said=S.SURFACE_FLOOR,
+                            note="the chosen floor line runs below this point"),
             S.MeasuredPoint(pixel=S.Pixel(u=500.25, v=250.0), surface=S.SURFACE_WALL,
                             xyz=S.Vec3(x=1.52, y=0.18, z=4.4), sigma_m=0.21),
             S.MeasuredPoint(pixel=S.Pixel(u=10, v=5),

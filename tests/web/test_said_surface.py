@@ -41,8 +41,8 @@ async def next_of(ws, kind: str, timeout: float = 60, **match):
 def test_said_surfaces_reach_the_service_and_come_back(app):
     """A measure with surfaces, through a real gateway and measurement service: the reply
     to the page says what was said of each point, a wall pixel said floor comes back on
-    the floor (with a floor point's sigma, not the wall's), a floor pixel said wall comes
-    back with no point and what to do."""
+    the floor (with a floor point's sigma, not the wall's) and a note that the chosen line
+    runs below it, a floor pixel said wall comes back with no point and what to do."""
     k = SIDE_A["intrinsics"]
     lens = {"kind": "intrinsics", **{n: k[n] for n in ("fx", "fy", "cx", "cy", "width", "height")}}
     header = {"id": "a", "lens": lens,
@@ -67,6 +67,8 @@ def test_said_surfaces_reach_the_service_and_come_back(app):
     assert (said_floor["surface"], said_floor["said"]) == ("floor", "floor"), said_floor
     assert not said_floor["error"] and said_floor["xyz"] is not None
     assert said_floor["sigma_m"] < wall["sigma_m"] / 2, (said_floor, wall)
+    assert "floor line runs below this point" in said_floor["note"], said_floor
+    assert wall["note"] is floor["note"] is None, (wall, floor)
     assert said_wall["said"] == "wall" and said_wall["xyz"] is None
     assert "choose a hypothesis whose floor line runs below it" in said_wall["error"], said_wall
 
@@ -74,7 +76,7 @@ def test_said_surfaces_reach_the_service_and_come_back(app):
 def test_the_page_says_which_surface_you_tap(browser, app, shots):
     """Phone page: pick "floor", tap the wall pixel: the request says surfaces ["floor"],
     the list item and the dot say it, the service's answer puts it on the floor "as you
-    said". The choice holds for the next taps until changed; "as the boundary says" taps
+    said", with the note that the chosen line runs below it. The choice holds for the next taps until changed; "as the boundary says" taps
     send null; "Clear points" clears what was said, and a request with nothing said has no
     surfaces at all."""
     context = browser.new_context(**PHONE)
@@ -106,6 +108,7 @@ def test_the_page_says_which_surface_you_tap(browser, app, shots):
     li = page.wait_for_selector('#points li[data-said="floor"][data-x]')
     assert li.get_attribute("data-surface") == "floor"
     assert li.inner_text().startswith("floor (as you said) · "), li.inner_text()
+    assert "floor line runs below this point" in li.query_selector(".note").inner_text()
     shots(page, "11-phone-said-floor", at="#stage")
 
     page.locator("#tap-as label", has_text="as the boundary says").tap()
