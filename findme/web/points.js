@@ -8,7 +8,9 @@
  * A measure request carries `surfaces` only when some point has one said, so a page where
  * nothing is said asks exactly what it asked before. Said floor: the point is put on the
  * floor whatever the chosen boundary says; said wall where the boundary puts the floor: the
- * service answers no point, with what to do (shown like any other error of a point).
+ * service answers no point, with what to do (shown like any other error of a point). A point
+ * said floor above the chosen line comes back with a note (``MeasuredPoint.note``), shown
+ * under it with the hypotheses whose line runs above it, each a button that selects it.
  */
 import {$, el, fmtCoord, fmtLen, fmtSigma, send, setBusy, state} from './common.js';
 
@@ -48,12 +50,38 @@ export function drawPoints(svg, p) {
     svg.append(el('svg:text', {x: u + 1.3 * r, y: v - 1.3 * r, class: 'pt-label'}, String(i + 1)));
   });
 }
+function rowAt(pts, u) {   // the row of a polyline ([[u, v], ...], u non-decreasing) at column u
+  for (let i = 1; i < pts.length; i++) {
+    const [u0, v0] = pts[i - 1], [u1, v1] = pts[i];
+    if (u <= u1 && u1 > u0) return u <= u0 ? v0 : v0 + (v1 - v0) * (u - u0) / (u1 - u0);
+  }
+  return pts[pts.length - 1][1];
+}
+// the other hypotheses whose floor line runs above pixel (u, v): what the user said agrees with
+export function linesAbove(p, u, v) {
+  return (p.hyps || []).filter((h) => h.rank !== p.rank && rowAt(h.points, u) < v)
+                       .map((h) => h.rank);
+}
+function noteOf(p, pt, [u, v], pick) {   // the note, and the hypotheses that agree, to pick
+  const div = el('div', {class: 'note'}, pt.note);
+  const ranks = pt.said === 'floor' ? linesAbove(p, u, v) : [];
+  if (pt.said === 'floor') {
+    div.append(el('span', {class: 'agree'}, ranks.length ? 'Hypotheses whose line runs above it:'
+                                                          : 'No other hypothesis runs above it.'));
+  }
+  for (const r of ranks) {
+    const b = el('button', {type: 'button', class: 'chip pick', 'data-rank': r}, String(r));
+    b.addEventListener('click', () => pick && pick(r));
+    div.append(b);
+  }
+  return div;
+}
 function surfaceText(pt, said) {   // "floor", "floor (as you said)"
   if (pt.said) return `${pt.surface} (as you said)`;
   // a service that does not take what was said: say so rather than pretend
   return said ? `${pt.surface} (you said ${said}: not taken into account)` : pt.surface;
 }
-export function renderPoints(p) {
+export function renderPoints(p, pick) {   // pick(rank): select another hypothesis
   const reply = p.reply;
   $('points').replaceChildren(...p.points.map(([u, v], i) => {
     const pt = reply && reply.points[i];
@@ -70,7 +98,7 @@ export function renderPoints(p) {
                      `z ${fmtCoord(z)} ${unit} · ` +
                      `${fmtLen(Math.hypot(x, y, z), 2)} from the camera${fmtSigma(pt.sigma_m)}`;
     // what the user should know of the answer (the chosen line contradicts what was said)
-    if (pt.note) li.append(el('div', {class: 'note'}, pt.note));
+    if (pt.note) li.append(noteOf(p, pt, [u, v], pick));
     return li;
   }));
   $('distances').replaceChildren(...(reply ? reply.distances : []).map((d) => {

@@ -114,7 +114,7 @@ export function render() {
   $('photo-status').classList.toggle('warn', Boolean(p.notRoom));
   $('photo-status').dataset.notRoomView = p.notRoom || '';
   renderSources(p);
-  renderPoints(p);
+  renderPoints(p, selectRank);
 }
 export function renderSources(p) {   // where the lens and gravity of this photo came from
   const e = $('sources'), c = p.camera;

@@ -138,3 +138,58 @@ def test_the_page_says_which_surface_you_tap(browser, app, shots):
     assert "surfaces" not in last and len(last["pixels"]) == 1, last
     page.wait_for_selector('#points li[data-said=""][data-surface="floor"]')
     close(page)
+
+
+def _row_at(points, u):
+    """The row of a hypothesis's polyline at column u (as the page's ``rowAt``)."""
+    for (u0, v0), (u1, v1) in zip(points, points[1:]):
+        if u <= u1 and u1 > u0:
+            return v0 if u <= u0 else v0 + (v1 - v0) * (u - u0) / (u1 - u0)
+    return points[-1][1]
+
+
+def test_a_floor_tap_above_the_line_offers_the_lines_that_agree(browser, app, shots):
+    """Phone page: a pixel between the chosen line and a higher one, tapped as "floor": the
+    point's note says the chosen line runs below it and offers the hypotheses whose line runs
+    above it; picking one selects it, the point is measured again under it and the note is
+    gone."""
+    context = browser.new_context(**PHONE)
+    page = context.new_page()
+    page.js_errors = []
+    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    page.goto(app.url)
+    page.wait_for_selector('#status[data-state="connected"]')
+    type_camera(page, SIDE_A)
+    upload(page, str(ROOM_A), 0)
+    hyps = page.evaluate("FindMe.state.photos[0].hyps")
+    best = next(h for h in hyps if h["rank"] == 1)
+    # the column where another line runs highest above the best one, and a pixel midway
+    gaps = [(_row_at(best["points"], u) - _row_at(h["points"], u), u, h["rank"])
+            for u in range(40, 600, 20) for h in hyps if h["rank"] != 1]
+    gap, u, rank = max(gaps)
+    assert gap > 20, gaps                     # room_a has such a line: the test needs one
+    v = round(_row_at(best["points"], u) - gap / 2)
+    above = sorted(h["rank"] for h in hyps
+                   if h["rank"] != 1 and _row_at(h["points"], u) < v)
+    page.locator("#tap-as label", has_text="floor").tap()
+    page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
+    tap_pixel(page, u, v)
+    note = page.wait_for_selector('#points li[data-x] .note')
+    assert "floor line runs below this point" in note.inner_text(), note.inner_text()
+    offered = [int(b.get_attribute("data-rank")) for b in note.query_selector_all("button.pick")]
+    assert offered == above and rank in offered, (offered, above)
+    assert "Hypotheses whose line runs above it:" in note.inner_text()
+    shots(page, "13-phone-floor-above-the-line", at="#points")
+    page.evaluate("""() => { window.__sent = [];
+        const ws = FindMe.state.ws, send = ws.send.bind(ws);
+        ws.send = (d) => { if (typeof d === 'string') window.__sent.push(JSON.parse(d)); send(d); }; }""")
+    note.query_selector(f'button.pick[data-rank="{rank}"]').click()
+    page.wait_for_function(
+        "r => window.__sent.some(m => m.type === 'select' && m.rank === r)", arg=rank)
+    # measured again under the picked line, which runs above the point: no note
+    page.wait_for_function(
+        """r => { const p = FindMe.state.photos[0];
+                  return p.sceneRank === r && p.reply && !p.reply.points[0].note; }""", arg=rank)
+    assert page.locator("#points li .note").count() == 0
+    assert page.js_errors == [], page.js_errors
+    close(page)
