@@ -73,14 +73,9 @@ def test_said_surfaces_reach_the_service_and_come_back(app):
     assert "choose a hypothesis whose floor line runs below it" in said_wall["error"], said_wall
 
 
-def test_the_page_says_which_surface_you_tap(browser, app, shots):
-    """Phone page: pick "floor", tap the wall pixel: the request says surfaces ["floor"],
-    the list item and the dot say it, the service's answer puts it on the floor "as you
-    said", with the note that the chosen line runs below it. The choice holds for the next taps until changed; "as the boundary says" taps
-    send null; "Clear points" clears what was said, and a request with nothing said has no
-    surfaces at all."""
-    context = browser.new_context(**PHONE)
-    page = context.new_page()
+def _phone_with_room_a(browser, app):
+    """A phone page connected to ``app`` with room_a uploaded as photo 0 (its camera typed)."""
+    page = browser.new_context(**PHONE).new_page()
     page.js_errors = []
     page.on("pageerror", lambda e: page.js_errors.append(str(e)))
     page.goto(app.url)
@@ -88,9 +83,24 @@ def test_the_page_says_which_surface_you_tap(browser, app, shots):
     assert page.is_checked('#tap-as input[value=""]')                # the default
     type_camera(page, SIDE_A)
     upload(page, str(ROOM_A), 0)
+    return page
+
+
+def _record_sent(page) -> None:
+    """From now on, every message the page sends is also kept in ``window.__sent``."""
     page.evaluate("""() => { window.__sent = [];
         const ws = FindMe.state.ws, send = ws.send.bind(ws);
         ws.send = (d) => { if (typeof d === 'string') window.__sent.push(JSON.parse(d)); send(d); }; }""")
+
+
+def test_the_page_says_which_surface_you_tap(browser, app, shots):
+    """Phone page: pick "floor", tap the wall pixel: the request says surfaces ["floor"],
+    the list item and the dot say it, the service's answer puts it on the floor "as you
+    said", with the note that the chosen line runs below it. The choice holds for the next
+    taps until changed; "as the boundary says" taps send null; "Clear points" clears what was said, and a request with nothing said has no
+    surfaces at all."""
+    page = _phone_with_room_a(browser, app)
+    _record_sent(page)
 
     def measures(n):
         page.wait_for_function(
@@ -153,14 +163,7 @@ def test_a_floor_tap_above_the_line_offers_the_lines_that_agree(browser, app, sh
     point's note says the chosen line runs below it and offers the hypotheses whose line runs
     above it; picking one selects it, the point is measured again under it and the note is
     gone."""
-    context = browser.new_context(**PHONE)
-    page = context.new_page()
-    page.js_errors = []
-    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
-    page.goto(app.url)
-    page.wait_for_selector('#status[data-state="connected"]')
-    type_camera(page, SIDE_A)
-    upload(page, str(ROOM_A), 0)
+    page = _phone_with_room_a(browser, app)
     hyps = page.evaluate("FindMe.state.photos[0].hyps")
     best = next(h for h in hyps if h["rank"] == 1)
     # the column where another line runs highest above the best one, and a pixel midway
@@ -180,9 +183,7 @@ def test_a_floor_tap_above_the_line_offers_the_lines_that_agree(browser, app, sh
     assert offered == above and rank in offered, (offered, above)
     assert "Hypotheses whose line runs above it:" in note.inner_text()
     shots(page, "13-phone-floor-above-the-line", at="#points")
-    page.evaluate("""() => { window.__sent = [];
-        const ws = FindMe.state.ws, send = ws.send.bind(ws);
-        ws.send = (d) => { if (typeof d === 'string') window.__sent.push(JSON.parse(d)); send(d); }; }""")
+    _record_sent(page)
     note.query_selector(f'button.pick[data-rank="{rank}"]').click()
     page.wait_for_function(
         "r => window.__sent.some(m => m.type === 'select' && m.rank === r)", arg=rank)
@@ -191,5 +192,4 @@ def test_a_floor_tap_above_the_line_offers_the_lines_that_agree(browser, app, sh
         """r => { const p = FindMe.state.photos[0];
                   return p.sceneRank === r && p.reply && !p.reply.points[0].note; }""", arg=rank)
     assert page.locator("#points li .note").count() == 0
-    assert page.js_errors == [], page.js_errors
     close(page)
