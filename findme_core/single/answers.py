@@ -67,7 +67,7 @@ REASONS = {
 #: said floor where the boundary puts a wall (or no floor) is put on the floor, and the floor
 #: seen there means the line is wrong in that direction. Measured 2026-11-30 (dev split, a
 #: phone's gravity, surfaces said; ``tools/surface_coverage.py``): in the 86 ZInD views with a
-#: floor point noted, 9.6 % of the wall points lie beyond 3 sigma; 2.0 % in the other 85.
+#: floor point noted, 8.7 % of the wall points lie beyond 3 sigma; 2.0 % in the other 85.
 FLOOR_PAST_LINE = 1
 NOTES = {
     FLOOR_PAST_LINE:
