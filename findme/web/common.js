@@ -75,6 +75,10 @@ export function renderBusy() {
   document.body.dataset.busy = texts.length ? [...state.busy.keys()].join(' ') : '';
 }
 export const photoAt = (n) => state.photos.find((p) => p.index === n);
+// the colour of hypothesis `rank` (1-based): its line on the photo, its chip, its pick button
+const COLORS = ['#e6194b', '#3cb44b', '#4363d8', '#f58231', '#911eb4', '#00a5b8',
+                '#f032e6', '#7a9c00', '#9a6324', '#469990'];
+export const hypColor = (rank) => COLORS[(rank - 1) % COLORS.length];
 export function setStatus(s, text) {
   const e = $('status');
   e.dataset.state = s;

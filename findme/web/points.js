@@ -12,7 +12,7 @@
  * said floor above the chosen line comes back with a note (``MeasuredPoint.note``), shown
  * under it with the hypotheses whose line runs above it, each a button that selects it.
  */
-import {$, el, fmtCoord, fmtLen, fmtSigma, send, setBusy, state} from './common.js';
+import {$, el, fmtCoord, fmtLen, fmtSigma, hypColor, send, setBusy, state} from './common.js';
 
 // ------------------------------------------------------------------ actions
 export function measure(p) {
@@ -70,7 +70,10 @@ function noteOf(p, pt, [u, v], pick) {   // the note, and the hypotheses that ag
                                                           : 'No other hypothesis runs above it.'));
   }
   for (const r of ranks) {
-    const b = el('button', {type: 'button', class: 'chip pick', 'data-rank': r}, String(r));
+    const b = el('button', {type: 'button', class: 'chip pick', 'data-rank': r});
+    const sw = el('span', {class: 'swatch'});
+    sw.style.background = hypColor(r);
+    b.append(sw, document.createTextNode(String(r)));
     b.addEventListener('click', () => pick && pick(r));
     div.append(b);
   }

@@ -4,13 +4,11 @@
  * the user says they are on, their 3D position, distances and 1-sigma, asked of the
  * measurement service through the gateway).
  */
-import {$, DEG, el, fmtLen, notify, photoAt, send, setBusy, state} from './common.js';
+import {$, DEG, el, fmtLen, hypColor, notify, photoAt, send, setBusy, state} from './common.js';
 import {renderMotion} from './motion.js';
 import {addPoint, clearPoints, drawPoints, initPoints, measure, renderPoints} from './points.js';
 import {heightFromForm} from './settings.js';
 
-export const COLORS = ['#e6194b', '#3cb44b', '#4363d8', '#f58231', '#911eb4', '#00a5b8',
-                '#f032e6', '#7a9c00', '#9a6324', '#469990'];
 
 // ------------------------------------------------------------------ actions
 export function selectRank(rank) {
@@ -78,7 +76,7 @@ export function render() {
   const showAll = $('show-all').checked;
   for (const h of hyps) {
     if (!showAll && h.rank !== p.rank) continue;
-    drawPolyline(svg, h, COLORS[(h.rank - 1) % COLORS.length], h.rank === p.rank);
+    drawPolyline(svg, h, hypColor(h.rank), h.rank === p.rank);
   }
   drawPoints(svg, p);
   // chips: re-used while they show the same set (a tap must not lose its target)
@@ -90,7 +88,7 @@ export function render() {
                             'aria-pressed': String(h.rank === p.rank),
                             title: `score ${h.score.toFixed(2)}, edge support ${(100 * h.support).toFixed(0)}%`});
     const sw = el('span', {class: 'swatch'});
-    sw.style.background = COLORS[(h.rank - 1) % COLORS.length];
+    sw.style.background = hypColor(h.rank);
     b.append(sw, document.createTextNode(h.rank === 1 ? '1 (best)' : String(h.rank)));
     b.addEventListener('click', () => selectRank(h.rank));
     return b;
