@@ -97,12 +97,14 @@ def main(argv=None) -> int:
     ap.add_argument("predictions")
     ap.add_argument("--markdown", action="store_true")
     a = ap.parse_args(argv)
-    res = collect(a.dataset, json.load(open(a.predictions)))
+    with open(a.predictions) as f:
+        preds = json.load(f)
+    res = collect(a.dataset, preds)
     if not res:
         print("no point carries its surface (<kind>_surface): run findme eval again", file=sys.stderr)
         return 1
     print("\n".join(table(res, a.markdown)))
-    noted = by_note(a.dataset, json.load(open(a.predictions)))
+    noted = by_note(a.dataset, preds)
     if noted:
         print("\n".join(note_table(noted)))
     return 0
