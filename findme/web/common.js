@@ -79,6 +79,11 @@ export const photoAt = (n) => state.photos.find((p) => p.index === n);
 const COLORS = ['#e6194b', '#3cb44b', '#4363d8', '#f58231', '#911eb4', '#00a5b8',
                 '#f032e6', '#7a9c00', '#9a6324', '#469990'];
 export const hypColor = (rank) => COLORS[(rank - 1) % COLORS.length];
+export function hypSwatch(rank) {   // a dot of hypothesis `rank`'s colour, for its buttons
+  const sw = el('span', {class: 'swatch'});
+  sw.style.background = hypColor(rank);
+  return sw;
+}
 export function setStatus(s, text) {
   const e = $('status');
   e.dataset.state = s;

@@ -12,7 +12,7 @@
  * said floor above the chosen line comes back with a note (``MeasuredPoint.note``), shown
  * under it with the hypotheses whose line runs above it, each a button that selects it.
  */
-import {$, el, fmtCoord, fmtLen, fmtSigma, hypColor, send, setBusy, state} from './common.js';
+import {$, el, fmtCoord, fmtLen, fmtSigma, hypSwatch, send, setBusy, state} from './common.js';
 
 // ------------------------------------------------------------------ actions
 export function measure(p) {
@@ -58,22 +58,19 @@ function rowAt(pts, u) {   // the row of a polyline ([[u, v], ...], u non-decrea
   return pts[pts.length - 1][1];
 }
 // the other hypotheses whose floor line runs above pixel (u, v): what the user said agrees with
-export function linesAbove(p, u, v) {
+function linesAbove(p, u, v) {
   return (p.hyps || []).filter((h) => h.rank !== p.rank && rowAt(h.points, u) < v)
                        .map((h) => h.rank);
 }
 function noteOf(p, pt, [u, v], pick) {   // the note, and the hypotheses that agree, to pick
   const div = el('div', {class: 'note'}, pt.note);
-  const ranks = pt.said === 'floor' ? linesAbove(p, u, v) : [];
-  if (pt.said === 'floor') {
-    div.append(el('span', {class: 'agree'}, ranks.length ? 'Hypotheses whose line runs above it:'
-                                                          : 'No other hypothesis runs above it.'));
-  }
+  if (pt.said !== 'floor') return div;
+  const ranks = linesAbove(p, u, v);
+  div.append(el('span', {class: 'agree'}, ranks.length ? 'Hypotheses whose line runs above it:'
+                                                        : 'No other hypothesis runs above it.'));
   for (const r of ranks) {
     const b = el('button', {type: 'button', class: 'chip pick', 'data-rank': r});
-    const sw = el('span', {class: 'swatch'});
-    sw.style.background = hypColor(r);
-    b.append(sw, document.createTextNode(String(r)));
+    b.append(hypSwatch(r), document.createTextNode(String(r)));
     b.addEventListener('click', () => pick && pick(r));
     div.append(b);
   }

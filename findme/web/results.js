@@ -4,7 +4,7 @@
  * the user says they are on, their 3D position, distances and 1-sigma, asked of the
  * measurement service through the gateway).
  */
-import {$, DEG, el, fmtLen, hypColor, notify, photoAt, send, setBusy, state} from './common.js';
+import {$, DEG, el, fmtLen, hypColor, hypSwatch, notify, photoAt, send, setBusy, state} from './common.js';
 import {renderMotion} from './motion.js';
 import {addPoint, clearPoints, drawPoints, initPoints, measure, renderPoints} from './points.js';
 import {heightFromForm} from './settings.js';
@@ -87,9 +87,7 @@ export function render() {
     const b = el('button', {type: 'button', class: 'chip', 'data-rank': h.rank,
                             'aria-pressed': String(h.rank === p.rank),
                             title: `score ${h.score.toFixed(2)}, edge support ${(100 * h.support).toFixed(0)}%`});
-    const sw = el('span', {class: 'swatch'});
-    sw.style.background = hypColor(h.rank);
-    b.append(sw, document.createTextNode(h.rank === 1 ? '1 (best)' : String(h.rank)));
+    b.append(hypSwatch(h.rank), document.createTextNode(h.rank === 1 ? '1 (best)' : String(h.rank)));
     b.addEventListener('click', () => selectRank(h.rank));
     return b;
   }));

@@ -13,8 +13,10 @@ import json
 from importlib import resources
 
 import aiohttp
+import numpy as np
 import pytest
 
+from findme_core.single.hypotheses import column_rows
 from test_web_app import PHONE, SIDE_A, close, tap_pixel, type_camera, upload
 
 pytestmark = pytest.mark.timeout(120)
@@ -151,11 +153,8 @@ def test_the_page_says_which_surface_you_tap(browser, app, shots):
 
 
 def _row_at(points, u):
-    """The row of a hypothesis's polyline at column u (as the page's ``rowAt``)."""
-    for (u0, v0), (u1, v1) in zip(points, points[1:]):
-        if u <= u1 and u1 > u0:
-            return v0 if u <= u0 else v0 + (v1 - v0) * (u - u0) / (u1 - u0)
-    return points[-1][1]
+    """The row of a hypothesis's polyline at column u, as the page compares it with a tap."""
+    return float(column_rows(np.asarray(points, float), 480, np.array([u]))[0])
 
 
 def test_a_floor_tap_above_the_line_offers_the_lines_that_agree(browser, app, shots):
