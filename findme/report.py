@@ -222,8 +222,9 @@ def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: L
 
 def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
     """Ask the measurement service for ``pixels`` (u, v) of photo 0 (``said``: the surface
-    the user says each is on, "floor", "wall" or None; None for none) and print its answer;
-    for the bundled ``example`` (no pixels given: its ground-truth floor points), its truth."""
+    the user says each is on, "floor", "wall", "top" or None; None for none) and print its
+    answer; for the bundled ``example`` (no pixels given: its ground-truth floor points), its
+    truth."""
     if not pixels and example:  # the example: its ground-truth floor points
         import json
         meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())

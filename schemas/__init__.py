@@ -70,6 +70,7 @@ from .v1.hypotheses_pb2 import FrameHeight, Hypothesis, HypothesisSet
 from .v1.measure_pb2 import (
     SURFACE_FLOOR,
     SURFACE_NONE,
+    SURFACE_TOP,
     SURFACE_WALL,
     Distance,
     MeasuredPoint,
@@ -114,7 +115,7 @@ __all__ = [
     "SEG_KIND_WALL", "SEG_KIND_STEP", "SEG_KIND_OPEN", "SEG_KIND_NONE",
     "Frame", "FrameHeight", "Hypothesis", "HypothesisSet", "Selection", "SelectedBy", "SELECTED_BY_USER",
     "SELECTED_BY_AUTO", "Scene", "MeasureRequest", "MeasureReply", "MeasuredPoint",
-    "Distance", "Surface", "SURFACE_NONE", "SURFACE_FLOOR", "SURFACE_WALL",
+    "Distance", "Surface", "SURFACE_NONE", "SURFACE_FLOOR", "SURFACE_WALL", "SURFACE_TOP",
     "Motion", "MotionLayout", "MotionGravity", "MotionAlternative", "IndexPair", "Pose", "Trajectory", "Error", "ErrorCode", "ServiceStatus",
     "Plan", "PlanPoint", "PlanWall", "PlanOpening", "PlanPhoto", "WallKind", "PlanPhotoStatus",
     "WALL_KIND_WALL", "WALL_KIND_OPENING", "WALL_KIND_MISSING", "PLAN_PHOTO_STATUS_PLACED",

@@ -209,14 +209,19 @@ def _hypothesis_set(m: hypotheses_pb2.HypothesisSet) -> Problems:
         _camera(p, "camera", m.camera)
     if m.HasField("frame_height"):
         _height(p, m.frame_height, prefix="frame_height.")
-    if len(m.lines) % 4:
-        p.append(f"lines must hold 4 numbers per line (u1, v1, u2, v2), got {len(m.lines)}")
-    if len(m.lines) > 4 * MAX_LINES:
-        p.append(f"lines: at most {MAX_LINES} lines, got {len(m.lines) // 4}")
-    bad = next((i for i, x in enumerate(m.lines) if not math.isfinite(x)), None)
-    if bad is not None:
-        p.append(f"lines[{bad}] must be finite, got {m.lines[bad]!r}")
+    _lines(p, m.lines)
     return p
+
+
+def _lines(p: Problems, lines) -> None:
+    """A message's photo lines: 4 finite numbers each, at most ``MAX_LINES``."""
+    if len(lines) % 4:
+        p.append(f"lines must hold 4 numbers per line (u1, v1, u2, v2), got {len(lines)}")
+    if len(lines) > 4 * MAX_LINES:
+        p.append(f"lines: at most {MAX_LINES} lines, got {len(lines) // 4}")
+    bad = next((i for i, x in enumerate(lines) if not math.isfinite(x)), None)
+    if bad is not None:
+        p.append(f"lines[{bad}] must be finite, got {lines[bad]!r}")
 
 
 def _selection(m: selection_pb2.Selection) -> Problems:
@@ -238,6 +243,7 @@ def _scene(m: scene_pb2.Scene) -> Problems:
     _positive(p, "camera_height_m", m.camera_height_m)
     _nonneg(p, "camera_height_sigma_m", m.camera_height_sigma_m)
     _polyline(p, "polyline", m.polyline)
+    _lines(p, m.lines)
     return p
 
 
@@ -280,11 +286,13 @@ def _measure_reply(m: measure_pb2.MeasureReply) -> Problems:
             else:
                 _vec3(p, f"{name}.xyz", pt.xyz)
             if pt.surface == measure_pb2.SURFACE_NONE:
-                p.append(f"{name} has no error, so needs a surface (FLOOR or WALL)")
-            elif pt.said in (measure_pb2.SURFACE_FLOOR, measure_pb2.SURFACE_WALL) \
-                    and pt.said != pt.surface:
+                p.append(f"{name} has no error, so needs a surface (FLOOR, WALL or TOP)")
+            elif pt.said in (measure_pb2.SURFACE_FLOOR, measure_pb2.SURFACE_WALL,
+                             measure_pb2.SURFACE_TOP) and pt.said != pt.surface:
                 p.append(f"{name} was said to be on {measure_pb2.Surface.Name(pt.said)} "
                          f"but is on {measure_pb2.Surface.Name(pt.surface)}")
+            if pt.surface == measure_pb2.SURFACE_TOP and pt.said != measure_pb2.SURFACE_TOP:
+                p.append(f"{name} is on a top, which only a point said to be there is")
             if pt.HasField("sigma_m"):
                 _nonneg(p, f"{name}.sigma_m", pt.sigma_m)
     n = len(m.points)

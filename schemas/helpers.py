@@ -36,19 +36,20 @@ def msg_to_pixels(pixels) -> np.ndarray:
 
 
 _SURFACES = {None: measure_pb2.SURFACE_NONE, "floor": measure_pb2.SURFACE_FLOOR,
-             "wall": measure_pb2.SURFACE_WALL}
+             "wall": measure_pb2.SURFACE_WALL, "top": measure_pb2.SURFACE_TOP}
 _SURFACE_NAMES = {v: k for k, v in _SURFACES.items()}
 
 
 def surface_value(name: str | None) -> int:
-    """"floor", "wall" or None -> its Surface value (SURFACE_NONE for None)."""
+    """"floor", "wall", "top" or None -> its Surface value (SURFACE_NONE for None)."""
     if not (name is None or isinstance(name, str) and name in _SURFACES):
-        raise SchemaError(f"a surface must be floor, wall or None, got {name!r}")
+        raise SchemaError(f"a surface must be floor, wall, top or None, got {name!r}")
     return _SURFACES[name]
 
 
 def surface_name(value: int) -> str | None:
-    """A Surface value -> "floor", "wall" or None (SURFACE_NONE, or a value not known)."""
+    """A Surface value -> "floor", "wall", "top" or None (SURFACE_NONE, or a value not
+    known)."""
     return _SURFACE_NAMES.get(value)
 
 

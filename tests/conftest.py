@@ -67,6 +67,27 @@ def box_view():
 
 
 @pytest.fixture(scope="session")
+def counter_view():
+    """A counter 0.9 m high, 3 m long and 0.7 m deep against the far wall: the boundary runs
+    along its foot, and the photo looks down on its top."""
+    r = Room.rectangle(5.0, 6.0, floor_style="wood", boxes=(Box(0.0, 2.65, 3.0, 0.7, 0.9),))
+    return render(r, Pose(0.2, 0.0, 1.45, yaw_deg=3.0, pitch_deg=28.0, roll_deg=2.0), 640, 480,
+                  hfov_deg=70.0, seed=8)
+
+
+def top_pixels(view, box: int = 0, step: int = 97):
+    """(N, 2) pixels (every ``step``-th, in raster order) of the top of ``view``'s box, and
+    their (N, 3) true camera-frame points."""
+    import numpy as np
+    level = view.points_cam.reshape(-1, 3) @ view.camera.R_level_from_cam.T
+    height = view.camera_height - level[:, 1]
+    on = np.flatnonzero((view.labels.ravel() == 50 + box)
+                        & (np.abs(height - view.room.boxes[box].height) < 1e-3))[::step]
+    W = view.labels.shape[1]
+    return np.column_stack([on % W, on // W]).astype(float), view.points_cam.reshape(-1, 3)[on]
+
+
+@pytest.fixture(scope="session")
 def l_view():
     """A non-convex (L-shaped) room: one wall corner occludes another wall."""
     return render(Room.l_shape(), Pose(-1.5, -1.5, 1.5, yaw_deg=30.0, pitch_deg=20.0), 640, 480,

@@ -158,7 +158,7 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         *coverage_rows(split, phone_preds), "",
         "**Where the points' sigmas fail** (`tools/surface_coverage.py`, the same run): each "
         "point on the surface the product put it on, its own (a floor point on the floor, a "
-        "wall or non-floor point on a wall) or the other. A point's 1-sigma takes its surface "
+        "wall point on a wall, a non-floor point on a wall or a top) or the other. A point's 1-sigma takes its surface "
         "as right; a point on the other surface has a boundary under it that is wrong by far "
         "more than the boundary's 1-sigma (a counter's top taken for the floor line, floor "
         "beyond a low cabinet taken for its face). Within 1 / 2 / 3 sigma, in sample:", "",
@@ -167,8 +167,10 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "The same run with the surface said (`--declared-surface`: each query point located on "
         "the surface a user who tapped it would say, `findme locate --point U,V,floor`: floor "
         "and wall points on theirs, TUM's non-floor points on a wall where their surface is "
-        "vertical and nothing said where it is not, a cabinet's top; a point said wall that the "
-        "boundary puts on the floor gets no answer):", "",
+        "vertical and on a top where it is not, a cabinet's top (`--point U,V,top`: on the "
+        "top whose front edge stands on the face below it); a point said wall that the "
+        "boundary puts on the floor gets no answer, and one said top where no front edge is "
+        "found below it neither):", "",
         *coverage_rows(split, said_preds, only=("points", "distances")), "",
         "**The plan's model errors** (`tools/calibrate_plan.py`: sigma = hypot(k * the joint "
         "refinement's, floor), raw coverage, fitted in sample, left out):", "", "```",

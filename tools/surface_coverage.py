@@ -1,6 +1,6 @@
 """Where the points' sigmas fail: coverage of each point kind split by the surface the
-product put the point on, the query's own (a floor point on the floor, a wall or non-floor
-point on a wall) or the other one.
+product put the point on, the query's own (a floor point on the floor, a wall point on a
+wall, a non-floor point on a wall or a top) or the other one.
 
     python tools/surface_coverage.py DATASET_DIR PREDICTIONS.json [--markdown]
 
@@ -29,7 +29,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(__file__))
 from sigma_coverage import POINT_KINDS, coverage, point_errors, views  # noqa: E402
 
-RIGHT = {"floor_points": "floor", "wall_points": "wall", "nonfloor_points": "wall"}
+RIGHT = {"floor_points": ("floor",), "wall_points": ("wall",), "nonfloor_points": ("wall", "top")}
 
 
 def collect(dataset: str, preds: dict) -> dict:
@@ -43,7 +43,7 @@ def collect(dataset: str, preds: dict) -> dict:
                 continue
             row = out.setdefault(f"{k.replace('_', ' ')} ({family})", {"right": [], "other": []})
             for i, err, s in point_errors(meta, p, k):
-                row["right" if surfaces[i] == RIGHT[k] else "other"].append(err / s)
+                row["right" if surfaces[i] in RIGHT[k] else "other"].append(err / s)
     return {k: {s: np.asarray(v, float) for s, v in r.items()} for k, r in out.items()}
 
 

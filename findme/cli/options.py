@@ -30,15 +30,17 @@ def floats(text: str, n: int, name: str) -> tuple[float, ...]:
 
 
 def surfaces(said: list, where: str) -> list[str | None] | None:
-    """Each point's said surface checked ("floor", "wall" or None); None when none is said."""
+    """Each point's said surface checked ("floor", "wall", "top" or None); None when none is
+    said."""
     bad = [x for x in said if x is not None and x not in SURFACES]
     if bad:
-        raise InputError(f"{where}: a point's surface must be floor or wall, got {bad[0]!r}")
+        raise InputError(f"{where}: a point's surface must be floor, wall or top, got "
+                         f"{bad[0]!r}")
     return said if any(said) else None
 
 
 def said_points(texts, name: str) -> tuple[list[tuple[float, float]], list[str | None] | None]:
-    """Pixels given as ``U,V`` or ``U,V,floor|wall`` (the surface the user says the pixel
+    """Pixels given as ``U,V`` or ``U,V,floor|wall|top`` (the surface the user says the pixel
     is on): (pixels, the surface said of each or None; None when none was)."""
     pixels, said = [], []
     for text in texts:

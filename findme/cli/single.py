@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from findme_core.errors import HypothesisError, InputError
+from findme_core.motion.pair import photo_lines
 from findme_core.single.methods import METHODS
 from findme_io.camera_source import hypothesize_photo
 from findme_io.overlay import draw_hypotheses
@@ -79,11 +80,13 @@ def register(sub) -> None:
     q.add_argument("--method", default="findme", choices=METHODS,
                    help="hypothesis method: findme (default) or paper")
     pts = q.add_mutually_exclusive_group(required=True)
-    pts.add_argument("--point", action="append", metavar="U,V[,floor|wall]",
+    pts.add_argument("--point", action="append", metavar="U,V[,floor|wall|top]",
                      help="a pixel (column, row from the top-left pixel's centre); repeat for "
-                          "more (a negative value: --point=-4,2); with floor or wall: the "
+                          "more (a negative value: --point=-4,2); with floor, wall or top: the "
                           "surface you tapped, whatever the boundary says (floor: on the "
-                          "floor; wall: no answer where the boundary puts the floor)")
+                          "floor; wall: no answer where the boundary puts the floor; top: on "
+                          "the top of something standing on the floor line below it, a table "
+                          "or a counter, found by its front edge)")
     pts.add_argument("--points", metavar="FILE.json",
                      help='pixels as JSON: [[u, v], ...] or {"points": [[u, v], ...]}; '
                           'a pixel may name its surface: [u, v, "floor"]')
@@ -226,11 +229,14 @@ def locate_json(scene: Scene, pixels, rank: int, polyline, metric: bool,
     located = scene.locate(pixels, surfaces)
     dist = distances(located, scene.height, scene.height_sigma)
     r = lambda x: None if x is None else round(float(x), 6)  # noqa: E731
+    up = scene.camera.R_level_from_cam[1]   # level y (down) of a camera-frame point
     src = camera_json(scene.camera, provenance) if provenance is not None else {}
     return {**src,
         "points": [{"pixel": [r(p.pixel[0]), r(p.pixel[1])], "surface": p.surface,
                     "xyz_m": None if p.xyz is None else [r(x) for x in p.xyz],
                     "sigma_m": r(p.sigma_m), "error": p.error, "note": p.note,
+                    # above the floor: a top's height, a wall point's on its wall
+                    "height_m": None if p.xyz is None else r(scene.height - up @ p.xyz),
                     "said": None if surfaces is None else surfaces[i],
                     "sigma_parts_m": None if p.sigma_parts is None else
                     {k: r(v) for k, v in p.sigma_parts.items()}} for i, p in enumerate(located)],
@@ -258,7 +264,8 @@ def cmd_locate(args) -> int:
         print(f"findme locate: warning: not a room view: {view.reason}; the points below "
               "rest on a guessed boundary", file=sys.stderr)
     scene = Scene(cam, h, hyp.polyline, hyp.kinds, gravity_cov=prov.gravity_cov,
-                  boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+                  boundary_sigma_px=boundary_sigma_px(cam.width, cam.height),
+                  lines=photo_lines(hs, image))
     out = locate_json(scene, pixels, args.hypothesis, hyp.polyline, metric, prov, surfaces)
     out["room_view"] = {"ok": view.ok, "reason": view.reason}
     if args.json:
@@ -274,6 +281,8 @@ def cmd_locate(args) -> int:
             print(f"  {i + 1}. ({p['pixel'][0]:g}, {p['pixel'][1]:g})  {p['surface']:5s}"
                   + (" (as you said) " if p["said"] else " ") +
                   f"x {x:+.3f} y {y:+.3f} z {z:+.3f} {unit}  (± {p['sigma_m']:.3f})"
+                  + (f", {p['height_m']:.3f} {unit} above the floor" if p["surface"] == "top"
+                     else "")
                   + (f"\n     note: {p['note']}" if p["note"] else ""))
     for i, (d, s) in enumerate(zip(out["distances_m"], out["distance_sigma_m"])):
         if d is not None:

@@ -19,6 +19,7 @@ from findme_core.geometry.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.geometry.manhattan import gravity_of, pitch_roll_deg
 from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
+from findme_core.motion.pair import photo_lines
 from findme_core.single.scene import Scene, boundary_sigma_px, distances
 
 from findme_io.camera_source import hypothesize_photo, with_gravity
@@ -103,13 +104,13 @@ def _gravity_input(gravity) -> GravityInput:
 def declared_surfaces(meta: dict) -> dict:
     """{kind: [surface said or None per query point]}: what a user tapping each would say it
     is on (``--declared-surface``): a floor point "floor", a wall point "wall", a TUM
-    non-floor point "wall" where its surface is vertical (a cabinet's front) and nothing
-    where it is not (a cabinet's top: neither floor nor wall)."""
+    non-floor point "wall" where its surface is vertical (a cabinet's front), "top" where it
+    is not (the cabinet's top) and nothing where the dataset does not say."""
     out = {}
     for kind in POINT_KINDS:
         qs = meta.get(kind) or []
         if kind == "nonfloor_points":
-            out[kind] = ["wall" if q.get("vertical_surface") else None for q in qs]
+            out[kind] = [{True: "wall", False: "top"}.get(q.get("vertical_surface")) for q in qs]
         else:
             out[kind] = [DECLARED.get(kind)] * len(qs)
     return out
@@ -150,7 +151,7 @@ def predict_view(args) -> tuple[str, dict | None, str | None]:
             try:
                 scene = Scene(cam, h, top.polyline, top.kinds, gravity_cov=prov.gravity_cov,
                               boundary_sigma_px=boundary_sigma_px(cam.width, cam.height),
-                              height_sigma=height_sigma)
+                              height_sigma=height_sigma, lines=photo_lines(hs, image))
             except FindmeError:  # e.g. a level-camera polyline crossing a tilted horizon:
                 scene = None     # its points have no answer, its hypotheses still count
             located_by = {}

@@ -17,7 +17,7 @@ export const state = {
   ws: null, session: null, services: [], seq: 0, measureSeq: 0,
   limits: {max_upload_bytes: 15 * 1024 * 1024, max_measure_pixels: 64, max_photos: 100},
   photos: [], current: -1, pending: new Map(), busy: new Map(), units: 'm',
-  tapAs: null,   // what the user says the next taps are on: null (as the boundary says), 'floor', 'wall'
+  tapAs: null,   // what the user says the next taps are on: null (as the boundary says), 'floor', 'wall', 'top'
   motions: new Map(), poses: new Map(), trajectory: null, motionTimer: null,
   sensors: {on: false, samples: [], source: ''},
 };

@@ -1,14 +1,18 @@
 /* Find Me phone client: the points tapped on a photo (ES module): the surface the user says
- * they tap ("You tap: as the boundary says | floor | wall"), the measure requests, the dots
+ * they tap ("You tap: as the boundary says | floor | wall | top of something"), the measure
+ * requests, the dots
  * on the photo and the list of points and distances.
  *
  * A photo's points are p.points ([u, v] pixels, in tap order) and, beside them,
  * p.surfaces: what the user said each one is on when tapping it (null: as the boundary
- * says, 'floor' or 'wall'); the choice in force is state.tapAs, kept while the page is open.
+ * says, 'floor', 'wall' or 'top'); the choice in force is state.tapAs, kept while the page is
+ * open.
  * A measure request carries `surfaces` only when some point has one said, so a page where
  * nothing is said asks exactly what it asked before. Said floor: the point is put on the
  * floor whatever the chosen boundary says; said wall where the boundary puts the floor: the
- * service answers no point, with what to do (shown like any other error of a point). A point
+ * service answers no point, with what to do (shown like any other error of a point). Said
+ * top: on the top of what stands on the floor line below it (a counter, a cabinet), found by
+ * its front edge, or no point with the reason. A point
  * said floor above the chosen line comes back with a note (``MeasuredPoint.note``), shown
  * under it with the hypotheses whose line runs above it, each a button that selects it.
  */

@@ -42,52 +42,71 @@ def boundary_sigma_px(width: int, height: int) -> float:
 TILT_STEP = 1e-3
 
 
+def _kept(scene, pieces, r, surface, edge_rays):
+    """(N,) ray parameters of the points under ``pieces``, each kept on its surface: a floor
+    point on the floor (the boundary does not move it), a point on a top on its top (the
+    front edge's pixel ``edge_rays`` fixed), a wall point on its wall."""
+    t, _, _ = scene._solve(pieces, r)
+    t = np.where(surface == 1, np.where(r[:, 1] > 0, scene.height / np.maximum(r[:, 1], 1e-300),
+                                        np.nan), t)
+    top = surface == 3
+    if top.any():
+        t = t.copy()
+        t[top] = scene._top_t(pieces, r[top], edge_rays[top])
+    return t
+
+
 def point_sigmas(scene, px: np.ndarray, rays: np.ndarray, P: np.ndarray,
-                 surface: np.ndarray) -> tuple[dict, np.ndarray]:
+                 surface: np.ndarray, edges: np.ndarray | None = None) -> tuple[dict, np.ndarray]:
     """The sigma parts of located points.
 
     Args:
         scene: the ``scene.Scene``.
         px: (N, 2) finite pixels; rays: (N, 3) their level rays; P: (N, 3) their level-frame
-            points (NaN where none); surface: (N,) 1 floor, 2 wall, 0 none.
+            points (NaN where none); surface: (N,) 1 floor, 2 wall, 3 top, 0 none.
+        edges: (N, 2) the pixel of each top point's front edge (``tops``; NaN elsewhere).
     Returns:
-        ({"height", "boundary", "pixel", "gravity"}: (N,) metres (inf where undefined),
+        ({"height", "boundary", "pixel", "gravity"}: (N,) metres (inf where undefined;
+         "pixel": the tap off by one pixel, and a top's front edge off by one row),
          (N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
          along each principal axis of ``scene.gravity_cov``).
     """
     cam = scene.camera
+    edges = np.full(px.shape, np.nan) if edges is None else edges
+    e_rays = cam.rays_level(np.where(np.isfinite(edges), edges, 0.0))
 
-    def moved(pieces, r):
-        t2, _, _ = scene._solve(pieces, r)
-        # a floor point stays on the floor (the boundary does not move it)
-        t2 = np.where(surface == 1, np.where(r[:, 1] > 0, scene.height / np.maximum(r[:, 1], 1e-300),
-                                             np.nan), t2)
-        d = np.linalg.norm(t2[:, None] * r - P, axis=1)
+    def moved(pieces, r, er=e_rays):
+        d = np.linalg.norm(_kept(scene, pieces, r, surface, er)[:, None] * r - P, axis=1)
         return np.where(np.isfinite(d), d, np.inf)
 
     shift = scene._shift_px
+    edge = np.where(surface == 3, moved(scene._pieces, rays, cam.rays_level(
+        np.where(np.isfinite(edges), edges + (0.0, 1.0), 0.0))), 0.0)
     parts = {"height": np.linalg.norm(P, axis=1) * scene.height_sigma / scene.height,
              "boundary": np.maximum(moved(scene._pieces_shifted, rays),
                                     moved(scene._pieces_sideways, rays)) * (
                  scene.boundary_sigma_px / shift if shift > 0 else 0.0),
-             "pixel": np.hypot(moved(scene._pieces, cam.rays_level(px + (1.0, 0.0))),
-                               moved(scene._pieces, cam.rays_level(px + (0.0, 1.0))))}
-    jac = gravity_displacements(scene, px, P, surface)
+             "pixel": np.sqrt(moved(scene._pieces, cam.rays_level(px + (1.0, 0.0))) ** 2
+                              + moved(scene._pieces, cam.rays_level(px + (0.0, 1.0))) ** 2
+                              + edge ** 2)}
+    jac = gravity_displacements(scene, px, P, surface, edges)
     parts["gravity"] = np.sqrt((jac ** 2).sum((1, 2)))
     return parts, jac
 
 
-def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndarray) -> np.ndarray:
+def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndarray,
+                          edges: np.ndarray | None = None) -> np.ndarray:
     """(N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
     along each principal axis of ``scene.gravity_cov`` (linearised: central differences of
     the scene rebuilt under gravity tilted by +-``TILT_STEP``; the point keeps its
-    surface). Zero when gravity is exact."""
+    surface, a top point its front edge's pixel ``edges``). Zero when gravity is exact."""
     n = len(px)
     out = np.zeros((n, 2, 3))
     evals, evecs = np.linalg.eigh(scene.gravity_cov)
     if n == 0 or not np.any(evals > 0):
         return out
     cam = scene.camera
+    ok_edges = np.zeros_like(px) if edges is None else np.where(np.isfinite(edges), edges, 0.0)
     R = cam.R_level_from_cam
     x_l, z_l = R[0], R[2]
     P_cam = P @ R
@@ -108,10 +127,7 @@ def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndar
                 moved.append(np.full((n, 3), np.nan))
                 continue
             rays = c2.rays_level(px)
-            t, s2, _ = scene._solve(pieces, rays)
-            t = np.where(surface == 1, np.where(rays[:, 1] > 0,
-                                                scene.height / np.maximum(rays[:, 1], 1e-300),
-                                                np.nan), t)
+            t = _kept(scene, pieces, rays, surface, c2.rays_level(ok_edges))
             moved.append((t[:, None] * rays) @ c2.R_level_from_cam)
         d = (moved[0] - moved[1]) * (s / (2 * TILT_STEP))
         out[:, k] = np.where(np.isfinite(d), d, np.inf)

@@ -24,6 +24,11 @@ class Reason(IntEnum):
     NOT_WALL = 9
     UNSEEN = 10
     NO_FLOOR_VIEW = 11
+    TOP_ON_FLOOR = 12
+    NO_TOP_EDGE = 13
+    NO_LINES = 14
+    TOP_ABOVE = 15
+    TOP_TOO_DEEP = 16
 
 
 #: Why a pixel has no 3D position, for the user. A point said to be on a wall that the
@@ -61,6 +66,26 @@ REASONS = {
         "the photo shows almost no floor under the chosen boundary, so the foot of its walls is "
         "not seen and their distances would be a guess: step back or tilt the phone down so "
         "that the photo shows the floor meeting the walls",
+    Reason.TOP_ON_FLOOR:
+        "the chosen floor line runs above this point you said is on top of something, so it "
+        "puts the point on the floor: a top is measured on the thing whose foot the floor line "
+        "follows below it (a counter, a cabinet, furniture in front of a wall); choose a "
+        "hypothesis whose line runs along that foot (a table standing free, with floor seen "
+        "behind it, is not measured)",
+    Reason.NO_TOP_EDGE:
+        "no front edge of a top was found between this point and the floor line below it (a "
+        "straight line, level and parallel to the face standing on that floor line, lower than "
+        "the camera), so the top's height is not known: say wall to measure the face itself",
+    Reason.NO_LINES:
+        "the photo's straight lines did not come with its hypotheses, so the front edge of a "
+        "top cannot be looked for here",
+    Reason.TOP_TOO_DEEP:
+        "on the top whose front edge was found below it, this point would lie farther behind "
+        "that edge than a table's or a counter's top reaches, so the line found is likely not "
+        "a top's edge (a level line on a wall, a sill): say wall to measure the face itself",
+    Reason.TOP_ABOVE:
+        "the pixel is at or above the horizon: a top seen there is not below the camera, and "
+        "only tops the camera looks down on are measured",
 }
 
 #: What the user should know of an answered point (``scene.Located.note``), by code. A point
@@ -77,7 +102,10 @@ NOTES = {
         "line runs above this point",
 }
 
-#: The surfaces a located point can be on (and a user can say it is on), by code 1, 2.
-SURFACES = ("floor", "wall")
+#: The surfaces a located point can be on (and a user can say it is on), by code 1, 2, 3:
+#: the floor, a wall (or the face of anything standing on the floor line), the top of
+#: something standing on it (a table, a counter, a cabinet: ``tops``). A point is on a top
+#: only when said to be: nothing in the boundary tells a top from the wall above it.
+SURFACES = ("floor", "wall", "top")
 SURFACE_NAMES = dict(enumerate(SURFACES, 1))
 SURFACE_CODES = {name: code for code, name in SURFACE_NAMES.items()}

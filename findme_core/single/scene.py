@@ -17,7 +17,8 @@ segment that lies wholly outside the image (the hypothesis continued the boundar
 above the photo's edge) is a wall nobody saw the base of: ``locate`` gives its points no answer
 (``Reason.UNSEEN``) rather than a distance that is an inference; so does every wall of a
 photo that shows almost no floor under its boundary (``Reason.NO_FLOOR_VIEW``,
-``seen.shows_floor``). The texts a user reads are ``answers``'.
+``seen.shows_floor``). A pixel said to be on the top of something standing on the boundary
+(a table, a counter) is put on that top (``tops``). The texts a user reads are ``answers``'.
 
 A point whose 1-sigma (``uncertainty``) exceeds ``max_rel_sigma`` of its distance is not
 placed: an honest "unknown" (``Reason.LOOSE``) rather than a guess. On real photos these
@@ -38,6 +39,7 @@ from findme_core.geometry.camera import Camera
 # the answers' texts live in ``answers``; re-exported here, where they began
 from findme_core.single.answers import (FLOOR_PAST_LINE, NOTES, REASONS,  # noqa: F401
                                         SURFACE_CODES, SURFACE_NAMES, SURFACES, Reason)
+from findme_core.single import tops
 from findme_core.single.search import SegKind
 from findme_core.single.seen import shows_floor, walls_seen
 # the uncertainty of the points lives in ``uncertainty``; re-exported here, where it began
@@ -92,11 +94,13 @@ class Scene:
             and z (roll) axes (``provenance.Provenance.gravity_cov``); None = exact.
         max_rel_sigma: a point whose 1-sigma exceeds this share of its distance from the
             camera gets no answer (reason in ``REASONS``); None answers every point.
+        lines: (L, 4) the photo's straight lines [u1, v1, u2, v2], pixels, where a top's
+            front edge is looked for (``tops``); None: points said on a top get no answer.
     """
 
     def __init__(self, camera: Camera, height: float, polyline, kinds=None,
                  height_sigma: float = 0.03, boundary_sigma_px: float = 1.0,
-                 gravity_cov=None, max_rel_sigma: float | None = MAX_REL_SIGMA):
+                 gravity_cov=None, max_rel_sigma: float | None = MAX_REL_SIGMA, lines=None):
         if not np.isfinite(height) or height <= 0:
             raise GeometryError(f"camera height must be a positive number of metres, got {height!r}")
         poly = np.asarray(polyline, float).reshape(-1, 2)
@@ -115,6 +119,10 @@ class Scene:
             raise GeometryError(f"max_rel_sigma must be a positive number or None, got "
                                 f"{max_rel_sigma!r}")
         self.max_rel_sigma = None if max_rel_sigma is None else float(max_rel_sigma)
+        self.lines = None if lines is None else np.asarray(lines, float).reshape(-1, 4)
+        if self.lines is not None and not np.all(np.isfinite(self.lines)):
+            raise GeometryError("the photo's lines must be finite pixels [u1, v1, u2, v2]")
+        self._normals = None if self.lines is None else tops.line_normals(camera, self.lines)
         self._pieces = self._build(poly)
         self.shows_floor = shows_floor(poly, kinds, camera.width, camera.height)
         # the boundary part is linearised: the scene under the boundary moved down (and, for
@@ -159,12 +167,8 @@ class Scene:
         """Vectorised: (N, 3) level rays -> ((N,) ray parameter t, (N,) surface code, (N,)
         failure reason); the point is t * ray. Surfaces: 1 floor, 2 wall, 0 none."""
         n = len(rays)
-        az = np.arctan2(rays[:, 0], rays[:, 2])
         a0, a1, kind, normal, offset, seen = pieces
-        inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
-        # outside every interval: the nearest end piece (walls extend past the image)
-        gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
-        k = np.where(inside.any(1), np.argmax(inside, 1), np.argmin(gap, 1))
+        k = self._piece(pieces, rays)
         with np.errstate(divide="ignore", invalid="ignore"):
             t_floor = np.where(rays[:, 1] > 0, self.height / rays[:, 1], np.inf)
             den = (normal[k] * rays[:, [0, 2]]).sum(1)
@@ -187,6 +191,21 @@ class Scene:
         surface[bad] = 0
         return np.where(bad, np.nan, t_out), surface, reason
 
+    @staticmethod
+    def _piece(pieces, rays) -> np.ndarray:
+        """(N,) the piece each (N, 3) level ray's azimuth falls in; outside every interval,
+        the nearest end piece (walls extend past the image)."""
+        az = np.arctan2(rays[:, 0], rays[:, 2])
+        a0, a1 = pieces[0], pieces[1]
+        inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
+        gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
+        return np.where(inside.any(1), np.argmax(inside, 1), np.argmin(gap, 1))
+
+    def _top_t(self, pieces, rays, edge_rays) -> np.ndarray:
+        """(N,) ray parameters of points on tops (``tops.top_t``) under ``pieces``."""
+        k = self._piece(pieces, rays)
+        return tops.top_t(rays, edge_rays, pieces[3][k], pieces[4][k])
+
     def locate_level(self, pixels):
         """Vectorised 3D of (N, 2) pixels in the LEVEL frame.
 
@@ -206,13 +225,15 @@ class Scene:
     def _locate_all(self, pixels, surfaces=None, unseen: bool = False):
         """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
         (``uncertainty.point_sigmas``) and the (N,) note codes (``NOTES``; 0: none).
-        ``surfaces``: (N,) "floor", "wall" or None per pixel,
+        ``surfaces``: (N,) "floor", "wall", "top" or None per pixel,
         the surface the user says it is on: a floor pixel is put on the floor whatever the
-        boundary (below the horizon); a wall pixel the boundary puts on the floor gets no
+        boundary (below the horizon); a top pixel on its top (``tops.place``); a wall pixel
+        the boundary puts on the floor gets no
         answer. ``unseen``: answer points on walls whose base is outside the photo (or in a photo
         that shows almost no floor) too."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
+        edges = np.full(px.shape, np.nan)   # the front edges of points on tops (``_tops``)
         finite = np.isfinite(px).all(1)
         pxs = np.where(finite[:, None], px, 0.0)
         inside = (finite & (pxs[:, 0] >= -0.5) & (pxs[:, 0] <= cam.width - 0.5)
@@ -232,13 +253,16 @@ class Scene:
             surface = np.where(floor, 1, surface)
             reason = np.where(floor, 0, np.where(said == 1, Reason.ABOVE_HORIZON, reason))
             reason = np.where((said == 2) & (reason == 0) & (surface == 1), Reason.NOT_WALL, reason)
+            if (said == 3).any():
+                t, surface, reason, edges = tops.place(self, said == 3, pxs, rays, t, surface,
+                                                        reason)
         reason = np.where(inside, reason, np.where(finite, Reason.OUTSIDE, Reason.NOT_FINITE))
         ok = reason == 0
         surface = np.where(ok, surface, 0)
         P = t[:, None] * rays
         P[~ok] = np.nan
 
-        parts, jac = point_sigmas(self, pxs, rays, P, surface)
+        parts, jac = point_sigmas(self, pxs, rays, P, surface, edges)
         sigma = np.sqrt(sum(x * x for x in parts.values()))
         if self.max_rel_sigma is not None:
             with np.errstate(invalid="ignore"):

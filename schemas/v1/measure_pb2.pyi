@@ -13,9 +13,11 @@ class Surface(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     SURFACE_NONE: _ClassVar[Surface]
     SURFACE_FLOOR: _ClassVar[Surface]
     SURFACE_WALL: _ClassVar[Surface]
+    SURFACE_TOP: _ClassVar[Surface]
 SURFACE_NONE: Surface
 SURFACE_FLOOR: Surface
 SURFACE_WALL: Surface
+SURFACE_TOP: Surface
 
 class MeasureRequest(_message.Message):
     __slots__ = ("schema", "session", "index", "pixels", "said")

@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from schemas.v1 import common_pb2 as schemas_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16schemas/v1/scene.proto\x12\tfindme.v1\x1a\x17schemas/v1/common.proto\"\xe8\x01\n\x05Scene\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12\x0c\n\x04rank\x18\x04 \x01(\r\x12!\n\x06\x63\x61mera\x18\x05 \x01(\x0b\x32\x11.findme.v1.Camera\x12\x17\n\x0f\x63\x61mera_height_m\x18\x06 \x01(\x01\x12\x1d\n\x15\x63\x61mera_height_sigma_m\x18\x07 \x01(\x01\x12\x0e\n\x06metric\x18\x08 \x01(\x08\x12%\n\x08polyline\x18\t \x01(\x0b\x32\x13.findme.v1.Polyline\x12\x0f\n\x07time_ns\x18\n \x01(\x04\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16schemas/v1/scene.proto\x12\tfindme.v1\x1a\x17schemas/v1/common.proto\"\xf7\x01\n\x05Scene\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12\x0c\n\x04rank\x18\x04 \x01(\r\x12!\n\x06\x63\x61mera\x18\x05 \x01(\x0b\x32\x11.findme.v1.Camera\x12\x17\n\x0f\x63\x61mera_height_m\x18\x06 \x01(\x01\x12\x1d\n\x15\x63\x61mera_height_sigma_m\x18\x07 \x01(\x01\x12\x0e\n\x06metric\x18\x08 \x01(\x08\x12%\n\x08polyline\x18\t \x01(\x0b\x32\x13.findme.v1.Polyline\x12\x0f\n\x07time_ns\x18\n \x01(\x04\x12\r\n\x05lines\x18\x0b \x03(\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -33,5 +33,5 @@ _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'schemas.v1.scene_pb2', _glo
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_SCENE']._serialized_start=63
-  _globals['_SCENE']._serialized_end=295
+  _globals['_SCENE']._serialized_end=310
 # @@protoc_insertion_point(module_scope)

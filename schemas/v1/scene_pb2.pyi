@@ -1,13 +1,14 @@
 from schemas.v1 import common_pb2 as _common_pb2
+from google.protobuf.internal import containers as _containers
 from google.protobuf import descriptor as _descriptor
 from google.protobuf import message as _message
-from collections.abc import Mapping as _Mapping
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
 from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class Scene(_message.Message):
-    __slots__ = ("schema", "session", "index", "rank", "camera", "camera_height_m", "camera_height_sigma_m", "metric", "polyline", "time_ns")
+    __slots__ = ("schema", "session", "index", "rank", "camera", "camera_height_m", "camera_height_sigma_m", "metric", "polyline", "time_ns", "lines")
     SCHEMA_FIELD_NUMBER: _ClassVar[int]
     SESSION_FIELD_NUMBER: _ClassVar[int]
     INDEX_FIELD_NUMBER: _ClassVar[int]
@@ -18,6 +19,7 @@ class Scene(_message.Message):
     METRIC_FIELD_NUMBER: _ClassVar[int]
     POLYLINE_FIELD_NUMBER: _ClassVar[int]
     TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    LINES_FIELD_NUMBER: _ClassVar[int]
     schema: str
     session: str
     index: int
@@ -28,4 +30,5 @@ class Scene(_message.Message):
     metric: bool
     polyline: _common_pb2.Polyline
     time_ns: int
-    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., rank: _Optional[int] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ..., camera_height_m: _Optional[float] = ..., camera_height_sigma_m: _Optional[float] = ..., metric: _Optional[bool] = ..., polyline: _Optional[_Union[_common_pb2.Polyline, _Mapping]] = ..., time_ns: _Optional[int] = ...) -> None: ...
+    lines: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, schema: _Optional[str] = ..., session: _Optional[str] = ..., index: _Optional[int] = ..., rank: _Optional[int] = ..., camera: _Optional[_Union[_common_pb2.Camera, _Mapping]] = ..., camera_height_m: _Optional[float] = ..., camera_height_sigma_m: _Optional[float] = ..., metric: _Optional[bool] = ..., polyline: _Optional[_Union[_common_pb2.Polyline, _Mapping]] = ..., time_ns: _Optional[int] = ..., lines: _Optional[_Iterable[float]] = ...) -> None: ...

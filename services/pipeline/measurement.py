@@ -7,8 +7,10 @@
 A request may say the surface each pixel is on (``MeasureRequest.said``): the user knows
 whether they tapped the floor or a wall, and a boundary along a cabinet's top puts the floor
 beyond it on the cabinet's face. A point said floor is put on the floor whatever the
-boundary; one said wall where the boundary puts the floor gets no point, with what to do
-(``Scene.locate``). The reply repeats what was said of each point, so a replay asks the same.
+boundary; one said wall where the boundary puts the floor gets no point, with what to do;
+one said on a top (a table's, a counter's) is put on it, its front edge looked for among
+the lines the photo's hypotheses came with, which the scene keeps (``Scene.locate``). The
+reply repeats what was said of each point, so a replay asks the same.
 
 A photo whose gravity came from its own lines, unsure, may get a better one from a motion:
 the odometry's motions carry the gravity two photos agreed on through their matches. Its
@@ -46,7 +48,7 @@ from findme_core.geometry.provenance import Provenance
 
 from ..runtime import bus
 from findme_io.convert import (camera_msg, measure_reply_msg, msg_agreed_gravities, msg_camera,
-                               msg_hypotheses, msg_provenance)
+                               msg_hypotheses, msg_lines, msg_provenance)
 from findme_io.frame_photo import frame_camera
 from ..runtime.handler import Handler, Input, Output, UnknownSession
 from ..runtime.sessions import SessionTable
@@ -182,12 +184,14 @@ class MeasurementHandler(Handler):
         metric = height is not None
         h = hyps[sel.rank - 1]
         held = Held(scene_of(cam, prov, height if metric else 1.0, sigma if metric else 0.0,
-                             h.polyline, h.kinds), sel.rank, metric, prov, sel.by)
+                             h.polyline, h.kinds, msg_lines(st.hsets[n])),
+                    sel.rank, metric, prov, sel.by)
         held = self._agreed(session, st, n, held) or held   # a motion came first
         st.put(st.scenes, n, held)
         st.hsets.pop(n, None)   # the scene is what queries need; another selection of this
         # photo fetches its hypotheses again (the store keeps small results 15 min): a
-        # session's memory is then ~1 kB a photo, not its HypothesisSet's 3-10 kB
+        # session's memory is then ~1 kB a photo and its lines (~3 kB for 100), not the
+        # whole HypothesisSet
         self.built += 1
         return [self._scene_output(session, n, held)]
 
@@ -199,6 +203,7 @@ class MeasurementHandler(Handler):
                             camera_height_m=scene.height, camera_height_sigma_m=scene.height_sigma,
                             metric=held.metric,
                             polyline=schemas.polyline_to_msg(scene.polyline, scene.kinds),
+                            lines=[] if scene.lines is None else scene.lines.ravel().tolist(),
                             time_ns=time.time_ns())
         return Output(bus.key(session, "scene", n), msg)
 
@@ -233,7 +238,7 @@ class MeasurementHandler(Handler):
         try:
             poly, kinds = boundary_under(frame, new[0], sc.height if held.metric else None, by,
                                          sc.polyline, sc.kinds)
-            scene = scene_of(*new, sc.height, sc.height_sigma, poly, kinds)
+            scene = scene_of(*new, sc.height, sc.height_sigma, poly, kinds, sc.lines)
         except FindmeError:   # it stays under its own gravity, whose sigma its answers carry
             self.not_regravitated += 1
             return None
@@ -293,7 +298,8 @@ class MeasurementHandler(Handler):
         cam = msg_camera(msg.camera)
         prov = msg_provenance(msg.camera) or Provenance()
         poly, kinds = schemas.msg_to_polyline(msg.polyline)
-        scene = scene_of(cam, prov, msg.camera_height_m, msg.camera_height_sigma_m, poly, kinds)
+        scene = scene_of(cam, prov, msg.camera_height_m, msg.camera_height_sigma_m, poly, kinds,
+                         msg_lines(msg))
         self.rebuilt += 1
         return Held(scene, msg.rank, msg.metric, prov, None)
 

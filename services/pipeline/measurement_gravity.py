@@ -42,13 +42,14 @@ class Held(NamedTuple):
     by: int | None
 
 
-def scene_of(cam, prov: Provenance, height: float, height_sigma: float, polyline, kinds
-             ) -> Scene:
+def scene_of(cam, prov: Provenance, height: float, height_sigma: float, polyline, kinds,
+             lines=None) -> Scene:
     """The Scene of a photo: its camera and gravity covariance, camera height (metres) and
-    its 1-sigma, boundary (M, 2) pixels and its (M - 1,) kinds."""
+    its 1-sigma, boundary (M, 2) pixels and its (M - 1,) kinds, and the (L, 4) lines its
+    hypotheses came with (pixels; None: not known), where a top's edge is looked for."""
     return Scene(cam, height, polyline, kinds, height_sigma=height_sigma,
                  gravity_cov=prov.gravity_cov,
-                 boundary_sigma_px=boundary_sigma_px(cam.width, cam.height))
+                 boundary_sigma_px=boundary_sigma_px(cam.width, cam.height), lines=lines)
 
 
 def under_agreed(agreed, cam, prov: Provenance):

@@ -30,8 +30,9 @@ convention: (0, 0) is the centre of the top-left pixel.
 
 A measure's ``surfaces`` (optional) says, per pixel, the surface the user tapped: null (as
 the chosen boundary says), "floor" (on the floor whatever the boundary says, below the
-horizon) or "wall" (no point where the boundary puts the floor, saying what to do); the
-session passes them on as the MeasureRequest's ``said``.
+horizon), "wall" (no point where the boundary puts the floor, saying what to do) or "top" (on
+the top of what stands on the floor line below it, or no point with the reason); the session
+passes them on as the MeasureRequest's ``said``.
 
 Pure functions: no bus, no server; ``parse_command`` returns a new dict built from its own
 parse of the text.
@@ -315,14 +316,14 @@ def _shown(v) -> str:
 
 
 def _surfaces(sf, n: int) -> list:
-    """A measure's ``surfaces``: a list of n entries, each None, "floor" or "wall"."""
+    """A measure's ``surfaces``: a list of n entries, each None, "floor", "wall" or "top"."""
     if not isinstance(sf, list):
-        raise _bad(f'surfaces must be a list of null, "floor" or "wall", one per pixel; '
+        raise _bad(f'surfaces must be a list of null, "floor", "wall" or "top", one per pixel; '
                    f"got {_shown(sf)}")
     if len(sf) != n:
         raise _bad(f"surfaces gives {len(sf)} for {n} pixels: give one per pixel "
                    "(null: as the boundary says)")
     for i, s in enumerate(sf):
         if not (s is None or isinstance(s, str) and s in SURFACES):
-            raise _bad(f'surfaces[{i}] must be null, "floor" or "wall", got {_shown(s)}')
+            raise _bad(f'surfaces[{i}] must be null, "floor", "wall" or "top", got {_shown(s)}')
     return list(sf)

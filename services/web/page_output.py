@@ -13,7 +13,7 @@ is given relative to the session (``frame/3``). A scene also carries its boundar
 the floor (``walls_m``, the photo's level frame) for the page's floor map, and a hypothesis
 set says why its photo does not look like a room view (``not_room_view``,
 ``findme_core.single.room_view``; "" when it does). Each measured point says what the user said
-it is on (``said``: "floor", "wall", or None when nothing was said of it) and what the user
+it is on (``said``: "floor", "wall", "top", or None when nothing was said of it) and what the user
 should know of its answer (``note``, e.g. the chosen line runs below a point said floor; None).
 
 Pure: no bus, no server; the message is only read.

@@ -13,7 +13,7 @@ own session:
     bus -> page: the ``FORWARDED`` kinds on findme/<s>/** (everything but frames), as JSON
     (page_output).
 
-A measure's ``surfaces`` (null, "floor" or "wall" per pixel: what the user says each tapped
+A measure's ``surfaces`` (null, "floor", "wall" or "top" per pixel: what the user says each tapped
 point is on) become the MeasureRequest's ``said``, one per pixel, only when at least one is
 said; a request that says nothing is the same as before there was a ``said``. Each point of
 the reply tells the page what was said of it (``said``).

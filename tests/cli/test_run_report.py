@@ -37,7 +37,7 @@ def test_example_pair_positions_and_increasing_trajectory_times(tmp_path):
 
 def test_a_bad_surface_to_measure_on_is_refused_before_any_work(tmp_path):
     p = run_findme("run", "--no-record", "--measure", "247,378,ceiling", check=False)
-    assert p.returncode == 2 and "--measure: a point's surface must be floor or wall, got " \
+    assert p.returncode == 2 and "--measure: a point's surface must be floor, wall or top, got " \
         "'ceiling'" in p.stderr, p.stderr
     assert "photo 0" not in p.stdout     # refused before the photos went out
 

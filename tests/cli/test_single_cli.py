@@ -1,4 +1,5 @@
 import json
+import re
 
 import cv2
 import numpy as np
@@ -6,7 +7,7 @@ import pytest
 
 from findme_core.synth.render import FLOOR
 from tests.cli.conftest import as_json, intrinsics_flag, run_findme
-from tests.conftest import floor_pixel_error
+from tests.conftest import floor_pixel_error, top_pixels
 
 
 def test_hypotheses_json_contract(level_jpg, level_view, tmp_path):
@@ -193,4 +194,30 @@ def test_locate_with_the_surface_you_tapped(level_jpg, level_view, tmp_path):
     bad = run_findme("locate", level_jpg, *flags, "--points", pts, check=False)
     assert bad.returncode == 2 and "'ceiling'" in bad.stderr
     bad = run_findme("locate", level_jpg, *flags, f"--point={u},{v},3", check=False)
-    assert bad.returncode == 2 and "floor or wall" in bad.stderr
+    assert bad.returncode == 2 and "floor, wall or top" in bad.stderr
+
+
+def test_locate_on_a_counters_top(counter_view, tmp_path):
+    """``--point U,V,top``: a pixel of a counter's top is put on it, its height above the floor
+    said; one the boundary puts on the floor is refused with what to do."""
+    v, cam = counter_view, counter_view.camera
+    jpg = tmp_path / "counter.jpg"
+    cv2.imwrite(str(jpg), v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    px, truth = top_pixels(v, step=2003)
+    flags = ["--intrinsics", intrinsics_flag(cam), "--gravity", ",".join(map(str, cam.gravity)),
+             "--gravity-sigma", "0", "--camera-height", v.camera_height]
+    floor = np.argwhere(v.labels == FLOOR)[-1]            # a floor pixel near the bottom
+    points = [f"--point={u:g},{w:g},top" for u, w in px] + [f"--point={floor[1]},{floor[0]},top"]
+    out = as_json(run_findme("locate", jpg, *flags, *points, "--json"))
+    got = out["points"]
+    assert len(px) >= 5
+    for p, t in zip(got[:-1], truth):
+        assert p["surface"] == "top" and p["said"] == "top", p
+        err = np.linalg.norm(np.subtract(p["xyz_m"], t))
+        assert err < 0.1 and err < 3 * p["sigma_m"]
+        assert p["height_m"] == pytest.approx(0.9, abs=0.03)
+    assert got[-1]["xyz_m"] is None and "puts the point on the floor" in got[-1]["error"]
+    text = run_findme("locate", jpg, *flags, points[0]).stdout
+    assert "  top   (as you said) x " in text
+    height = float(re.search(r", ([0-9.]+) m above the floor", text).group(1))
+    assert height == pytest.approx(0.9, abs=0.03)

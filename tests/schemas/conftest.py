@@ -66,11 +66,12 @@ def sample_messages() -> list[tuple[str, object]]:
                     camera=S.Camera(intrinsics=intr, gravity=gravity, lens_source="input",
                                     gravity_source="input", gravity_sigma_rad=0.0087),
                     camera_height_m=1.38, camera_height_sigma_m=0.03, metric=True,
-                    polyline=poly1, time_ns=T0 + 4_210_000_000)
+                    polyline=poly1, lines=[10.5, 300.0, 200.25, 280.0],
+                    time_ns=T0 + 4_210_000_000)
 
     req = S.MeasureRequest(session=SESSION, index=3,
                            pixels=S.pixels_to_msg([(320.0, 420.5), (500.25, 250.0), (10, 5)]),
-                           said=[S.SURFACE_FLOOR, S.SURFACE_NONE, S.SURFACE_NONE])
+                           said=[S.SURFACE_FLOOR, S.SURFACE_NONE, S.SURFACE_TOP])
     reply = S.MeasureReply(
         session=SESSION, index=3, rank=2, metric=True,
         points=[

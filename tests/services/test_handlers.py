@@ -213,6 +213,48 @@ def test_measurement_takes_the_surface_said(pipeline):
     assert m.counters()["measure_queries_said"] == 1
 
 
+def test_measurement_puts_a_point_said_on_a_top_on_it(box_view):
+    """A pixel said to be on a cabinet's top is put on it: its front edge is looked for among
+    the lines the hypothesis set came with, which the Scene message carries on, so a service
+    that rebuilds the scene from it answers the same. The set's best line here is the one
+    along the cabinet's foot (the rendered truth), as a user would choose it."""
+    v = box_view
+    (out,) = HypothesesHandler().on_message("findme/t1/frame/0", frame_of(v))
+    hset = schemas.HypothesisSet()
+    hset.CopyFrom(out.msg)
+    foot = v.ground_truth_boundary_polyline()
+    foot = foot[np.isfinite(foot[:, 1])]
+    hset.hypotheses[0].polyline.CopyFrom(schemas.polyline_to_msg(foot, np.zeros(len(foot) - 1,
+                                                                                 int)))
+    (sel,) = SelectionHandler().on_message("findme/t1/hypotheses/0", hset)
+    m = MeasurementHandler()
+    m.fetch = {}.get
+    m.on_message("findme/t1/hypotheses/0", hset)
+    (scene_out,) = m.on_message("findme/t1/selection/0", sel.msg)
+    assert list(scene_out.msg.lines) == list(hset.lines)
+    px = [[300, 132], [347, 132], [288, 136], [320, 300]]      # on the top x 3, the floor
+    req = schemas.MeasureRequest(session="t1", index=0, pixels=schemas.pixels_to_msg(px),
+                                 said=schemas.surfaces_to_msg(["top"] * 4))
+    rep = m.on_query("findme/t1/measure", req)
+    for p, (u, v_) in zip(rep.points[:3], px):
+        assert p.surface == schemas.SURFACE_TOP and p.said == schemas.SURFACE_TOP
+        err = np.linalg.norm(schemas.msg_to_vec3(p.xyz) - v.points_cam[v_, u])
+        assert err < 0.06 and err < 3 * p.sigma_m
+    assert "puts the point on the floor" in rep.points[3].error
+    schemas.decode(schemas.MeasureReply, schemas.encode(rep))   # valid on the bus
+    fresh = MeasurementHandler()
+    fresh.fetch = {"findme/t1/scene/0": schemas.encode(scene_out.msg)}.get
+    assert schemas.encode(fresh.on_query("findme/t1/measure", req)) == schemas.encode(rep)
+    # a scene message without the lines: the edge cannot be looked for, and says so
+    bare = schemas.Scene()
+    bare.CopyFrom(scene_out.msg)
+    bare.ClearField("lines")
+    fresh = MeasurementHandler()
+    fresh.fetch = {"findme/t1/scene/0": schemas.encode(bare)}.get
+    got = fresh.on_query("findme/t1/measure", req)
+    assert all("lines did not come" in p.error for p in got.points[:3])
+
+
 def test_measurement_asks_for_the_frame_when_the_set_lacks_its_height(pipeline):
     """A set from a writer that does not pass the frame's height on (a recording made
     before it did): the frame is asked for, and the scene is the same as from a set that

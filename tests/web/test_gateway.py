@@ -141,7 +141,7 @@ def test_parse_command():
 
 
 def test_parse_command_takes_what_the_user_says_each_pixel_is_on():
-    """A measure's optional surfaces: one per pixel, each null, "floor" or "wall"; anything
+    """A measure's optional surfaces: one per pixel, each null, "floor", "wall" or "top"; anything
     else refused (MALFORMED) with the offending value and its place named."""
     def measure(**extra):
         return json.dumps({"type": "measure", "id": 1, "index": 0,
@@ -150,16 +150,17 @@ def test_parse_command_takes_what_the_user_says_each_pixel_is_on():
     assert parse_command(measure(surfaces=[None, "floor"]))["surfaces"] == [None, "floor"]
     assert parse_command(measure(surfaces=["wall", "floor"]))["surfaces"] == ["wall", "floor"]
     assert parse_command(measure(surfaces=[None, None]))["surfaces"] == [None, None]
+    assert parse_command(measure(surfaces=["top", "wall"]))["surfaces"] == ["top", "wall"]
     for surfaces, words in [
             (["floor"], "surfaces gives 1 for 2 pixels: give one per pixel"),
             (["floor", "wall", None], "surfaces gives 3 for 2 pixels"),
             ([], "surfaces gives 0 for 2 pixels"),
-            (["floor", "ceiling"], 'surfaces[1] must be null, "floor" or "wall", got "ceiling"'),
-            ([3, None], 'surfaces[0] must be null, "floor" or "wall", got 3'),
-            ([None, True], 'surfaces[1] must be null, "floor" or "wall", got true'),
-            (["Floor", None], 'surfaces[0] must be null, "floor" or "wall", got "Floor"'),
-            ([["floor"], None], 'surfaces[0] must be null, "floor" or "wall", got ["floor"]'),
-            ("floor", 'surfaces must be a list of null, "floor" or "wall", one per pixel; '
+            (["floor", "ceiling"], 'surfaces[1] must be null, "floor", "wall" or "top", got "ceiling"'),
+            ([3, None], 'surfaces[0] must be null, "floor", "wall" or "top", got 3'),
+            ([None, True], 'surfaces[1] must be null, "floor", "wall" or "top", got true'),
+            (["Floor", None], 'surfaces[0] must be null, "floor", "wall" or "top", got "Floor"'),
+            ([["floor"], None], 'surfaces[0] must be null, "floor", "wall" or "top", got ["floor"]'),
+            ("floor", 'surfaces must be a list of null, "floor", "wall" or "top", one per pixel; '
                       'got "floor"'),
             ({"0": "floor"}, 'got {"0": "floor"}'),
             (None, "got null")]:

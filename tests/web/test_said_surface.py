@@ -13,10 +13,12 @@ import json
 from importlib import resources
 
 import aiohttp
+import cv2
 import numpy as np
 import pytest
 
 from findme_core.single.hypotheses import column_rows
+from tests.conftest import top_pixels
 from test_web_app import PHONE, SIDE_A, close, tap_pixel, type_camera, upload
 
 pytestmark = pytest.mark.timeout(120)
@@ -73,6 +75,40 @@ def test_said_surfaces_reach_the_service_and_come_back(app):
     assert wall["note"] is floor["note"] is None, (wall, floor)
     assert said_wall["said"] == "wall" and said_wall["xyz"] is None
     assert "choose a hypothesis whose floor line runs below it" in said_wall["error"], said_wall
+
+
+def test_a_point_said_on_a_top_comes_back_on_it(app, counter_view):
+    """A rendered counter against the far wall, through a real gateway and measurement
+    service: a pixel of its top said "top" comes back on the top (its front edge found among
+    the lines the hypotheses came with), one of the floor said "top" with no point and why."""
+    v, cam = counter_view, counter_view.camera
+    lens = {"kind": "intrinsics", "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
+            "width": cam.width, "height": cam.height}
+    header = {"id": "c", "lens": lens, "gravity": cam.gravity.tolist(),
+              "camera_height_m": v.camera_height}
+    ok, jpg = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    top_px, truth = top_pixels(v, step=4001)
+    floor = np.argwhere(v.labels == 0)[-1][::-1].tolist()     # a floor pixel near the bottom
+    pixels = [p.tolist() for p in top_px] + [floor]
+
+    async def run():
+        async with aiohttp.ClientSession() as http, http.ws_connect(app.url + "ws") as ws:
+            assert (await ws.receive_json(timeout=10))["type"] == "hello"
+            await ws.send_bytes(upload_bytes(header, jpg.tobytes()))
+            await next_of(ws, "scene", index=0, rank=1)
+            await ws.send_str(json.dumps({"type": "measure", "id": 1, "index": 0,
+                                          "pixels": pixels, "surfaces": ["top"] * len(pixels)}))
+            return await next_of(ws, "measure", id=1)
+
+    reply = asyncio.run(run())
+    assert not reply["error"], reply
+    *tops, on_floor = reply["points"]
+    assert len(tops) >= 3
+    for p, t in zip(tops, truth):
+        assert (p["surface"], p["said"]) == ("top", "top"), p
+        err = np.linalg.norm(np.subtract(p["xyz"], t))
+        assert err < 0.1 and err < 3 * p["sigma_m"], (p, t)
+    assert on_floor["xyz"] is None and "puts the point on the floor" in on_floor["error"]
 
 
 def _phone_with_room_a(browser, app):
@@ -149,6 +185,25 @@ def test_the_page_says_which_surface_you_tap(browser, app, shots):
     last = measures(4)[-1]
     assert "surfaces" not in last and len(last["pixels"]) == 1, last
     page.wait_for_selector('#points li[data-said=""][data-surface="floor"]')
+    close(page)
+
+
+def test_the_page_sends_a_top_tap_and_shows_the_answer(browser, app, shots):
+    """Phone page: "top of something", then a tap on room_a's wall (a wall with nothing on
+    it): the request says surfaces ["top"], and the point comes back refused with the reason
+    the service gives (no front edge of a top below it), shown under the point."""
+    page = _phone_with_room_a(browser, app)
+    _record_sent(page)
+    page.locator("#tap-as label", has_text="top of something").tap()
+    assert page.is_checked('#tap-as input[value="top"]')
+    page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
+    tap_pixel(page, *WALL_PX)
+    page.wait_for_function("() => window.__sent.some(m => m.type === 'measure')")
+    sent = [m for m in page.evaluate("window.__sent") if m["type"] == "measure"]
+    assert sent[-1]["surfaces"] == ["top"], sent
+    bad = page.wait_for_selector('#points li.bad[data-said="top"]')
+    assert "front edge of a top" in bad.inner_text(), bad.inner_text()
+    shots(page, "13-phone-said-top", at="#stage")
     close(page)
 
 
