@@ -11,34 +11,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from findme_core.geometry.camera import Camera
-from findme_core.geometry.manhattan import gravity_of
 from findme_core.single import counters
 from findme_core.single.hypotheses import Hypothesis, HypothesisSet
 from findme_core.single.lines import Lines
 from findme_core.single.scene import Scene
 from findme_core.single.search import SegKind
+from tests.core.level_lines import camera, hline, seg
 
 H_CAM, WALL_Z, TOP, DEPTH = 1.45, 3.0, 0.9, 0.6
 FRONT_Z = WALL_Z - DEPTH
 XS = (-1.5, 1.5)
 
 
-def _camera(pitch=25.0, roll=0.0):
-    return Camera.from_hfov(70.0, 640, 480, gravity=gravity_of(pitch, roll))
-
-
-def _seg(cam, a, b):
-    """The image segment (4,) of the level-frame 3D segment a-b."""
-    uv, front = cam.project_level(np.array([a, b], float))
-    assert front.all()
-    return np.concatenate([uv[0], uv[1]])
-
-
 def _hline(cam, z, height, xs=XS):
     """A horizontal 3D line along x at depth z, ``height`` above the floor."""
-    y = H_CAM - height
-    return _seg(cam, (xs[0], y, z), (xs[1], y, z))
+    return hline(cam, H_CAM, z, height, xs)
 
 
 def _polyline(cam, seg):
@@ -57,7 +44,7 @@ def _kitchen(cam, doors=True, back=True, foot=True, back_z=WALL_Z):
         lines.append(_hline(cam, back_z, TOP))               # where the top meets the wall
     if doors:
         for x in (-1.2, -0.7, -0.2, 0.3, 0.8, 1.3):          # door edges on the face
-            lines.append(_seg(cam, (x, H_CAM - TOP + 0.05, FRONT_Z),
+            lines.append(seg(cam, (x, H_CAM - TOP + 0.05, FRONT_Z),
                               (x, H_CAM - 0.15, FRONT_Z)))
     if foot:
         lines.append(_hline(cam, FRONT_Z, 0.0))              # the cabinets' foot
@@ -66,7 +53,7 @@ def _kitchen(cam, doors=True, back=True, foot=True, back_z=WALL_Z):
 
 @pytest.mark.parametrize("pitch,roll", [(25.0, 0.0), (35.0, 3.0), (15.0, -2.0)])
 def test_the_wall_behind_a_counter_is_found(pitch, roll):
-    cam = _camera(pitch, roll)
+    cam = camera(pitch, roll)
     hyp, lines = _kitchen(cam)
     found = counters.find(cam, H_CAM, hyp, lines)
     assert len(found) == 1
@@ -92,7 +79,7 @@ def test_the_wall_behind_a_counter_is_found(pitch, roll):
 def test_a_floor_line_with_a_sill_above_is_no_counter():
     """A wall's base with a window sill at 0.6 m: the sill lies in the depth range once
     lifted at counter height, but no door hangs from the floor line."""
-    cam = _camera()
+    cam = camera()
     base = _hline(cam, WALL_Z, 0.0)
     lines = np.array([base, _hline(cam, WALL_Z, 0.6)])
     assert counters.find(cam, H_CAM, _polyline(cam, base), lines) == []
@@ -101,13 +88,13 @@ def test_a_floor_line_with_a_sill_above_is_no_counter():
 @pytest.mark.parametrize("what", ["doors", "back", "foot"])
 def test_each_part_of_the_counter_is_needed(what):
     """No doors, no back edge, or (where the photo shows it) no foot: no counter."""
-    cam = _camera()
+    cam = camera()
     hyp, lines = _kitchen(cam, **{what: False})
     assert counters.find(cam, H_CAM, hyp, lines) == []
 
 
 def test_a_back_edge_outside_a_counters_depth_is_not_taken():
-    cam = _camera()
+    cam = camera()
     hyp, lines = _kitchen(cam, back_z=FRONT_Z + 1.5)
     assert counters.find(cam, H_CAM, hyp, lines) == []
 
@@ -115,7 +102,7 @@ def test_a_back_edge_outside_a_counters_depth_is_not_taken():
 def test_a_level_photo_need_not_show_the_foot():
     """Looking level, the cabinets' foot is below the image: the counter is found from
     its doors and its back edge alone."""
-    cam = _camera(pitch=0.0)
+    cam = camera(pitch=0.0)
     hyp, lines = _kitchen(cam, foot=False)
     assert cam.project_level(np.array([[0.0, H_CAM, FRONT_Z]]))[0][0, 1] > cam.height
     found = counters.find(cam, H_CAM, hyp, lines)
@@ -126,22 +113,22 @@ def test_floor_lines_at_right_angles_to_the_boundary_are_not_doors():
     """Floorboards running from the wall toward the camera's foot look vertical in the
     image (near the nadir); they must not count as cabinet doors. A level-ish photo, so
     that the foot check (below the image here) cannot be what rejects them."""
-    cam = _camera(pitch=10.0)
+    cam = camera(pitch=10.0)
     base = _hline(cam, WALL_Z, 0.0)
-    planks = [_seg(cam, (x, H_CAM, WALL_Z), (x, H_CAM, 2.0)) for x in (-0.03, 0.0, 0.03)]
+    planks = [seg(cam, (x, H_CAM, WALL_Z), (x, H_CAM, 2.0)) for x in (-0.03, 0.0, 0.03)]
     lines = np.array([base, _hline(cam, WALL_Z, 0.55), *planks])
     assert counters.find(cam, H_CAM, _polyline(cam, base), lines) == []
 
 
 def test_a_camera_below_the_counter_top_finds_none():
-    cam = _camera()
+    cam = camera()
     hyp, lines = _kitchen(cam)
     assert counters.find(cam, 0.95, hyp, lines) == []
     assert counters.find(cam, H_CAM, hyp, np.zeros((0, 4))) == []
 
 
 def test_apply_puts_the_wall_first_and_keeps_the_counters_edge():
-    cam = _camera()
+    cam = camera()
     hyp, lines = _kitchen(cam)
     other = Hypothesis(hyp.polyline + [0.0, 20.0], hyp.kinds, 0.5, 0.5)
     ls = Lines(lines, np.zeros((len(lines), 3)), np.ones(len(lines)))
@@ -159,7 +146,7 @@ def test_apply_puts_the_wall_first_and_keeps_the_counters_edge():
 def test_segments_that_cannot_be_a_counter_are_not_tested():
     """Not a WALL (an occluding step), narrower than ``min_segment_px``, or above the
     horizon (no floor line): none is a counter, whatever the lines say."""
-    cam = _camera()
+    cam = camera()
     hyp, lines = _kitchen(cam)
     step = Hypothesis(hyp.polyline, np.array([SegKind.STEP]), 1.0, 1.0)
     assert counters.find(cam, H_CAM, step, lines) == []

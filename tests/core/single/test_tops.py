@@ -12,31 +12,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from findme_core.geometry.camera import Camera
-from findme_core.geometry.manhattan import gravity_of
 from findme_core.motion.pair import photo_lines
 from findme_core.single import hypotheses, tops
 from findme_core.single.answers import REASONS, Reason
 from findme_core.single.scene import Scene
 from findme_core.single.search import SegKind
+from tests.core.level_lines import camera, hline, seg
 
 H_CAM, FACE_Z, TOP, BACK_Z = 1.45, 2.0, 0.6, 2.5
 XS = (-1.0, 1.0)
 
 
-def _camera(pitch=25.0, roll=0.0):
-    return Camera.from_hfov(70.0, 640, 480, gravity=gravity_of(pitch, roll))
-
-
-def _seg(cam, a, b):
-    uv, front = cam.project_level(np.array([a, b], float))
-    assert front.all()
-    return np.concatenate([uv[0], uv[1]])
-
-
 def _hline(cam, z, height, xs=XS):
     """A level 3D line along x at depth z, ``height`` above the floor."""
-    return _seg(cam, (xs[0], H_CAM - height, z), (xs[1], H_CAM - height, z))
+    return hline(cam, H_CAM, z, height, xs)
 
 
 def _scene(cam, lines, **kw):
@@ -66,7 +55,7 @@ def _on_top(cam, n=7):
 
 @pytest.mark.parametrize("pitch,roll", [(25.0, 0.0), (35.0, 3.0), (15.0, -2.0)])
 def test_a_point_said_on_a_top_is_on_it(pitch, roll):
-    cam = _camera(pitch, roll)
+    cam = camera(pitch, roll)
     sc = _scene(cam, _cabinet_lines(cam))
     px, truth = _on_top(cam)
     got = sc.locate(px, ["top"] * len(px))
@@ -80,7 +69,7 @@ def test_a_point_said_on_a_top_is_on_it(pitch, roll):
 
 
 def test_the_front_edge_is_the_line_nearest_below_the_point():
-    cam = _camera()
+    cam = camera()
     sc = _scene(cam, _cabinet_lines(cam))
     px, _ = _on_top(cam, 3)
     rays = cam.rays_level(px)
@@ -92,7 +81,7 @@ def test_the_front_edge_is_the_line_nearest_below_the_point():
 
 
 def test_a_top_without_its_front_edge_is_not_measured():
-    cam = _camera()
+    cam = camera()
     px, _ = _on_top(cam, 3)
     # neither the front edge nor any other level line of the face below the point
     lines = np.array([_hline(cam, BACK_Z, TOP)])
@@ -101,7 +90,7 @@ def test_a_top_without_its_front_edge_is_not_measured():
     # an edge that is not parallel to the face (turned 10 deg) is no front edge
     c, s = np.cos(np.radians(10)), np.sin(np.radians(10))
     y = H_CAM - TOP
-    skew = _seg(cam, (-c, y, FACE_Z - s), (c, y, FACE_Z + s))
+    skew = seg(cam, (-c, y, FACE_Z - s), (c, y, FACE_Z + s))
     got = _scene(cam, np.vstack([lines, skew])).locate(px, ["top"] * 3)
     assert all(p.error == REASONS[Reason.NO_TOP_EDGE] for p in got)
     # without the photo's lines the edge cannot be looked for
@@ -112,7 +101,7 @@ def test_a_top_without_its_front_edge_is_not_measured():
 def test_a_level_line_on_a_wall_is_no_top_below_a_wall_point():
     """A chair rail on the wall (0.9 m up) below a wall pixel said "top": the top it makes
     would put the point metres behind the wall, deeper than any top reaches: refused."""
-    cam = _camera(15.0)
+    cam = camera(15.0)
     rail = _hline(cam, FACE_Z, 0.9)
     P = np.array([[0.2, H_CAM - 1.2, FACE_Z]])          # on the wall, 1.2 m up
     uv, _ = cam.project_level(P)
@@ -125,10 +114,10 @@ def test_a_level_line_on_a_wall_is_no_top_below_a_wall_point():
     np.testing.assert_allclose(ok.xyz, (Q @ cam.R_level_from_cam)[0], atol=1e-6)
 
 
-def test_a_top_must_lie_below_the_camera():
-    cam = _camera(10.0)
+def test_a_top_must_lie_below_thecamera():
+    cam = camera(10.0)
     y = H_CAM - 1.6      # a shelf 1.6 m up, above the camera at 1.45 m
-    shelf = _seg(cam, (-1.0, y, FACE_Z), (1.0, y, FACE_Z))
+    shelf = seg(cam, (-1.0, y, FACE_Z), (1.0, y, FACE_Z))
     u, v = 0.5 * (shelf[:2] + shelf[2:])
     got = _scene(cam, np.array([shelf])).locate([(u, v - 20.0)], ["top"])[0]
     assert got.xyz is None and got.error in (REASONS[Reason.NO_TOP_EDGE],
@@ -136,7 +125,7 @@ def test_a_top_must_lie_below_the_camera():
 
 
 def test_a_point_the_line_puts_on_the_floor_or_above_the_horizon_is_on_no_top():
-    cam = _camera()
+    cam = camera()
     sc = _scene(cam, _cabinet_lines(cam))
     foot = _hline(cam, FACE_Z, 0.0)
     below = (320.0, 0.5 * (foot[1] + foot[3]) + 40.0)   # under the foot line: floor
@@ -152,7 +141,7 @@ def test_a_point_the_line_puts_on_the_floor_or_above_the_horizon_is_on_no_top():
 
 
 def test_a_top_points_sigma_moves_with_its_boundary_and_edge():
-    cam = _camera()
+    cam = camera()
     sc = _scene(cam, _cabinet_lines(cam), boundary_sigma_px=10.0, height_sigma=0.03)
     px, truth = _on_top(cam, 3)
     got = sc.locate(px, ["top"] * 3)
@@ -201,12 +190,12 @@ def test_a_vertical_edge_near_a_grazing_faces_vanishing_point_is_no_front_edge()
     """A face seen at a grazing angle (receding 10 deg right of the view, standing 3 m away
     8 deg right) passes the parallel test with any line near its vanishing point: a vertical
     edge 8 deg right too (2 deg from it). Its interpretation plane is vertical: not taken."""
-    cam = _camera(25.0)
+    cam = camera(25.0)
     a, b = np.radians(10.0), np.radians(8.0)
     n = np.array([[np.cos(a), -np.sin(a)]])                    # the face's normal, d at 10 deg
     c = n[0] @ (3.0 * np.array([np.sin(b), np.cos(b)]))        # through 3 m along 8 deg
     x, z = 6.0 * np.sin(b), 6.0 * np.cos(b)
-    vert = _seg(cam, (x, 0.3, z), (x, 1.0, z))                 # a door frame's edge, 8 deg right
+    vert = seg(cam, (x, 0.3, z), (x, 1.0, z))                 # a door frame's edge, 8 deg right
     u = 0.5 * (vert[0] + vert[2])
     v_cross = vert[1] + (u - vert[0]) * (vert[3] - vert[1]) / (vert[2] - vert[0])
     args = (cam, H_CAM, vert[None], tops.line_normals(cam, vert[None]),
