@@ -122,6 +122,7 @@ const HANDLERS = {
     p.sceneRank = m.rank;
     p.metric = m.metric;
     p.height_m = m.camera_height_m;
+    p.gravity = m.gravity;       // down, in the camera's frame: a point's height is h - g . xyz
     p.walls = m.walls_m || [];   // its boundary's walls on the floor, its level frame
     if (m.rank === p.rank) clearBusy('scene');
     if (state.poses.size || state.motions.size) renderMotion();

@@ -101,6 +101,11 @@ export function renderPoints(p, pick) {   // pick(rank): select another hypothes
     li.textContent = `${surfaceText(pt, said)} · x ${fmtCoord(x)} y ${fmtCoord(y)} ` +
                      `z ${fmtCoord(z)} ${unit} · ` +
                      `${fmtLen(Math.hypot(x, y, z), 2)} from the camera${fmtSigma(pt.sigma_m)}`;
+    if (pt.surface === 'top' && p.gravity && reply.metric) {   // how high the top is
+      const [gx, gy, gz] = p.gravity, up = p.height_m - (gx * x + gy * y + gz * z);
+      li.dataset.heightM = up;
+      li.append(` · its top ${fmtLen(up, 2)} above the floor`);
+    }
     // what the user should know of the answer (the chosen line contradicts what was said)
     if (pt.note) li.append(noteOf(p, pt, [u, v], pick));
     return li;

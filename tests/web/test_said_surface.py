@@ -188,22 +188,41 @@ def test_the_page_says_which_surface_you_tap(browser, app, shots):
     close(page)
 
 
-def test_the_page_sends_a_top_tap_and_shows_the_answer(browser, app, shots):
-    """Phone page: "top of something", then a tap on room_a's wall (a wall with nothing on
-    it): the request says surfaces ["top"], and the point comes back refused with the reason
-    the service gives (no front edge of a top below it), shown under the point."""
-    page = _phone_with_room_a(browser, app)
+def test_the_page_measures_a_counters_top_and_says_how_high_it_is(browser, app, shots,
+                                                                  counter_view, tmp_path):
+    """Phone page, the rendered counter: "top of something", then a tap on its top: the
+    request says surfaces ["top"], the point comes back on the top, and the list says how
+    high the top is (0.9 m). A tap high on the wall behind the counter, said top, comes back
+    refused (it would lie metres behind the counter's back edge) with the reason."""
+    v, cam = counter_view, counter_view.camera
+    jpg = tmp_path / "counter.jpg"
+    cv2.imwrite(str(jpg), v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    side = {"intrinsics": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy},
+            "gravity_cam": cam.gravity.tolist()}
+    page = browser.new_context(**PHONE).new_page()
+    page.js_errors = []
+    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    page.goto(app.url)
+    page.wait_for_selector('#status[data-state="connected"]')
+    type_camera(page, side, height=repr(v.camera_height))
+    upload(page, str(jpg), 0)
     _record_sent(page)
     page.locator("#tap-as label", has_text="top of something").tap()
     assert page.is_checked('#tap-as input[value="top"]')
+    u, w = top_pixels(v, step=1)[0][6000]
     page.locator("#stage").evaluate("e => e.scrollIntoView({block: 'center'})")
-    tap_pixel(page, *WALL_PX)
-    page.wait_for_function("() => window.__sent.some(m => m.type === 'measure')")
+    tap_pixel(page, u, w)
+    li = page.wait_for_selector('#points li[data-said="top"][data-height-m]')
+    assert float(li.get_attribute("data-height-m")) == pytest.approx(0.9, abs=0.05)
+    assert li.get_attribute("data-surface") == "top"
+    assert "top (as you said)" in li.inner_text() and "above the floor" in li.inner_text()
     sent = [m for m in page.evaluate("window.__sent") if m["type"] == "measure"]
     assert sent[-1]["surfaces"] == ["top"], sent
+    assert 10 <= v.labels[20, 320] < 50                          # the wall high above it
+    tap_pixel(page, 320, 20)
     bad = page.wait_for_selector('#points li.bad[data-said="top"]')
-    assert "front edge of a top" in bad.inner_text(), bad.inner_text()
-    shots(page, "13-phone-said-top", at="#stage")
+    assert "farther behind that edge than a table's or a counter's top" in bad.inner_text()
+    shots(page, "14-phone-said-top", at="#stage")
     close(page)
 
 
