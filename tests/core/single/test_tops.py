@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from findme_core.motion.pair import photo_lines
+from findme_core.errors import GeometryError
 from findme_core.single import hypotheses, tops
 from findme_core.single.answers import REASONS, Reason
 from findme_core.single.scene import Scene
@@ -202,3 +203,9 @@ def test_a_vertical_edge_near_a_grazing_faces_vanishing_point_is_no_front_edge()
             np.array([[u, v_cross - 8.0]]), n, np.array([c]))
     assert np.isfinite(tops.edge_rows(*args, tops.TopParams(not_vertical_deg=0.0))[0])
     assert np.isnan(tops.edge_rows(*args)[0])
+
+
+@pytest.mark.parametrize("lines", [[1.0, 2.0, 3.0], [[0.0, 1.0, 2.0, np.nan]]])
+def test_lines_that_are_not_lines_are_refused_with_what_they_are(lines):
+    with pytest.raises(GeometryError, match="4 numbers each"):
+        _scene(camera(), lines)
