@@ -116,11 +116,13 @@ def specs() -> list[Spec]:
              note="the bundled example photos as findme run sees them (auto selection)"),
         Spec("synth-box-user", [box], choices={0: (2, 1.3)},
              measure={0: [(320.0, 400.0), (500.0, 300.0), (320.0, 20.0),
-                          (100.0, 200.0, "floor"), (320.0, 400.0, "wall")]},
+                          (100.0, 200.0, "floor"), (320.0, 400.0, "wall"),
+                          (103.0, 197.0, "top")]},
              note="a rendered room with a cabinet, tilted phone; the user picks hypothesis 2 "
                   "and gives the camera height with the choice; one tap above the horizon; "
-                  "a wall pixel said to be floor (put on the floor) and a floor pixel said "
-                  "to be wall (no point: choose a lower floor line)"),
+                  "a wall pixel said to be floor (put on the floor), a floor pixel said "
+                  "to be wall (no point: choose a lower floor line) and a pixel of the "
+                  "cabinet's top said top (on it, by its front edge)"),
         Spec("bad-input", [broken, l_room], measure={1: [(160.0, 200.0), (60.0, 180.0)]},
              note="a corrupt photo (errors, the session goes on) then a small L-shaped room"),
         Spec("plain-turn", plain, measure={1: [(320.0, 400.0)]},

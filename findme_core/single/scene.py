@@ -236,7 +236,7 @@ class Scene:
         that shows almost no floor) too."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
-        edges = np.full(px.shape, np.nan)   # the front edges of points on tops (``_tops``)
+        edges = np.full(px.shape, np.nan)   # the front edges of points on tops (``tops.place``)
         finite = np.isfinite(px).all(1)
         pxs = np.where(finite[:, None], px, 0.0)
         inside = (finite & (pxs[:, 0] >= -0.5) & (pxs[:, 0] <= cam.width - 0.5)

@@ -109,8 +109,10 @@ def edge_rows(camera, height: float, lines: np.ndarray, normals: np.ndarray,
     u, v = px[:, :1], px[:, 1:]
     with np.errstate(divide="ignore", invalid="ignore"):
         ve = v1 + (u - u1) * (v2 - v1) / np.where(steep, 1.0, du)       # (N, L)
-    d = np.column_stack([face_n[:, 1], np.zeros(len(px)), -face_n[:, 0]])
-    parallel = np.abs(d @ normals.T) < math.sin(math.radians(p.parallel_deg))
+    # m . d, d = (n_z, 0, -n_x), term by term: no matrix product, whose rounding differs
+    # between BLAS kernels, decides a threshold here
+    md = face_n[:, 1:] * normals[None, :, 0] - face_n[:, :1] * normals[None, :, 2]
+    parallel = np.abs(md) < math.sin(math.radians(p.parallel_deg))
     # a face seen at a grazing angle passes the test with any line through its vanishing
     # point, a vertical edge too: a vertical's interpretation plane is vertical (m_y = 0)
     parallel &= np.abs(normals[:, 1]) > math.sin(math.radians(p.not_vertical_deg))
