@@ -154,6 +154,14 @@ def test_a_top_points_sigma_moves_with_its_boundary_and_edge():
     face = sc.locate(px, ["wall"] * 3)
     ratio = [a.sigma_parts["boundary"] / b.sigma_parts["boundary"] for a, b in zip(got, face)]
     assert all(0.5 < r < 3.0 for r in ratio)
+    # an uncertain gravity moves the top's point, face and edge together: a finite part,
+    # and the displacement a tilt along each axis makes (distances use it)
+    tilted = _scene(cam, _cabinet_lines(cam), gravity_cov=np.diag([1e-4, 1e-4])).locate(
+        px, ["top"] * 3)
+    for p, q in zip(tilted, got):
+        assert 0 < p.sigma_parts["gravity"] < 0.5 and q.sigma_parts["gravity"] == 0
+        assert p.gravity_jac.shape == (2, 3) and np.all(np.isfinite(p.gravity_jac))
+        np.testing.assert_allclose(p.xyz, q.xyz, atol=1e-9)   # the answer is the same
 
 
 def test_the_rendered_cabinets_top_from_the_photos_own_lines(box_view):
