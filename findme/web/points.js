@@ -1,7 +1,6 @@
 /* Find Me phone client: the points tapped on a photo (ES module): the surface the user says
  * they tap ("You tap: as the boundary says | floor | wall | top of something"), the measure
- * requests, the dots
- * on the photo and the list of points and distances.
+ * requests, the dots on the photo and the list of points and distances.
  *
  * A photo's points are p.points ([u, v] pixels, in tap order) and, beside them,
  * p.surfaces: what the user said each one is on when tapping it (null: as the boundary
@@ -12,9 +11,9 @@
  * floor whatever the chosen boundary says; said wall where the boundary puts the floor: the
  * service answers no point, with what to do (shown like any other error of a point). Said
  * top: on the top of what stands on the floor line below it (a counter, a cabinet), found by
- * its front edge, or no point with the reason. A point
- * said floor above the chosen line comes back with a note (``MeasuredPoint.note``), shown
- * under it with the hypotheses whose line runs above it, each a button that selects it.
+ * its front edge, with the top's height above the floor, or no point with the reason. A
+ * point said floor above the chosen line comes back with a note (``MeasuredPoint.note``),
+ * shown under it with the hypotheses whose line runs above it, each a button that selects it.
  */
 import {$, el, fmtCoord, fmtLen, fmtSigma, hypSwatch, send, setBusy, state} from './common.js';
 
