@@ -46,6 +46,9 @@ import numpy as np
 
 from findme_core.single.answers import Reason
 
+#: pixel x line pairs tested at once (``edge_rows``): ~10 arrays of this many float64, ~20 MB
+BLOCK = 1 << 18
+
 
 @dataclass(frozen=True)
 class TopParams:
@@ -100,23 +103,35 @@ def edge_rows(camera, height: float, lines: np.ndarray, normals: np.ndarray,
     px = np.asarray(pixels, float).reshape(-1, 2)
     out = np.full(len(px), np.nan)
     ends = np.asarray(lines, float).reshape(-1, 4)
+    # what each line is alone: not (nearly) vertical in the image, and not a vertical in 3D
+    # (a face seen at a grazing angle passes the parallel test with any line through its
+    # vanishing point, a vertical edge too: a vertical's interpretation plane is vertical)
+    keep = ((np.abs(ends[:, 2] - ends[:, 0]) >= 1.0)
+            & (np.abs(normals[:, 1]) > math.sin(math.radians(p.not_vertical_deg))))
+    ends, normals = ends[keep], normals[keep]
     if len(ends) == 0 or len(px) == 0:
         return out
+    # pixels x lines in blocks of at most ``BLOCK`` pairs: a request's cost in memory is
+    # bounded whatever its size (1024 pixels x 4096 lines at most on the bus)
+    step = max(1, BLOCK // len(ends))
+    for i in range(0, len(px), step):
+        s = slice(i, i + step)
+        out[s] = _nearest_edge(camera, height, ends, normals, px[s], face_n[s], face_c[s], p)
+    return out
+
+
+def _nearest_edge(camera, height, ends, normals, px, face_n, face_c, p: TopParams):
+    """``edge_rows`` of (n, 2) pixels against (L, 4) lines that may be edges (neither steep
+    nor vertical): (n,) rows, NaN where none qualifies."""
     u1, v1, u2, v2 = ends.T
-    du = u2 - u1
-    steep = np.abs(du) < 1.0                    # (nearly) vertical in the image: no row
     lo, hi = np.minimum(u1, u2) - p.reach_px, np.maximum(u1, u2) + p.reach_px
     u, v = px[:, :1], px[:, 1:]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ve = v1 + (u - u1) * (v2 - v1) / np.where(steep, 1.0, du)       # (N, L)
+    ve = v1 + (u - u1) * (v2 - v1) / (u2 - u1)                          # (n, L)
     # m . d, d = (n_z, 0, -n_x), term by term: no matrix product, whose rounding differs
     # between BLAS kernels, decides a threshold here
     md = face_n[:, 1:] * normals[None, :, 0] - face_n[:, :1] * normals[None, :, 2]
-    parallel = np.abs(md) < math.sin(math.radians(p.parallel_deg))
-    # a face seen at a grazing angle passes the test with any line through its vanishing
-    # point, a vertical edge too: a vertical's interpretation plane is vertical (m_y = 0)
-    parallel &= np.abs(normals[:, 1]) > math.sin(math.radians(p.not_vertical_deg))
-    ok = ~steep & (u >= lo) & (u <= hi) & parallel & (ve > v + p.gap_px)
+    ok = ((np.abs(md) < math.sin(math.radians(p.parallel_deg))) & (u >= lo) & (u <= hi)
+          & (ve > v + p.gap_px))
     # the edge's point in the column lifted onto the face: its depth below the camera
     e = camera.rays_level(np.column_stack([np.repeat(px[:, 0], len(ends)),
                                            np.where(ok, ve, v).ravel()])).reshape(len(px), -1, 3)
@@ -124,11 +139,8 @@ def edge_rows(camera, height: float, lines: np.ndarray, normals: np.ndarray,
         t_e = face_c[:, None] / (face_n[:, None, 0] * e[..., 0] + face_n[:, None, 1] * e[..., 2])
         y_e = t_e * e[..., 1]
     ok &= (t_e > 0) & (y_e >= p.clearance_m) & (y_e <= height - p.min_height_m)
-    rows = np.where(ok, ve, np.inf)
-    best = rows.min(1, initial=np.inf)
-    found = np.isfinite(best)
-    out[found] = best[found]
-    return out
+    best = np.where(ok, ve, np.inf).min(1, initial=np.inf)
+    return np.where(np.isfinite(best), best, np.nan)
 
 
 def top_t(rays: np.ndarray, edge_rays: np.ndarray, face_n: np.ndarray,

@@ -217,3 +217,20 @@ def test_a_vertical_edge_near_a_grazing_faces_vanishing_point_is_no_front_edge()
 def test_lines_that_are_not_lines_are_refused_with_what_they_are(lines):
     with pytest.raises(GeometryError, match="4 numbers each"):
         _scene(camera(), lines)
+
+
+def test_pixels_meet_the_lines_in_blocks_with_the_same_answer(monkeypatch):
+    """A request's pixels meet the photo's lines in blocks of at most ``tops.BLOCK`` pairs
+    (its memory is bounded whatever its size): blocks of any size give the same rows."""
+    cam = camera()
+    sc = _scene(cam, np.vstack([_cabinet_lines(cam)] * 40))   # 160 lines
+    px, _ = _on_top(cam, 9)
+    px = np.vstack([px, [[320.0, 470.0], [5.0, 5.0]]])         # and two that find none
+    rays = cam.rays_level(px)
+    k = sc._piece(sc._pieces, rays)
+    args = (cam, H_CAM, sc.lines, sc._normals, px, sc._pieces[3][k], sc._pieces[4][k])
+    whole = tops.edge_rows(*args)
+    assert np.isfinite(whole[:9]).all() and np.isnan(whole[9:]).all()
+    for block in (1, 7, 161, 500):
+        monkeypatch.setattr(tops, "BLOCK", block)
+        np.testing.assert_array_equal(tops.edge_rows(*args), whole)
