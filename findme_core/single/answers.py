@@ -70,8 +70,8 @@ REASONS = {
         "the chosen floor line runs above this point you said is on top of something, so it "
         "puts the point on the floor: a top is measured on the thing whose foot the floor line "
         "follows below it (a counter, a cabinet, furniture in front of a wall); choose a "
-        "hypothesis whose line runs along that foot (a table standing free, with floor seen "
-        "behind it, is not measured)",
+        "hypothesis whose line runs along that foot (a table on legs, with floor seen under "
+        "it, has no such line and is not measured)",
     Reason.NO_TOP_EDGE:
         "no front edge of a top was found between this point and the floor line below it (a "
         "straight line, level and parallel to the face standing on that floor line, lower than "

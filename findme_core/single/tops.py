@@ -28,7 +28,8 @@ seam's depth times the ray's dip. A front edge the photo's lines miss lets the n
 down be taken (a drawer's edge): the top then reads low and the point too far.
 
 What is refused, with the reason (``answers``): a pixel the chosen boundary puts on the floor
-(a table standing free, with floor seen behind it, has no face on the boundary), no edge in
+(a free-standing cabinet is measured where the line steps round its foot, but a table on
+legs, with floor seen under it, has no face on the line), no edge in
 its column, a top at or above the camera, and a point that would lie farther behind its edge
 than a top reaches (``max_depth_m``: a level line on a wall taken for an edge).
 
