@@ -22,7 +22,7 @@ take the gravity their views end with, as the services do. Each view's predictio
 gravity it used (``gravity_cam``), where it came from (``gravity_source``: input,
 input+image, image or level), its 1-sigma (``gravity_sigma_deg``) and the 1-sigma of every 3D
 point (``<kind>_sigma_m``, metres, with its parts ``<kind>_sigma_parts_m``) and the surface it
-was put on (``<kind>_surface``: floor or wall), so the estimate can be scored against the dataset's
+was put on (``<kind>_surface``: floor, wall, or top when said), so the estimate can be scored against the dataset's
 gravity and the sigmas against the errors (``tools/gravity_report.py``).
 
 Modules: ``views`` (a view's inputs and prediction, ``GravityInput``), ``pairs`` (a pair's

@@ -57,7 +57,7 @@ class Located:
 
     Attributes:
         pixel: (u, v).
-        surface: "floor" or "wall", None when there is no answer.
+        surface: "floor", "wall" or "top" (only when said), None when there is no answer.
         xyz: (3,) camera-frame point in metres, None when there is no answer.
         sigma_m: 1-sigma radius of the point in metres: the root sum of squares of
             ``sigma_parts`` ("boundary": the boundary off by one pixel, "height": the camera
