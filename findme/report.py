@@ -220,11 +220,12 @@ def report_session(printer: "Printer", publisher, session_id: str, srcs, lens: L
     return n
 
 
-def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
+def measure(session, session_id: str, pixels, example: bool, said=None, scene=None) -> None:
     """Ask the measurement service for ``pixels`` (u, v) of photo 0 (``said``: the surface
     the user says each is on, "floor", "wall", "top" or None; None for none) and print its
-    answer; for the bundled ``example`` (no pixels given: its ground-truth floor points), its
-    truth."""
+    answer, with how high a top is when photo 0's Scene message ``scene`` is known (its
+    gravity and camera height); for the bundled ``example`` (no pixels given: its
+    ground-truth floor points), its truth."""
     if not pixels and example:  # the example: its ground-truth floor points
         import json
         meta = json.loads((resources.files("findme") / "examples" / "room_a.json").read_text())
@@ -246,6 +247,7 @@ def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
             where = (f"{schemas.Surface.Name(p.surface).split('_')[1].lower()}"
                      f"{' (as you said)' if p.said else ''} at "
                      f"({p.xyz.x:+.3f}, {p.xyz.y:+.3f}, {p.xyz.z:+.3f}) {unit} ± {p.sigma_m:.3f}"
+                     + _top_height(p, scene, unit)
                      + (f"\n  note: {p.note}" if p.note else "")
                      if not p.error else p.error)
             print(f"measure photo 0 pixel ({p.pixel.u:g}, {p.pixel.v:g}): {where}")
@@ -255,6 +257,16 @@ def measure(session, session_id: str, pixels, example: bool, said=None) -> None:
         if example:
             _example_truth(pixels)
         return
+
+
+def _top_height(p, scene, unit: str) -> str:
+    """", its top 0.905 m above the floor" for a point on a top when the scene is known: the
+    camera height less the point's depth along gravity (camera frame, down)."""
+    if p.surface != schemas.SURFACE_TOP or scene is None or not scene.camera.HasField("gravity"):
+        return ""
+    g = scene.camera.gravity
+    up = scene.camera_height_m - (g.x * p.xyz.x + g.y * p.xyz.y + g.z * p.xyz.z)
+    return f", its top {up:.3f} {unit} above the floor"
 
 
 def _example_truth(pixels) -> None:

@@ -43,9 +43,10 @@ def register(sub) -> None:
     r.add_argument("--camera-height", type=finite_float, metavar="M",
                    help="camera height above the floor in metres (default: PHOTO.json's, else "
                         "unknown: lengths in camera heights)")
-    r.add_argument("--measure", action="append", metavar="U,V[,floor|wall]",
-                   help="a pixel of photo 0 to measure at the end (repeatable); with floor "
-                        "or wall: the surface you say it is on")
+    r.add_argument("--measure", action="append", metavar="U,V[,floor|wall|top]",
+                   help="a pixel of photo 0 to measure at the end (repeatable); with floor, "
+                        "wall or top: the surface you say it is on (top: the top of something "
+                        "standing on the floor line below it, with its height)")
     add_service_args(r, out_help="where the session is recorded (default findme-run)")
     r.add_argument("--no-record", action="store_true",
                    help="do not record the session (default: <out>/<session>.mcap)")
@@ -78,7 +79,8 @@ def cmd_run(args) -> int:
                 continue
         report_session(printer, capture, session_id, srcs, lens_from_args(args), "odometry" in names, 600,
                        "mapper" in names)
-        measure(session, session_id, pixels, example=not args.photos, said=said)
+        measure(session, session_id, pixels, example=not args.photos, said=said,
+                scene=printer.seen.get(f"findme/{session_id}/scene/0"))
     finally:
         sub.undeclare()
         group.stop()

@@ -129,9 +129,10 @@ def register(sub) -> None:
     p.add_argument("--camera-height", type=float, metavar="M",
                    help="camera height above the floor in metres (default: PHOTO.json's, "
                         "else unknown: lengths in camera heights)")
-    p.add_argument("--measure", action="append", metavar="U,V[,floor|wall]",
-                   help="a pixel of photo 0 to measure at the end (repeatable); with floor "
-                        "or wall: the surface you say it is on")
+    p.add_argument("--measure", action="append", metavar="U,V[,floor|wall|top]",
+                   help="a pixel of photo 0 to measure at the end (repeatable); with floor, "
+                        "wall or top: the surface you say it is on (top: the top of something "
+                        "standing on the floor line below it, with its height)")
     p.add_argument("--timeout", type=float, default=120.0, metavar="S",
                    help="seconds to wait for each photo's results (default 120)")
     p.add_argument("--wait", type=float, default=5.0, metavar="S",
@@ -173,7 +174,8 @@ def cmd_send(args) -> int:
                 raise BusError(_refused(args, session_id))
         report.report_session(printer, svc, session_id, srcs, lens_from_args(args),
                               "odometry" in needed, args.timeout, on_first=passed_on)
-        report.measure(session, session_id, pixels, example=not args.photos, said=said)
+        report.measure(session, session_id, pixels, example=not args.photos, said=said,
+                       scene=printer.seen.get(f"findme/{session_id}/scene/0"))
     finally:
         if echo is not None:
             echo.close()

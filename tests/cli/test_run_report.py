@@ -21,6 +21,7 @@ from findme_core.synth.render import render
 from findme_core.synth.room import Pose, Room
 from findme_core.motion.trajectory import from_tum
 from tests.cli.conftest import run_findme
+from tests.conftest import top_pixels
 
 EXAMPLES = resources.files("findme") / "examples"
 
@@ -33,6 +34,26 @@ def test_example_pair_positions_and_increasing_trajectory_times(tmp_path):
     run_findme("export", tmp_path / "times.mcap", "--tum", tmp_path / "t.txt")
     stamps, poses = from_tum((tmp_path / "t.txt").read_text())
     assert len(stamps) == 2 and stamps[0] < stamps[1], stamps
+
+
+def test_run_measures_a_point_said_on_a_counters_top_and_says_how_high_it_is(counter_view,
+                                                                             tmp_path):
+    """``findme run PHOTO --measure U,V,top`` through every service: the point comes back on
+    the top, with the top's height above the floor (0.9 m rendered)."""
+    v, cam = counter_view, counter_view.camera
+    jpg = tmp_path / "counter.jpg"
+    cv2.imwrite(str(jpg), v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    (u, w), truth = (x[0] for x in top_pixels(v, step=3001))
+    out = run_findme("run", "--no-record", jpg, "--intrinsics",
+                     f"{cam.fx},{cam.fy},{cam.cx},{cam.cy}",
+                     "--gravity", ",".join(map(str, cam.gravity)), "--gravity-sigma", "0",
+                     "--camera-height", v.camera_height, "--measure", f"{u:g},{w:g},top").stdout
+    line = next(x for x in out.splitlines() if x.startswith("measure photo 0"))
+    assert "top (as you said) at (" in line, out
+    xyz = [float(x) for x in re.search(r"at \(([^)]*)\)", line).group(1).split(",")]
+    assert np.linalg.norm(np.subtract(xyz, truth)) < 0.1, (line, truth)
+    height = float(re.search(r"its top ([0-9.]+) m above the floor", line).group(1))
+    assert height == pytest.approx(0.9, abs=0.03), line
 
 
 def test_a_bad_surface_to_measure_on_is_refused_before_any_work(tmp_path):
