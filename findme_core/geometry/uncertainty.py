@@ -42,17 +42,16 @@ def boundary_sigma_px(width: int, height: int) -> float:
 TILT_STEP = 1e-3
 
 
-def _kept(scene, pieces, r, surface, edge_rays):
-    """(N,) ray parameters of the points under ``pieces``, each kept on its surface: a floor
-    point on the floor (the boundary does not move it), a point on a top on its top (the
-    front edge's pixel ``edge_rays`` fixed), a wall point on its wall."""
+def _kept(scene, pieces, r, surface, edges, cam):
+    """(N,) ray parameters of the points under ``pieces`` (and camera ``cam``), each kept on
+    its surface: a floor point on the floor (the boundary does not move it), a point on a top
+    on its top (its front edge's pixel in ``edges`` fixed), a wall point on its wall."""
     t, _, _ = scene._solve(pieces, r)
     t = np.where(surface == 1, np.where(r[:, 1] > 0, scene.height / np.maximum(r[:, 1], 1e-300),
                                         np.nan), t)
     top = surface == 3
     if top.any():
-        t = t.copy()
-        t[top] = scene._top_t(pieces, r[top], edge_rays[top])
+        t[top] = scene._top_t(pieces, r[top], cam.rays_level(edges[top]))
     return t
 
 
@@ -73,15 +72,16 @@ def point_sigmas(scene, px: np.ndarray, rays: np.ndarray, P: np.ndarray,
     """
     cam = scene.camera
     edges = np.full(px.shape, np.nan) if edges is None else edges
-    e_rays = cam.rays_level(np.where(np.isfinite(edges), edges, 0.0))
 
-    def moved(pieces, r, er=e_rays):
-        d = np.linalg.norm(_kept(scene, pieces, r, surface, er)[:, None] * r - P, axis=1)
+    def moved(pieces, r, e=edges):
+        d = np.linalg.norm(_kept(scene, pieces, r, surface, e, cam)[:, None] * r - P, axis=1)
         return np.where(np.isfinite(d), d, np.inf)
 
     shift = scene._shift_px
-    edge = np.where(surface == 3, moved(scene._pieces, rays, cam.rays_level(
-        np.where(np.isfinite(edges), edges + (0.0, 1.0), 0.0))), 0.0)
+    top = surface == 3   # a top's edge off by one row (tops only: no work on other points)
+    edge = np.zeros(len(px))
+    if top.any():
+        edge[top] = moved(scene._pieces, rays, edges + (0.0, 1.0))[top]
     parts = {"height": np.linalg.norm(P, axis=1) * scene.height_sigma / scene.height,
              "boundary": np.maximum(moved(scene._pieces_shifted, rays),
                                     moved(scene._pieces_sideways, rays)) * (
@@ -106,7 +106,7 @@ def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndar
     if n == 0 or not np.any(evals > 0):
         return out
     cam = scene.camera
-    ok_edges = np.zeros_like(px) if edges is None else np.where(np.isfinite(edges), edges, 0.0)
+    edges = np.full(px.shape, np.nan) if edges is None else edges
     R = cam.R_level_from_cam
     x_l, z_l = R[0], R[2]
     P_cam = P @ R
@@ -127,7 +127,7 @@ def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndar
                 moved.append(np.full((n, 3), np.nan))
                 continue
             rays = c2.rays_level(px)
-            t = _kept(scene, pieces, rays, surface, c2.rays_level(ok_edges))
+            t = _kept(scene, pieces, rays, surface, edges, c2)
             moved.append((t[:, None] * rays) @ c2.R_level_from_cam)
         d = (moved[0] - moved[1]) * (s / (2 * TILT_STEP))
         out[:, k] = np.where(np.isfinite(d), d, np.inf)

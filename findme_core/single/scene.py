@@ -119,13 +119,12 @@ class Scene:
             raise GeometryError(f"max_rel_sigma must be a positive number or None, got "
                                 f"{max_rel_sigma!r}")
         self.max_rel_sigma = None if max_rel_sigma is None else float(max_rel_sigma)
-        self.lines = None if lines is None else np.asarray(lines, float)
-        if self.lines is not None and (self.lines.size % 4 or not np.all(np.isfinite(self.lines))):
+        lines = None if lines is None else np.asarray(lines, float)
+        if lines is not None and (lines.size % 4 or not np.all(np.isfinite(lines))):
             raise GeometryError("the photo's lines must be finite pixels [u1, v1, u2, v2], 4 "
-                                f"numbers each; got {self.lines.size} numbers"
-                                + ("" if self.lines.size % 4 else ", not all finite"))
-        self.lines = None if lines is None else self.lines.reshape(-1, 4)
-        self._normals = None if self.lines is None else tops.line_normals(camera, self.lines)
+                                f"numbers each; got {lines.size} numbers"
+                                + ("" if lines.size % 4 else ", not all finite"))
+        self.lines = None if lines is None else lines.reshape(-1, 4)
         self._pieces = self._build(poly)
         self.shows_floor = shows_floor(poly, kinds, camera.width, camera.height)
         # the boundary part is linearised: the scene under the boundary moved down (and, for

@@ -182,8 +182,8 @@ def place(scene, top, px, rays, t, surface, reason, params: TopParams = TopParam
     face = top & (reason == 0) & (surface == 2) & (rays[:, 1] > 0)
     if scene.lines is not None and face.any():
         edges[face] = np.column_stack([px[face, 0], edge_rows(
-            scene.camera, scene.height, scene.lines, scene._normals, px[face], n[face], c[face],
-            params)])
+            scene.camera, scene.height, scene.lines, line_normals(scene.camera, scene.lines),
+            px[face], n[face], c[face], params)])
     found = face & np.isfinite(edges[:, 1])
     t_top = np.full(len(px), np.nan)
     t_top[found] = top_t(rays[found], scene.camera.rays_level(edges[found]), n[found], c[found])

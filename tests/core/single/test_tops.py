@@ -75,7 +75,7 @@ def test_the_front_edge_is_the_line_nearest_below_the_point():
     px, _ = _on_top(cam, 3)
     rays = cam.rays_level(px)
     k = sc._piece(sc._pieces, rays)
-    rows = tops.edge_rows(cam, H_CAM, sc.lines, sc._normals, px, sc._pieces[3][k],
+    rows = tops.edge_rows(cam, H_CAM, sc.lines, tops.line_normals(cam, sc.lines), px, sc._pieces[3][k],
                           sc._pieces[4][k])
     u1, v1, u2, v2 = _hline(cam, FACE_Z, TOP)
     np.testing.assert_allclose(rows, v1 + (px[:, 0] - u1) * (v2 - v1) / (u2 - u1), atol=1e-9)
@@ -228,7 +228,7 @@ def test_pixels_meet_the_lines_in_blocks_with_the_same_answer(monkeypatch):
     px = np.vstack([px, [[320.0, 470.0], [5.0, 5.0]]])         # and two that find none
     rays = cam.rays_level(px)
     k = sc._piece(sc._pieces, rays)
-    args = (cam, H_CAM, sc.lines, sc._normals, px, sc._pieces[3][k], sc._pieces[4][k])
+    args = (cam, H_CAM, sc.lines, tops.line_normals(cam, sc.lines), px, sc._pieces[3][k], sc._pieces[4][k])
     whole = tops.edge_rows(*args)
     assert np.isfinite(whole[:9]).all() and np.isnan(whole[9:]).all()
     for block in (1, 7, 161, 500):
