@@ -5,7 +5,12 @@ A plan is refused (``check`` gives the reason) when it contradicts its own photo
 * a placed photo's camera lies outside the outline by more than ``outside_m``: the user
   stood in the room, so an outline that leaves a camera outside was drawn from photos placed
   wrongly, or from boundaries that were not the room's walls (two photos of a garage once
-  made a 0.8 m2 triangle beside the camera).
+  made a 0.8 m2 triangle beside the camera);
+* the photos saw past one of its walls, wider than a door (``seen_past``: floor, and a
+  wall's base 0.3-1.0 m further out), on a line seen from several spots, which the outline
+  could not be drawn without. The photos disagree about the room. On the dev rooms
+  (2026-11-30, a phone's gravity) this refused the kitchen zr_r06 (IoU 0.41: a hallway seen
+  through an opening taken in, its long wall drawn through the kitchen).
 
 Frames and units as ``floorplan``: the room frame's (x, z), metres. Pure numpy + OpenCV's
 point-in-polygon test.
@@ -17,6 +22,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from findme_core.plan import seen_past
 
 
 @dataclass(frozen=True)
@@ -42,16 +49,36 @@ def camera_depths(polygon: np.ndarray, poses: np.ndarray) -> np.ndarray:
     return out
 
 
-def check(plan, params: ConsistencyParams = ConsistencyParams(), names=None) -> str | None:
+def check(plan, params: ConsistencyParams = ConsistencyParams(), names=None, evidence=None,
+          seen: seen_past.SeenPastParams = seen_past.SeenPastParams()) -> str | None:
     """Why ``plan`` (a ``floorplan.Plan``) must not be shown, or None. ``names`` name the
-    photos in the reason (default: their numbers from 1)."""
+    photos in the reason (default: their numbers from 1); ``evidence``: the placed photos'
+    wall samples at the plan's poses (``walls.evidence``), for the seen-past test with
+    ``seen`` (without it, only the cameras are checked)."""
+    def who(i):
+        return names[i] if names is not None else f"photo {i + 1}"
+
     d = camera_depths(plan.polygon, plan.poses)
     bad = np.flatnonzero(d < -params.outside_m)
     if len(bad):
         i = int(bad[np.argmin(d[bad])])
-        who = names[i] if names is not None else f"photo {i + 1}"
-        return (f"the outline leaves {len(bad)} camera(s) outside the room ({who}'s by "
+        return (f"the outline leaves {len(bad)} camera(s) outside the room ({who(i)}'s by "
                 f"{-d[i]:.2f} m): the photos do not agree on one room (walls that are not the "
                 "room's, or photos placed wrongly); take photos that show the floor meeting "
                 "the walls")
-    return None
+    if evidence is None or len(plan.polygon) < 3:
+        return None
+    length, which = seen_past.seen_through(plan.polygon, evidence.points,
+                                           evidence.cams[evidence.photo], seen)
+    k = int(np.argmax(length)) if len(length) else 0
+    if not len(length) or length[k] <= seen.min_m:
+        return None
+    photos = np.unique(evidence.photo[which[k]])
+    by = ", ".join(map(who, photos[:3])) + (", ..." if len(photos) > 3 else "")
+    P = np.asarray(plan.polygon, float)
+    wall = float(np.hypot(*(P[(k + 1) % len(P)] - P[k])))
+    return (f"the outline puts a wall where {len(photos)} photo(s) ({by}) saw past it: "
+            f"floor and a wall {seen.behind_m[0]:g}-{seen.behind_m[1]:g} m further out, "
+            f"along {length[k]:.1f} m of its {wall:.1f} m, wider than a door. The outline does "
+            "not follow the room's walls there; take photos that show the floor meeting each "
+            "wall")

@@ -27,7 +27,7 @@ import numpy as np
 
 from findme_core.errors import GeometryError
 from findme_core.motion import register
-from findme_core.plan import adjust, polygon, wall_kinds, walls
+from findme_core.plan import adjust, polygon, seen_past, walls
 from findme_core.single.layout import Layout
 from findme_core.single.search import SegKind
 
@@ -40,6 +40,7 @@ class PlanParams:
         polygon: free floor and cell voting (``polygon.PolygonParams``).
         lines: wall line search and classification (``walls.WallParams``).
         adjust: the joint refinement (``adjust.RefineParams``).
+        seen_past: walls the photos saw past, redrawn or refused (``seen_past``).
         height_rel: relative 1-sigma of the camera height (scales every length).
         offset_floor_m: smallest 1-sigma of a wall line's offset.
         aperture_min_m: a stretch of wall at least this long where floor was seen beyond it
@@ -64,6 +65,7 @@ class PlanParams:
     polygon: polygon.PolygonParams = field(default_factory=polygon.PolygonParams)
     lines: walls.WallParams = field(default_factory=walls.WallParams)
     adjust: adjust.RefineParams = field(default_factory=adjust.RefineParams)
+    seen_past: seen_past.SeenPastParams = field(default_factory=seen_past.SeenPastParams)
     height_rel: float = 0.02
     offset_floor_m: float = 0.01
     aperture_min_m: float = 0.5
@@ -214,14 +216,14 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
         GeometryError: no placed photo saw any floor.
     """
     poses = np.asarray(poses, float).reshape(-1, 3)
-    ev, wl, out, snapped = _outline(layouts, poses, params)
+    spot = np.arange(len(poses)) if spot is None else spot
+    ev, wl, out, snapped = seen_past.outline(layouts, poses, params, spot)
     V, sig_len, pose_sig = out.vertices, None, None
     if refine:   # refine, redraw the outline at the refined poses, refine once more
         try:
-            spot = np.arange(len(poses)) if spot is None else spot
             r = adjust.refine(layouts, poses, spot, out, wl.manhattan, snapped, links, matches,
                               focal, params.adjust)
-            ev, wl, out, snapped = _outline(layouts, r.poses, params)
+            ev, wl, out, snapped = seen_past.outline(layouts, r.poses, params, spot)
             r = adjust.refine(layouts, r.poses, spot, out, wl.manhattan, snapped, links,
                               matches, focal, params.adjust, prior=poses)
             poses, V, sig_len, pose_sig = r.poses, r.vertices, r.sigma_length, r.sigma_pose
@@ -252,20 +254,6 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
     return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, manhattan,
                 tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n,
                 pose_sig if pose_sig is not None else np.full((n, 3), np.nan))
-
-
-def _outline(layouts, poses, params: PlanParams):
-    """(evidence, classified lines, outline, which outline lines are on the axes) at poses."""
-    ev = walls.evidence(layouts, poses)
-    wl = wall_kinds.classify(ev, walls.fit(ev, params.lines), params.lines)
-    lines = polygon.Lines.of(wl)
-    free = polygon.free_space(layouts, poses, lines, params.polygon)
-    cams = poses[np.isfinite(poses[:, 0]), :2]
-    anchor = cams.mean(0) if len(cams) else np.zeros(2)
-    out = polygon.outline(lines, free, params.polygon, anchor)
-    snapped = (wl.snapped[wl.walls] if wl.snapped is not None
-               else np.zeros(len(lines.normals), bool))
-    return ev, wl, out, snapped
 
 
 def _line_sigmas(out: polygon.Outline, lines: polygon.Lines, sig_d, params: PlanParams):

@@ -28,7 +28,7 @@ from findme_core.geometry import planar
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import GRAVITY_KINDS
 from findme_core.motion import features, lifting, methods as motion
-from findme_core.plan import consistency, find_spot, floorplan, fuse, spot
+from findme_core.plan import consistency, find_spot, floorplan, fuse, spot, walls
 from findme_core.single import layout
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
@@ -291,7 +291,6 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
 
     Returns:
         (plan, placement, timing_ms).
-
     Raises:
         GeometryError: no photo, no placed photo saw any floor, or the plan contradicts its
             photos (``consistency.check``: the reason says how).
@@ -322,7 +321,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     result = floorplan.build(layouts, pl.poses, plan_params, notes, amb, spot=pl.spot,
                              links=links, matches=matches,
                              focal=np.array([p.camera.fx for p in photos]))
-    why = consistency.check(result, params.consistency)
+    why = consistency.check(result, params.consistency, evidence=walls.evidence(
+        layouts, result.poses), seen=plan_params.seen_past)
     if why:
         raise GeometryError(why)
     t3 = clock()
