@@ -70,13 +70,12 @@ def check(plan, params: ConsistencyParams = ConsistencyParams(), names=None, evi
         return None
     length, which = seen_past.seen_through(plan.polygon, evidence.points,
                                            evidence.cams[evidence.photo], seen)
-    k = int(np.argmax(length)) if len(length) else 0
-    if not len(length) or length[k] <= seen.min_m:
+    k = int(np.argmax(length))
+    if length[k] <= seen.min_m:
         return None
     photos = np.unique(evidence.photo[which[k]])
     by = ", ".join(map(who, photos[:3])) + (", ..." if len(photos) > 3 else "")
-    P = np.asarray(plan.polygon, float)
-    wall = float(np.hypot(*(P[(k + 1) % len(P)] - P[k])))
+    wall = seen_past.wall_lengths(plan.polygon)[k]
     return (f"the outline puts a wall where {len(photos)} photo(s) ({by}) saw past it: "
             f"floor and a wall {seen.behind_m[0]:g}-{seen.behind_m[1]:g} m further out, "
             f"along {length[k]:.1f} m of its {wall:.1f} m, wider than a door. The outline does "

@@ -58,6 +58,12 @@ class SeenPastParams:
     max_redraws: int = 3
 
 
+def wall_lengths(vertices: np.ndarray) -> np.ndarray:
+    """(V,) length of each outline wall k (vertex k to k + 1, closing), metres."""
+    P = np.asarray(vertices, float).reshape(-1, 2)
+    return np.hypot(*(np.roll(P, -1, axis=0) - P).T)
+
+
 def seen_through(vertices: np.ndarray, points: np.ndarray, cams: np.ndarray,
                  params: SeenPastParams = SeenPastParams()) -> tuple[np.ndarray, list]:
     """How much of each outline wall the photos saw past.
@@ -70,8 +76,8 @@ def seen_through(vertices: np.ndarray, points: np.ndarray, cams: np.ndarray,
     Returns:
         ((V,) the length of wall k, metres, behind which a sample lies ``behind_m`` further
         out, its ray from a camera on the room's side crossing wall k, each sample standing
-        for ``bin_m`` along it; [V] int arrays, the indices of those samples). Zeros for a degenerate
-        outline (< 3 vertices or no area), no samples, and zero-length walls.
+        for ``bin_m`` along it; [V] int arrays, the indices of those samples). Zeros for a
+        degenerate outline (< 3 vertices or no area), no samples, and zero-length walls.
     """
     P = np.asarray(vertices, float).reshape(-1, 2)
     p = np.asarray(points, float).reshape(-1, 2)
@@ -82,12 +88,10 @@ def seen_through(vertices: np.ndarray, points: np.ndarray, cams: np.ndarray,
     if abs(area) < 1e-9 or not len(p):
         return length, which
     near, far = params.behind_m
-    for k in range(V):
-        a, e = P[k], P[(k + 1) % V] - P[k]
-        L = float(np.hypot(*e))
+    for k, L in enumerate(wall_lengths(P)):
         if L < 1e-9:
             continue
-        u = e / L
+        a, u = P[k], (P[(k + 1) % V] - P[k]) / L
         n = np.sign(area) * np.array([u[1], -u[0]])     # outward: right of u when CCW
         s, dn = (p - a) @ u, (p - a) @ n
         sc, dc = (c - a) @ u, (c - a) @ n
@@ -118,9 +122,8 @@ def dropped(out: polygon.Outline, ev: walls.Evidence, wl: walls.WallLines, spot,
     ``out``: the outline drawn on ``Lines.of(wl)``; ``spot``: (N,) each photo's spot."""
     spot = np.asarray(spot)
     length, which = seen_through(out.vertices, ev.points, ev.cams[ev.photo], params)
-    V = np.asarray(out.vertices, float)
-    edge = np.hypot(*(np.roll(V, -1, axis=0) - V).T)
-    need = np.maximum(np.minimum(params.min_m, params.share * edge), params.min_drop_m)
+    need = np.maximum(np.minimum(params.min_m, params.share * wall_lengths(out.vertices)),
+                      params.min_drop_m)
     drop = []
     for k in np.flatnonzero((length > need) & (out.line >= 0)):
         li = int(wl.walls[out.line[k]])
