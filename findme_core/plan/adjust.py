@@ -78,7 +78,7 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
     snapped = np.zeros(len(outline.lines.normals), bool) if snapped is None else snapped
     pr = Problem(layouts, poses, spot, outline, axis, snapped, links, matches, focal, params)
     if prior is not None:
-        pr.prior0 = np.concatenate([np.asarray(prior, float)[pr.spot == s][0, :2]
+        pr.prior0 = np.concatenate([np.asarray(prior, float)[(pr.spot == s) & pr.placed][0, :2]
                                     for s in pr.spot_ix]) if pr.spot_ix else pr.prior0
     if len(pr.sp) == 0:
         raise GeometryError("no photo's wall samples lie on the outline: nothing to refine")

@@ -40,6 +40,57 @@ def oriented(motions, members):
         yield i, j, yaw, t
 
 
+def wall_directions(layouts, rel, mine, tol_deg: float = 30.0) -> int:
+    """How many directions the walls of the block photos ``mine`` run in, in the block's
+    frame (photo j's walls turned by its ``rel[j]``, radians); walls within ``tol_deg`` of
+    parallel are one direction. 0 without walls."""
+    ang = []
+    for j in mine:
+        w = layouts[j].walls
+        if len(w):
+            d = w[:, 1] - w[:, 0]   # R(yaw) turns an (x, z) direction by -yaw
+            ang += list(np.degrees(np.arctan2(d[:, 1], d[:, 0]) - rel[j]) % 180.0)
+    dirs = []
+    for a in ang:   # in the photos' and walls' order: the same count on every machine
+        if all(min(abs(a - b), 180.0 - abs(a - b)) > tol_deg for b in dirs):
+            dirs.append(a)
+    return len(dirs)
+
+
+def linked(matches, motions, members, placed) -> bool:
+    """Whether a block photo (``members``) shares feature matches or a two-photo motion
+    with a placed photo (``placed``): evidence of its pose besides the layouts."""
+    mem, pl = set(int(m) for m in members), set(int(p) for p in placed)
+    pairs = [(i, j) for i, j in (matches or {})] + [(m.i, m.j) for m in motions]
+    return any((i in mem and j in pl) or (j in mem and i in pl) for i, j in pairs)
+
+
+def alike(totals, poses, scores, block, ratio: float, turn_deg: float = 10.0) -> list:
+    """Per block, the placements of it turned more than ``turn_deg`` from the chosen one
+    that the whole search found nearly as good: ((pose offset (3,), yaw wrapped; ratio), ...).
+
+    Args:
+        totals: (S,) total score of each final state of the search, the chosen one first;
+        poses: S (N, 3) poses (NaN rows: not placed); scores: (B,) the chosen state's score
+            of each block; block: (N,) block of each photo.
+    A state is an alternative of block b when b's pose is turned; its ratio is what b's
+    score would be with the state's shortfall taken from it alone, over b's score,
+    (s_b - (totals[0] - totals[k])) / s_b: later blocks that agree less with the turned
+    pose count against it. Kept when >= ``ratio``.
+    """
+    out = [[] for _ in range(len(scores))]
+    for b in range(len(scores)):
+        i = int(np.flatnonzero(np.asarray(block) == b)[0])
+        if not scores[b] > 0 or not np.isfinite(poses[0][i, 0]):
+            continue
+        for k in range(1, len(totals)):
+            d = poses[k][i] - poses[0][i]
+            r = (scores[b] - (totals[0] - totals[k])) / scores[b]
+            if np.isfinite(d[0]) and abs(wrap(d[2])) > np.radians(turn_deg) and r >= ratio:
+                out[b].append((np.array([d[0], d[1], wrap(d[2])]), float(r)))
+    return [tuple(a) for a in out]
+
+
 def _block_poses(cands, rel, j):
     """(C, 3) poses of block photo j for C block candidates."""
     return np.column_stack([cands[:, 0], cands[:, 1], wrap(cands[:, 2] + rel[j])])

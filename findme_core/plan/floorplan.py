@@ -205,12 +205,14 @@ def floor_fans(L: Layout, pose, max_range_m: float = 8.0) -> list:
 
 
 def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=(),
-          spot=None, links=(), matches=None, focal=None, refine: bool = True) -> Plan:
+          spot=None, links=(), matches=None, focal=None, refine: bool = True,
+          spread=None) -> Plan:
     """The plan from N photos' layouts (None for a photo without one) and poses (N, 3) (NaN
     rows for photos not placed); with ``refine``, poses and walls are then refined together
     (``adjust.refine``: ``spot`` labels (N,) (default: one per photo), turns ``links`` and
     feature ``matches`` as ``fuse.place`` takes them, ``focal`` (N,) pixels) and the wall
-    lengths' 1-sigma come from its covariance.
+    lengths' 1-sigma come from its covariance. ``spread`` (N, 3): 1-sigma each pose gains
+    from other poses its evidence fits nearly as well (``pose.spread``), added in quadrature.
 
     Raises:
         GeometryError: no placed photo saw any floor.
@@ -241,6 +243,8 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
         fixed = pose_sig == 0.0                  # the frame's origin: exact by definition
         pose_sig = np.where(fixed, 0.0, np.column_stack([
             np.hypot(kx * pose_sig[:, :2], fx), np.hypot(ky * pose_sig[:, 2], math.radians(fy))]))
+        if spread is not None:
+            pose_sig = np.hypot(pose_sig, np.asarray(spread, float).reshape(-1, 3))
     fans = []
     for L, p in zip(layouts, poses):
         if L is not None and np.isfinite(p[0]):

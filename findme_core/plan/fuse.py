@@ -77,6 +77,9 @@ class FuseParams:
             line) are not: one match weighs as 12 layout samples (3.0 / 0.25; chosen on dev
             among 1, 3: it turns zr_r10's flipped corridor spots right and changes no other
             room).
+        turn_alike: a final state of the search that turns a block > 10 deg and scores
+            this share of the block's score (``evidence.alike``) widens its 1-sigma to cover
+            it (``pose.spread``).
         register: the layout terms (``register.scores``). Samples count in full up to a
             1-sigma of 1 m (``sigma_ref``): the gate already scales with the sigma, and in a
             session every photo's far walls are the other photos' near ones (down-weighting
@@ -96,6 +99,7 @@ class FuseParams:
     motion_rel: float = 0.15
     motion_yaw_deg: float = 3.0
     feature_weight: float = 3.0
+    turn_alike: float = 0.8
     register: register.RegisterParams = field(
         default_factory=lambda: register.RegisterParams(sigma_ref=1.0))
 
@@ -113,6 +117,8 @@ class Placement:
         ambiguity: per block, the best score of a clearly different placement (NaN if none).
         reasons: per block, why it is unplaced (None when placed).
         order: the blocks in the order they were placed.
+        alternatives: per block, ((pose offset (3,), score ratio), ...): the search's final
+            states that turn it more than 10 deg and score nearly as well (``evidence.alike``).
     """
 
     poses: np.ndarray
@@ -123,6 +129,7 @@ class Placement:
     ambiguity: list
     reasons: list
     order: list = field(default_factory=list)
+    alternatives: list = field(default_factory=list)
 
 
 def relative(pa, pb):
@@ -223,7 +230,9 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
     scores, amb, reasons = [0.0] * nb, [float("nan")] * nb, [None] * nb
     for b, (sc, am, why) in info.items():
         scores[b], amb[b], reasons[b] = sc, am, why
-    return Placement(poses, block, rel, spot, scores, amb, reasons, order)
+    alts = evidence.alike([st[0] for st in beam], [st[1] for st in beam], scores, block,
+                          params.turn_alike)
+    return Placement(poses, block, rel, spot, scores, amb, reasons, order, alts)
 
 
 def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions, b,
@@ -244,6 +253,11 @@ def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions,
     mine = [i for i in members if layouts[i] is not None]
     if not mine or not len(placed):
         return "no layout to register" if not mine else "no placed photo with a layout"
+    if (evidence.wall_directions(layouts, rel, mine) == 1
+            and not evidence.linked(matches, motions, members, placed)):
+        # else put on any placed wall at a like distance (a rendered room's: 83 deg off)
+        return ("it sees walls in one direction only and shares no features with the placed "
+                "photos: its layout does not tell which of the room's walls it faces")
     fixed = placed_spot.get(int(spot[members[0]]))
     cands = _candidates(layouts, poses, rel, placed, mine, fixed, params)
     cands = np.vstack([_from_motions(motions, poses, rel, members, fixed), cands])

@@ -65,3 +65,18 @@ def covariance(plan: Plan, L: Layout, pose, gate_m: float = 0.15, floor_m: float
     sigma_r = max(float(np.sqrt(np.mean(r ** 2))), floor_m)
     inflate = len(r) / (2.0 * len(np.unique(k)))
     return sigma_r ** 2 * max(inflate, 1.0) * np.linalg.inv(JtJ)
+
+
+def spread(alternatives, weight: float = 1.0) -> np.ndarray:
+    """(3,) 1-sigma (x, z metres; yaw radians) a placed pose gains from the poses its
+    photos' evidence scores nearly as well (its block's ``fuse.Placement.alternatives``:
+    ((offset (3,), score ratio), ...)): the spread about it of the mixture of it (weight 1)
+    and them (weight ``weight`` x the ratio, at most 1), sqrt(sum_k w_k d_k^2) per axis with
+    w normalised over all, as ``motion.alternatives.spread_over`` widens a motion. A photo
+    whose walls fit two headings alike is then not stated to face one of them. Zeros
+    without alternatives."""
+    if not alternatives:
+        return np.zeros(3)
+    w = np.array([1.0] + [weight * min(max(float(r), 0.0), 1.0) for _, r in alternatives])
+    d = np.array([a for a, _ in alternatives], float).reshape(-1, 3)
+    return np.sqrt((w[1:] / w.sum()) @ d ** 2)

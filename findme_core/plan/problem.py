@@ -114,7 +114,7 @@ class Problem:
         self.K = len(lines.normals)
         self.axis = axis if axis is not None and any(snapped[k] for k in used) else None
         self.quarter, self.line_ix = {}, {}
-        x = [poses[self.spot == s][0, :2] for s in spots]
+        x = [poses[(self.spot == s) & placed][0, :2] for s in spots]   # a placed photo's
         x = list(np.concatenate(x)) if x else []
         x += [poses[i, 2] for i in self.yaw_ix]
         if self.axis is not None:

@@ -29,6 +29,7 @@ from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import GRAVITY_KINDS
 from findme_core.motion import features, lifting, methods as motion
 from findme_core.plan import consistency, find_spot, floorplan, fuse, spot, walls
+from findme_core.plan.pose import spread
 from findme_core.single import layout
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
@@ -304,23 +305,22 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     layouts = [p.layout for p in photos]
     pl = fuse.place(layouts, links, spots, matches, motions, params.fuse)
     t2 = clock()
-    notes = [pl.reasons[pl.block[i]] if not np.isfinite(pl.poses[i, 0]) else None
-             for i in range(len(photos))]
-    for i, p in enumerate(photos):
-        if p.layout is None and notes[i] is None:
-            notes[i] = f"no layout: {p.reason}"
-    amb = [float(pl.ambiguity[pl.block[i]] / pl.scores[pl.block[i]])
-           if pl.scores[pl.block[i]] > 0 else float("nan") for i in range(len(photos))]
+    notes = [(pl.reasons[b] if not np.isfinite(q[0]) else None) or (
+        f"no layout: {p.reason}" if p.layout is None else None)
+        for p, q, b in zip(photos, pl.poses, pl.block)]
+    amb = [float(pl.ambiguity[b] / pl.scores[b]) if pl.scores[b] > 0 else float("nan")
+           for b in pl.block]
     plan_params = params.plan
-    kinds = {p.gravity for p, pose in zip(photos, pl.poses) if np.isfinite(pose[0])}
+    kinds = {p.gravity for p, q in zip(photos, pl.poses) if np.isfinite(q[0])}
     pm, lm = plan_params.image_gravity_models
     if kinds - {"exact"}:
         plan_params = replace(plan_params, pose_sigma_model=pm)
     if "image" in kinds:
         plan_params = replace(plan_params, length_sigma_model=lm)
-    result = floorplan.build(layouts, pl.poses, plan_params, notes, amb, spot=pl.spot,
-                             links=links, matches=matches,
-                             focal=np.array([p.camera.fx for p in photos]))
+    result = floorplan.build(   # poses other poses fit alike: their 1-sigma covers them
+        layouts, pl.poses, plan_params, notes, amb, spot=pl.spot, links=links,
+        matches=matches, focal=np.array([p.camera.fx for p in photos]),
+        spread=np.array([spread(pl.alternatives[b]) for b in pl.block]))
     why = consistency.check(result, params.consistency, evidence=walls.evidence(
         layouts, result.poses), seen=plan_params.seen_past)
     if why:
