@@ -286,6 +286,27 @@ def test_a_turn_with_left_out_views_is_one_spot_on_the_bus_as_in_findme_plan():
     # 1-sigma widened to ~21 deg by the headings it fits alike: a known failure, not asserted
 
 
+def test_a_spot_the_photos_place_at_a_look_alike_pose_says_so_in_its_sigma():
+    # an L-shaped room, two spots turning in 70 deg steps (a hair of overlap): the second
+    # spot's turn splits in two; one part's walls fit the first spot's photos as well turned
+    # half round 2.4 m away, and the placement's search ends with both. It was stated at the
+    # wrong one +-0.45 deg / +-0.025 m; its 1-sigma now covers both (``pose.spread``)
+    room = rendered_session(Room.l_shape(6.0, 5.0, 2.5, 2.0), [(-1.5, -1.0), (1.2, -1.4)],
+                            yaws=(0, 70, 140, 210, 280))
+    m = MapperHandler()
+    last = [o.msg for k, msg in room.messages() for o in m.on_message(k, msg)][-1]
+    placed = [q for q in last.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
+    assert len(placed) == 10
+    for q in placed:
+        t = room.poses[q.index]
+        err = (abs(q.x_m - t[0]), abs(q.z_m - t[1]), abs(fuse.wrap(q.yaw_rad - t[2])))
+        sig = (q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad)
+        assert all(e <= 3 * s + tol for e, s, tol in zip(err, sig, (0.02, 0.02, 0.01))), (
+            q.index, err, sig)
+    # the photos whose walls tell one pose keep a tight one
+    assert sum(q.sigma_yaw_rad < math.radians(1) for q in placed) >= 7
+
+
 def test_a_mapper_behind_its_photos_plans_once_per_drained_queue(room, mapped):
     # on the bus the Service tells the handler how many of the session's messages wait
     # (Handler.backlog); a burst queued behind the first message is planned once, at its end
