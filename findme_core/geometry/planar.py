@@ -196,6 +196,15 @@ def epipolar_residuals(yaw, t, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return r[0] if np.ndim(yaw) == 0 else r
 
 
+def turn_residuals(yaw, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between each match's bearing a and R_y(yaw) b: how far a pure turn (two
+    photos taken at one place) misses it; (C, M) for C yaws (C,). With no baseline the
+    epipolar plane is undefined: ``epipolar_residuals`` puts every match of a true turn on
+    it, whatever the baseline's direction, so a turn is scored by this instead."""
+    Rb = _rotate(np.atleast_1d(yaw), b)
+    return np.arccos(np.clip(_dot(a[None], Rb), -1.0, 1.0))
+
+
 def depths(yaw, t, a: np.ndarray, b: np.ndarray):
     """Least-squares depths (la, lb) along a and b with la a = t + lb R_y b; shapes as in
     ``epipolar_residuals``."""

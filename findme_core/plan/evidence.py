@@ -120,7 +120,10 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
     put near their epipolar planes, in front of both cameras (planar motion, no height
     change: t = (x, 0, z)); each scores ``feature_weight`` within ``feature_px`` (at 500 px
     focal length), falling linearly to 0 at ``feature_fade_px`` (``fuse.FuseParams``); with
-    ``feature_fade_px`` <= ``feature_px``, MSAC: 1 - (r / ``feature_px``)^2 within it."""
+    ``feature_fade_px`` <= ``feature_px``, MSAC: 1 - (r / ``feature_px``)^2 within it. A
+    pose within ``t_merge_m`` of the placed photo is at its place: there r is the match's
+    angle from a pure turn (``planar.turn_residuals``; the epipolar plane of a nil baseline
+    holds every match of the right turn, and random ones by the thousand)."""
     total = np.zeros(len(cands))
     mem = set(int(m) for m in members)
     pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
@@ -136,6 +139,9 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
         r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
         la, lb = planar.depths(yaw, t, a, b)
         front = (la > 0) & (lb > 0)
+        turn = np.hypot(t2[:, 0], t2[:, 1]) < params.t_merge_m   # one place: a pure turn
+        if turn.any():
+            r[turn], front[turn] = planar.turn_residuals(yaw[turn], a, b), True
         if fade > pix:
             s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
         else:          # MSAC

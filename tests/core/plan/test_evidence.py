@@ -65,3 +65,51 @@ def test_the_feature_term_is_flat_within_its_pixels_or_msac(fade):
     else:                          # MSAC: any residual costs
         assert s[2] < s[1] < s[0]
     assert s[3] == 0.0             # 20 deg: no match near its epipolar plane
+
+
+def _turn_matches(yaw, m=200, seed=3):
+    """Bearings of M points seen from one place by two photos turned ``yaw`` apart, the
+    same point in both: a = R_y(yaw) b."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(m, 3)) * (0.5, 0.2, 0.0) + (0.0, 0.1, 1.0)
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = planar.rot_y(yaw).T @ a.T
+    return a, b.T
+
+
+def test_at_the_placed_photos_place_the_feature_term_is_a_turn():
+    # a block at the placed photo's position (its candidate from the other spot's walls
+    # turned half round, say): the epipolar plane of a nil baseline holds every match of
+    # the right turn whatever its direction, and random matches by the thousand
+    params = fuse.FuseParams()
+    poses = np.array([A, [np.nan] * 3])
+    a, b = _turn_matches(0.7)
+    here = np.array([[A[0], A[1], A[2] + 0.7], [A[0] + 1e-13, A[1], A[2] + 0.7],
+                     [A[0], A[1], A[2] + 1.7], [A[0], A[1] + 1e-13, A[2] - 2.4]])
+    s = evidence.feature_score({(0, 1): (a, b)}, poses, np.zeros(2), [1], here, params)
+    assert s[0] == pytest.approx(200 * params.feature_weight)   # the right turn: all of them
+    assert s[1] == pytest.approx(s[0])                           # a last bit of baseline: alike
+    assert s[2] == 0.0 and s[3] == 0.0                           # turned 1 rad, 3.1 rad: none
+    rng = np.random.default_rng(5)
+    ra = rng.normal(size=(3000, 3)) * (0.5, 0.3, 0.0) + (0.0, 0.0, 1.0)
+    rb = rng.normal(size=(3000, 3)) * (0.5, 0.3, 0.0) + (0.0, 0.0, 1.0)
+    ra /= np.linalg.norm(ra, axis=1, keepdims=True)
+    rb /= np.linalg.norm(rb, axis=1, keepdims=True)
+    s = evidence.feature_score({(0, 1): (ra, rb)}, poses, np.zeros(2), [1], here, params)
+    assert np.all(s < 0.01 * 3000 * params.feature_weight)     # chance matches: < 1 % count
+    # away from the place (0.1 m and more) the epipolar term is used as before
+    moved = np.array([[A[0] + 0.1, A[1], A[2] + 0.7]])
+    t2 = evidence._in_frame(A, moved)[1]
+    r = np.abs(planar.epipolar_residuals(np.array([0.7]), np.array([[t2[0, 0], 0.0, t2[0, 1]]]),
+                                         a, b))
+    assert evidence.feature_score({(0, 1): (a, b)}, poses, np.zeros(2), [1], moved, params)[0] \
+        > 0 and r.max() < 1e-9   # the true turn's points lie on any epipolar plane of t
+
+
+def test_turn_residuals_are_the_angle_from_a_pure_turn():
+    a, b = _turn_matches(-0.4, m=5)
+    np.testing.assert_allclose(planar.turn_residuals(np.array([-0.4]), a, b), 0.0, atol=1e-7)
+    r = planar.turn_residuals(np.array([-0.4 + 0.01, 0.0]), a, b)
+    assert r.shape == (2, 5)
+    # turned 0.01 rad about the vertical: a bearing at elevation e moves cos(e) x 0.01
+    np.testing.assert_allclose(r[0], 0.01 * np.hypot(a[:, 0], a[:, 2]), rtol=1e-3)
