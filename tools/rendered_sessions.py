@@ -1,0 +1,93 @@
+"""Confident wrong poses in mapping sessions the project renders: rooms whose every answer is
+known, photos turning at each spot with and without overlap, through the mapper's handler.
+
+    python tools/rendered_sessions.py [--json OUT.json]
+
+Rooms: 5 x 4, 7 x 3 and 8 x 6 m rectangles, an L (6 x 5 m less 2.5 x 2), a trapezoid; two or
+three spots each; turns in steps of 50, 55 or 60 deg (overlapping views), 65 or 70 deg (a
+hair of overlap) and 0, 50, 180, 230 deg (two halves that share nothing: the turn splits).
+Each photo is a rendered JPEG whose hypothesis is its exact ground-wall boundary, given to
+``MapperHandler.on_message`` (no bus) as a phone's session would come. Per session: photos
+placed, the plan refused (and why), photos whose true pose lies outside 3 sigma of the
+stated one in x, z or yaw (``confident_wrong``: with 0.02 m and 0.01 rad of slack for the
+render), and the plan's area against the room's. A tool, not the product: it reads the
+rendered truth.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import schemas  # noqa: E402
+from findme_core.geometry.planar import wrap  # noqa: E402
+from findme_core.synth.room import Room  # noqa: E402
+
+ROOMS = {"5x4": Room.rectangle(5.0, 4.0), "L": Room.l_shape(6.0, 5.0, 2.5, 2.0),
+         "7x3": Room.rectangle(7.0, 3.0), "8x6": Room.rectangle(8.0, 6.0),
+         "trapezoid": Room([(-2.5, -2.0), (2.5, -2.0), (1.2, 2.2), (-2.5, 2.0)])}
+LAYOUTS = [("5x4", [(-0.8, -0.5), (1.0, 0.6)]), ("L", [(-1.5, -1.0), (1.2, -1.4), (-1.6, 1.6)]),
+           ("L", [(-1.5, -1.0), (1.2, -1.4)]), ("7x3", [(-2.0, 0.0), (2.0, 0.3)]),
+           ("trapezoid", [(-1.0, -0.5), (0.8, -0.8)]), ("8x6", [(-2.0, -1.0), (2.0, 1.5)]),
+           ("8x6", [(-2.5, -1.5), (0.5, 0.0), (2.5, 1.5)])]
+TURNS = [tuple(range(0, 360, s))[: 360 // s] for s in (50, 55, 60, 65, 70)] + [(0, 50, 180, 230)]
+
+
+def confident_wrong(stated, sigma, truth, slack=(0.02, 0.02, 0.01)) -> bool:
+    """Whether the true pose (x, z, yaw) lies outside 3 sigma of the stated one on any axis
+    (metres, radians; the yaw error wrapped)."""
+    err = (abs(stated[0] - truth[0]), abs(stated[1] - truth[1]),
+           abs(float(wrap(stated[2] - truth[2]))))
+    return any(e > 3.0 * s + k for e, s, k in zip(err, sigma, slack))
+
+
+def run(room: str, spots, yaws) -> dict:
+    from services.pipeline.mapper import MapperHandler
+    from tests.plan_room import rendered_session
+    s = rendered_session(ROOMS[room], spots, yaws=yaws)
+    m = MapperHandler()
+    last = [o.msg for k, msg in s.messages() for o in m.on_message(k, msg)][-1]
+    placed = [q for q in last.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
+    wrong = [q.index for q in placed if q.index and confident_wrong(
+        (q.x_m, q.z_m, q.yaw_rad), (q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad), s.poses[q.index])]
+    P = s.polygon
+    area = abs(sum(P[i, 0] * P[i - 1, 1] - P[i - 1, 0] * P[i, 1] for i in range(len(P)))) / 2
+    return {"room": room, "spots": spots, "yaws": list(yaws), "photos": len(s.poses),
+            "placed": len(placed), "refused": last.reason or None,
+            "confident_wrong": wrong, "area_m2": round(last.area_m2, 2),
+            "true_area_m2": round(area, 2)}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--json", metavar="OUT.json")
+    a = ap.parse_args(argv)
+    out = []
+    for room, spots in LAYOUTS:
+        for yaws in TURNS:
+            r = run(room, spots, yaws)
+            out.append(r)
+            step = "skip" if len(yaws) == 4 else f"{yaws[1]:>4d}"
+            print(f"{room:9s} {len(spots)} spots, turn {step}: placed {r['placed']:2d}/"
+                  f"{r['photos']:2d}, confident wrong {len(r['confident_wrong']):2d}, area "
+                  f"{r['area_m2']:5.1f} / {r['true_area_m2']:5.1f} m2"
+                  + (f", refused: {r['refused'][:70]}" if r["refused"] else ""), flush=True)
+    n = sum(r["placed"] for r in out)
+    bad = sum(len(r["confident_wrong"]) for r in out)
+    refused = sum(bool(r["refused"]) for r in out)
+    print(f"{len(out)} sessions: {refused} refused; {n} photos placed, {bad} of them "
+          "confidently wrong (photo 0, the frame's origin, is exact by definition)")
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(out, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
