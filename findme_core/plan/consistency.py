@@ -65,7 +65,7 @@ def check(plan, params: ConsistencyParams = ConsistencyParams(), names=None, evi
         return (f"the outline leaves {len(bad)} camera(s) outside the room ({who(i)}'s by "
                 f"{-d[i]:.2f} m): the photos do not agree on one room (walls that are not the "
                 "room's, or photos placed wrongly); take photos that show the floor meeting "
-                "the walls")
+                "the walls, each overlapping the one before (turn less than the photo's width)")
     if evidence is None or len(plan.polygon) < 3:
         return None
     length, which = seen_past.seen_through(plan.polygon, evidence.points,
