@@ -42,6 +42,11 @@ class RenderedSession:
             yield f"findme/{sid}/hypotheses/{n}", h
             yield f"findme/{sid}/selection/{n}", s
 
+    def plans(self, handler) -> list:
+        """The messages ``handler`` (a mapper's, driven without the bus) outputs for this
+        session's messages, in order: its plans, the last one of the whole session last."""
+        return [o.msg for k, msg in self.messages() for o in handler.on_message(k, msg)]
+
     def wall_lengths(self) -> list[float]:
         P = self.polygon
         return sorted(float(x) for x in np.linalg.norm(np.roll(P, -1, 0) - P, axis=1))

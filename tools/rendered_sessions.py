@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 import schemas  # noqa: E402
 from findme_core.geometry.planar import wrap  # noqa: E402
+from findme_core.plan import polygon  # noqa: E402
 from findme_core.synth.room import Room  # noqa: E402
 
 ROOMS = {"5x4": Room.rectangle(5.0, 4.0), "L": Room.l_shape(6.0, 5.0, 2.5, 2.0),
@@ -51,13 +52,11 @@ def run(room: str, spots, yaws) -> dict:
     from services.pipeline.mapper import MapperHandler
     from tests.plan_room import rendered_session
     s = rendered_session(ROOMS[room], spots, yaws=yaws)
-    m = MapperHandler()
-    last = [o.msg for k, msg in s.messages() for o in m.on_message(k, msg)][-1]
+    last = s.plans(MapperHandler())[-1]
     placed = [q for q in last.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
     wrong = [q.index for q in placed if q.index and confident_wrong(
         (q.x_m, q.z_m, q.yaw_rad), (q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad), s.poses[q.index])]
-    P = s.polygon
-    area = abs(sum(P[i, 0] * P[i - 1, 1] - P[i - 1, 0] * P[i, 1] for i in range(len(P)))) / 2
+    area = abs(polygon.area(s.polygon))
     return {"room": room, "spots": spots, "yaws": list(yaws), "photos": len(s.poses),
             "placed": len(placed), "refused": last.reason or None,
             "confident_wrong": wrong, "area_m2": round(last.area_m2, 2),

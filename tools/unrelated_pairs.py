@@ -1,7 +1,8 @@
 """What the two-photo motion says about two photos that share nothing: each dataset pair's
 photo A with photo B of a pair from ANOTHER room (the same subset, view kind and gravity),
-through the documented two-photo path (``findme.evaluation.pairs``: each photo's own
-hypotheses, ``motion_photos``), beside the dataset's own pairs.
+through the documented two-photo path (``findme.evaluation.pairs.predict_pair``, as
+``findme eval``: each photo's own hypotheses, ``motion_photos``), beside the dataset's own
+pairs.
 
     python tools/unrelated_pairs.py ../shared/data/findme-eval [--no-gravity] [--json OUT]
 
@@ -16,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import sys
@@ -24,10 +24,8 @@ import tempfile
 from collections import Counter
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from findme.evaluation.pairs import pair_inputs  # noqa: E402
+from findme.evaluation.pairs import predict_pair  # noqa: E402
 from findme.evaluation.views import GravityInput  # noqa: E402
-from findme_core.errors import FindmeError  # noqa: E402
-from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
 
 SUBSETS = ("zind-pairs-level", "zind-pairs-tilted")
 
@@ -66,21 +64,13 @@ def verdict(pred: dict | None, truth: dict | None, wide_deg: float) -> str:
 
 
 def motion_of(pair_dir: str, view_dir: str, pid: str, gravity: GravityInput):
-    """({yaw_deg, sigma_yaw_deg, inliers, matches}, None) or (None, the refusal)."""
-    try:
-        _, photos = pair_inputs(pair_dir, view_dir, pid, gravity)
-        pa, pb = [photo_of(image, cam, h, 1, "findme", which,
-                           gravity_sigma=prov.unsensed_sigma,
-                           gravity_alternatives=prov.unsensed_alternatives)
-                  for (image, cam, h, prov), which in zip(photos, "AB")]
-        r = motion_photos(pa, pb)["findme"]
-        if isinstance(r, FindmeError):
-            raise r
-    except FindmeError as e:
-        return None, str(e)
-    m = r.motion
-    return {"yaw_deg": math.degrees(m.yaw), "sigma_yaw_deg": math.degrees(m.sigma_yaw),
-            "inliers": int(m.n_inliers), "matches": int(r.matches)}, None
+    """({yaw_deg, sigma_yaw_deg, inliers, matches}, None) or (None, the refusal), as
+    ``findme eval`` predicts a pair (``findme.evaluation.pairs.predict_pair``)."""
+    _, preds, errs = predict_pair((pair_dir, view_dir, pid, "findme", ("findme",), gravity))
+    p = preds.get("findme")
+    if p is None:
+        return None, errs.get("findme")
+    return {k: p[k] for k in ("yaw_deg", "sigma_yaw_deg", "inliers", "matches")}, None
 
 
 def main(argv=None) -> int:
@@ -90,8 +80,6 @@ def main(argv=None) -> int:
     ap.add_argument("--wide-deg", type=float, default=10.0)
     ap.add_argument("--json", help="every answer, one record per pair")
     a = ap.parse_args(argv)
-    import cv2
-    cv2.setNumThreads(1)
     with open(os.path.join(a.dataset, "index.json")) as f:
         idx = json.load(f)
     pdir = os.path.join(a.dataset, idx.get("pairs_dir", "pairs"))

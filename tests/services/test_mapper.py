@@ -259,9 +259,7 @@ def test_a_turn_with_left_out_views_is_one_spot_on_the_bus_as_in_findme_plan():
     # spots as `findme plan` does (session.auto_spots), not from consecutive photos only
     room = rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
                             yaws=(0, 50, 180, 330))
-    m = MapperHandler()
-    plans = [o.msg for k, msg in room.messages() for o in m.on_message(k, msg)]
-    last = plans[-1]
+    last = room.plans(MapperHandler())[-1]
     assert [q.spot for q in last.poses] == [0] * 4 + [1] * 4
     # the 180 deg photo of spot 0 overlaps no photo of its spot and sees one wall, which no
     # other photo saw: which of the room's walls it faces, nothing tells (it was put 83 deg
@@ -296,8 +294,7 @@ def test_a_spot_the_photos_place_at_a_look_alike_heading_says_so_in_its_sigma():
     # (0.68-0.74), below the 0.8 that widens
     room = rendered_session(Room.l_shape(6.0, 5.0, 2.5, 2.0), [(-1.5, -1.0), (1.2, -1.4)],
                             yaws=(0, 70, 140, 210, 280))
-    m = MapperHandler()
-    last = [o.msg for k, msg in room.messages() for o in m.on_message(k, msg)][-1]
+    last = room.plans(MapperHandler())[-1]
     placed = [q for q in last.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
     assert len(placed) == 10
     for q in placed:
@@ -320,8 +317,7 @@ def test_a_spot_is_not_put_where_another_spot_stands_by_its_chance_matches():
     # as a pure turn there (``planar.turn_residuals``), every photo is where it was taken
     room = rendered_session(Room.rectangle(8.0, 6.0), [(-2.5, -1.5), (0.5, 0.0), (2.5, 1.5)],
                             yaws=(0, 65, 130, 195, 260, 325))
-    m = MapperHandler()
-    last = [o.msg for k, msg in room.messages() for o in m.on_message(k, msg)][-1]
+    last = room.plans(MapperHandler())[-1]
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in last.poses)
     got = np.array([(q.x_m, q.z_m, q.yaw_rad) for q in last.poses])
     assert np.abs(got[:, :2] - room.poses[:, :2]).max() < 0.05
