@@ -33,8 +33,10 @@ def image_format(data: bytes) -> str:
 def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
                hfov_deg: float | None = None, gravity=None, camera_height_m=None,
                camera_height_sigma_m=None, device: str = "", time_ns: int | None = None,
-               gravity_sigma_rad: float | None = None):
-    """A Frame message; ``intrinsics`` is (fx, fy, cx, cy, width, height) or None."""
+               gravity_sigma_rad: float | None = None, heading_rad: float | None = None,
+               heading_sigma_rad: float | None = None):
+    """A Frame message; ``intrinsics`` is (fx, fy, cx, cy, width, height) or None;
+    ``heading_rad`` / ``heading_sigma_rad``: the phone's heading and its 1-sigma (radians)."""
     t = time.time_ns() if time_ns is None else int(time_ns)
     f = schemas.Frame(session=session, index=int(index), capture_time_ns=t, device=device)
     f.image.data = image_bytes
@@ -55,6 +57,10 @@ def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
         f.camera_height_m = float(camera_height_m)
     if camera_height_sigma_m is not None:
         f.camera_height_sigma_m = float(camera_height_sigma_m)
+    if heading_rad is not None:
+        f.heading_rad = float(heading_rad)
+        if heading_sigma_rad is not None:
+            f.heading_sigma_rad = float(heading_sigma_rad)
     return f
 
 

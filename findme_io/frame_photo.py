@@ -48,6 +48,20 @@ def _frame_gravity_sigma(frame) -> float | None:
     return frame.gravity_sigma_rad if frame.HasField("gravity_sigma_rad") else None
 
 
+#: 1-sigma of a frame's heading when it gives none: a phone's gyroscope over a session
+#: drifts a few degrees; a compass indoors is off by 10-30 deg (``plan.heading``)
+DEFAULT_HEADING_SIGMA_RAD = float(np.radians(10.0))
+
+
+def frame_heading(frame) -> tuple[float, float] | None:
+    """(heading, 1-sigma) in radians of a Frame (``DEFAULT_HEADING_SIGMA_RAD`` when it
+    gives no sigma), None without one."""
+    if not frame.HasField("heading_rad"):
+        return None
+    return (frame.heading_rad, frame.heading_sigma_rad if frame.HasField("heading_sigma_rad")
+            else DEFAULT_HEADING_SIGMA_RAD)
+
+
 def frame_camera(frame, width: int, height: int) -> Camera:
     """The Camera of a Frame whose image is ``width`` x ``height``: its lens (else EXIF,
     else the default) and its gravity (level when it gives none; the hypotheses service

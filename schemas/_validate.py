@@ -185,6 +185,14 @@ def _frame(m: frame_pb2.Frame) -> Problems:
     if m.HasField("gravity_sigma_rad"):
         _nonneg(p, "gravity_sigma_rad", m.gravity_sigma_rad)
     _height(p, m)
+    if m.HasField("heading_rad"):
+        _finite(p, "heading_rad", m.heading_rad)
+    if m.HasField("heading_sigma_rad"):
+        s = m.heading_sigma_rad
+        if not m.HasField("heading_rad"):
+            p.append("heading_sigma_rad is set without heading_rad")
+        elif not (math.isfinite(s) and 0 < s <= math.pi / 2):
+            p.append(f"heading_sigma_rad must be in (0, pi/2] radians, got {s!r}")
     return p
 
 

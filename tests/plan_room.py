@@ -4,7 +4,9 @@ boundary (``synth``; segment kinds WALL, or STEP at occluding edges) and its Sel
 the truth in the level frame of photo 0 (the plan's frame).
 
 Photos turn right at each spot (``yaws`` degrees, the spot's heading offset by 7 deg per
-spot), tilted down ``pitch`` degrees, 1.4 m above the floor.
+spot), tilted down ``pitch`` degrees, 1.4 m above the floor. With ``heading_sigma_deg``, each
+Frame carries the phone's heading as a page would send it: the true yaw plus a session offset
+and a seeded N(0, sigma) reading error, declared at that sigma.
 """
 
 from __future__ import annotations
@@ -63,9 +65,11 @@ def boundary_kinds(cam, poly, height=H) -> np.ndarray:
 
 
 def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, hfov=70.0,
-                     session="plan-test", size=(640, 480)) -> RenderedSession:
+                     session="plan-test", size=(640, 480), heading_sigma_deg=None,
+                     seed=0) -> RenderedSession:
     poses = [Pose(x, z, H, float(y) + 7.0 * s, pitch, 0.0)
              for s, (x, z) in enumerate(spots_xz) for y in yaws]
+    rng = np.random.default_rng(seed)
     frames, hsets, sels, jpegs, views = [], [], [], [], []
     for n, p in enumerate(poses):
         v = render(room, p, size[0], size[1], hfov_deg=hfov, supersample=1)
@@ -75,6 +79,10 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
                                                                  c.width, c.height),
                                  gravity=c.gravity, camera_height_m=H,
                                  time_ns=1_700_000_000_000_000_000 + n * 10**9))
+        if heading_sigma_deg is not None:
+            s = math.radians(heading_sigma_deg)
+            frames[-1].heading_rad = math.radians(p.yaw_deg) + 2.0 + s * rng.standard_normal()
+            frames[-1].heading_sigma_rad = s
         poly = v.ground_truth_boundary_polyline()
         poly = poly[np.isfinite(poly[:, 1])]
         hs = schemas.HypothesisSet(session=session, index=n, width=c.width, height=c.height,

@@ -1,7 +1,7 @@
 """Confident wrong poses in mapping sessions the project renders: rooms whose every answer is
 known, photos turning at each spot with and without overlap, through the mapper's handler.
 
-    python tools/rendered_sessions.py [--json OUT.json]
+    python tools/rendered_sessions.py [--json OUT.json] [--heading-sigma DEG]
 
 Rooms: 5 x 4, 7 x 3 and 8 x 6 m rectangles, an L (6 x 5 m less 2.5 x 2), a trapezoid; two or
 three spots each; turns in steps of 50, 55 or 60 deg (overlapping views), 65 or 70 deg (a
@@ -10,8 +10,9 @@ Each photo is a rendered JPEG whose hypothesis is its exact ground-wall boundary
 ``MapperHandler.on_message`` (no bus) as a phone's session would come. Per session: photos
 placed, the plan refused (and why), photos whose true pose lies outside 3 sigma of the
 stated one in x, z or yaw (``confident_wrong``: with 0.02 m and 0.01 rad of slack for the
-render), and the plan's area against the room's. A tool, not the product: it reads the
-rendered truth.
+render), and the plan's area against the room's. ``--heading-sigma DEG``: each Frame carries
+the phone's heading as the page sends it, the truth read off by a seeded N(0, DEG). A tool,
+not the product: it reads the rendered truth.
 """
 
 from __future__ import annotations
@@ -48,10 +49,11 @@ def confident_wrong(stated, sigma, truth, slack=(0.02, 0.02, 0.01)) -> bool:
     return any(e > 3.0 * s + k for e, s, k in zip(err, sigma, slack))
 
 
-def run(room: str, spots, yaws) -> dict:
+def run(room: str, spots, yaws, heading_sigma_deg=None) -> dict:
     from services.pipeline.mapper import MapperHandler
     from tests.plan_room import rendered_session
-    s = rendered_session(ROOMS[room], spots, yaws=yaws)
+    s = rendered_session(ROOMS[room], spots, yaws=yaws, heading_sigma_deg=heading_sigma_deg,
+                         seed=len(spots) * 1000 + len(yaws))
     last = s.plans(MapperHandler())[-1]
     placed = [q for q in last.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
     wrong = [q.index for q in placed if q.index and confident_wrong(
@@ -66,11 +68,14 @@ def run(room: str, spots, yaws) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--heading-sigma", type=float, metavar="DEG",
+                    help="each frame carries the phone's heading: the truth plus a seeded "
+                         "N(0, DEG) error, declared at DEG (default: no heading)")
     a = ap.parse_args(argv)
     out = []
     for room, spots in LAYOUTS:
         for yaws in TURNS:
-            r = run(room, spots, yaws)
+            r = run(room, spots, yaws, a.heading_sigma)
             out.append(r)
             step = "skip" if len(yaws) == 4 else f"{yaws[1]:>4d}"
             print(f"{room:9s} {len(spots)} spots, turn {step}: placed {r['placed']:2d}/"

@@ -18,8 +18,8 @@ import {initCapture} from './capture.js';
 import {expectMotion, renderMotion} from './motion.js';
 import {measure} from './points.js';
 import {initResults, render, show} from './results.js';
-import {autoRotation, currentGravity, deviceGravityFromMotion, deviceGravityFromOrientation,
-        deviceToCamera, initSettings, rotation} from './settings.js';
+import {autoRotation, cameraHeading, currentGravity, currentHeading, deviceGravityFromMotion,
+        deviceGravityFromOrientation, deviceToCamera, initSettings, rotation} from './settings.js';
 
 // ------------------------------------------------------------------ connection
 function connect() {
@@ -67,7 +67,8 @@ const HANDLERS = {
                sceneRank: 0, metric: false, height_m: m.camera_height_m, points: [],
                surfaces: [], reply: null, measureId: 0, camera: null,
                sentGravity: pend ? pend.gravity : null,
-               gravitySent: pend ? pend.gravitySource : null, serverGravity: m.gravity};
+               gravitySent: pend ? pend.gravitySource : null, serverGravity: m.gravity,
+               headingSent: pend ? pend.heading : null};
     state.photos.push(p);
     setBusy('upload', 'Finding the floor boundary…');
     show(p.index);
@@ -177,6 +178,7 @@ function init() {
 
 // for tests and the curious: the pure conversions and the state
 window.FindMe = {deviceGravityFromOrientation, deviceGravityFromMotion, deviceToCamera,
-                 autoRotation, currentGravity, rotation, state, send, handle};
+                 autoRotation, currentGravity, rotation, cameraHeading, currentHeading, state,
+                 send, handle};
 if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', init);
 else init();

@@ -7,10 +7,12 @@
  * JPEG whose EXIF turns it, or a format the server may not read (HEIC on Safari), is
  * re-encoded upright through a canvas first, at most 1600 px long (the header's ``scale``
  * and typed intrinsics scaled to match). The live camera (secure pages only) sends the motion sensors' reading of the moment
- * the shutter is pressed.
+ * the shutter is pressed: gravity, and the heading (which way the phone looked, for the
+ * floor plan's placement: photos that share nothing cannot tell a room's twin turns apart).
  */
 import {$, ERROR_HINTS, clearBusy, mb, notify, send, setBusy, state} from './common.js';
-import {SENSOR_GRAVITY_SIGMA_DEG, currentGravity, deviceToCamera, gravityFromForm,
+import {SENSOR_GRAVITY_SIGMA_DEG, SENSOR_HEADING_SIGMA_DEG, currentGravity, currentHeading,
+        deviceToCamera, gravityFromForm,
         heightFromForm, lensFromForm, rotation} from './settings.js';
 
 // ------------------------------------------------------------------ uploading
@@ -91,7 +93,7 @@ export function imageSize(url) {
   });
 }
 
-export async function upload(file, sensorGravity = null) {
+export async function upload(file, sensorGravity = null, sensorHeading = null) {
   if (!file) return;
   if (!state.session) { notify('Not connected to the server yet.', 'error', 'CLOSED'); return; }
   if (state.photos.length >= state.limits.max_photos) {
@@ -140,13 +142,18 @@ export async function upload(file, sensorGravity = null) {
               gravity_sigma_deg: gravity && fromSensors ? SENSOR_GRAVITY_SIGMA_DEG : undefined,
               camera_height_m: heightFromForm(), device: $('device').value.trim(),
               capture_time_ms: file.lastModified || Date.now()};
+    if (sensorHeading !== null) {   // a live capture: which way the phone looked, for the plan
+      header.heading_deg = sensorHeading;
+      header.heading_sigma_deg = SENSOR_HEADING_SIGMA_DEG;
+    }
     const head = new TextEncoder().encode(JSON.stringify(header));
     const buf = new Uint8Array(4 + head.length + bytes.length);
     new DataView(buf.buffer).setUint32(0, head.length);
     buf.set(head, 4);
     buf.set(bytes, 4 + head.length);
     state.pending.set(id, {url, name: file.name, gravity,
-                           gravitySource: fromSensors ? 'sensors' : typed ? 'typed' : null});
+                           gravitySource: fromSensors ? 'sensors' : typed ? 'typed' : null,
+                           heading: header.heading_deg ?? null});
     if (!send(buf.buffer)) { state.pending.delete(id); clearBusy('upload'); }
   } catch (e) {
     clearBusy('upload');
@@ -179,8 +186,9 @@ export function shutter() {
   c.getContext('2d').drawImage(v, 0, 0);
   const g = currentGravity();
   const sensed = g ? deviceToCamera(g, rotation(true)) : null;
+  const heading = currentHeading();
   c.toBlob((b) => upload(new File([b], 'live.jpg', {type: 'image/jpeg', lastModified: Date.now()}),
-                         sensed), 'image/jpeg', 0.92);
+                         sensed, heading), 'image/jpeg', 0.92);
 }
 
 // ------------------------------------------------------------------ wiring

@@ -20,6 +20,16 @@
  *         g_cam = (g_dev·r, g_dev·d, -g_dev.z)
  *     portrait:        ( gx, -gy, -gz)        landscape, top left:  (-gy, -gx, -gz)
  *     upside down:     (-gx,  gy, -gz)        landscape, top right: ( gy,  gx, -gz)
+ *   The heading (which way the camera looks, turned about gravity) comes from
+ *   deviceorientation's alpha, beta, gamma (R = Rz(alpha)·Rx(beta)·Ry(gamma), device to
+ *   earth: x east or the start's, y north, z up): the rear camera's axis -z_dev is
+ *         d = (-cos(a)·sin(g) - sin(a)·sin(b)·cos(g),  -sin(a)·sin(g) + cos(a)·sin(b)·cos(g),
+ *              -cos(b)·cos(g))
+ *   and the heading is atan2(d_x, d_y), growing as the camera turns right seen from above
+ *   (upright portrait: -alpha). Only its differences between a session's photos matter
+ *   (alpha is relative on most browsers: the yaw the gyroscope integrated since listening
+ *   began), so a drifting gyroscope or a compass off by a constant does no harm. None when
+ *   the camera looks within 20° of straight up or down (no horizontal direction to speak of).
  *   "Automatic" picks theta whose image-down axis is closest to gravity, as camera apps do
  *   when they decide a photo's orientation; the live camera uses the screen's angle
  *   (screen.orientation.angle), because its preview is upright for the screen.
@@ -40,6 +50,7 @@
 import {$, DEG, notify, state} from './common.js';
 
 export const SENSOR_GRAVITY_SIGMA_DEG = 1.5;   // a phone's motion-sensor gravity in the hand (1-sigma per axis)
+export const SENSOR_HEADING_SIGMA_DEG = 5;     // the gyroscope's heading between photos of a session (1-sigma)
 
 // ------------------------------------------------------------------ gravity (pure)
 export function normalize(v) {
@@ -51,6 +62,17 @@ export function deviceGravityFromOrientation(betaDeg, gammaDeg) {
   return [Math.cos(b) * Math.sin(g), -Math.sin(b), -Math.cos(b) * Math.cos(g)];
 }
 export function deviceGravityFromMotion(ax, ay, az) { return normalize([-ax, -ay, -az]); }
+export function cameraHeading(alphaDeg, betaDeg, gammaDeg) {
+  const a = alphaDeg / DEG, b = betaDeg / DEG, g = gammaDeg / DEG;
+  const dx = -Math.cos(a) * Math.sin(g) - Math.sin(a) * Math.sin(b) * Math.cos(g);
+  const dy = -Math.sin(a) * Math.sin(g) + Math.cos(a) * Math.sin(b) * Math.cos(g);
+  if (!(Math.hypot(dx, dy) >= Math.sin(20 / DEG))) return null;
+  return Math.atan2(dx, dy) * DEG;
+}
+export function currentHeading() {   // the latest reading, if fresh (0.5 s)
+  const h = state.sensors.heading;
+  return h && performance.now() - h.t < 500 ? h.deg : null;
+}
 export function deviceToCamera(g, thetaDeg) {
   const t = thetaDeg / DEG;
   const r = [Math.cos(t), -Math.sin(t)], d = [-Math.sin(t), -Math.cos(t)];
@@ -164,6 +186,9 @@ export async function startSensors(quiet = false) {
   state.sensors.on = true;
   window.addEventListener('deviceorientation', (e) => {
     if (e.beta !== null && e.gamma !== null) pushSample(deviceGravityFromOrientation(e.beta, e.gamma), 'orientation');
+    const h = e.alpha !== null && e.beta !== null && e.gamma !== null ? cameraHeading(e.alpha, e.beta, e.gamma) : null;
+    if (h !== null && Number.isFinite(h)) state.sensors.heading = {t: performance.now(), deg: h};
+    state.sensors.angles = [e.alpha, e.beta, e.gamma];   // as read (for tests and the curious)
   });
   window.addEventListener('devicemotion', (e) => {
     const a = e.accelerationIncludingGravity;

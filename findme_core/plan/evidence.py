@@ -123,10 +123,21 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
     ``feature_fade_px`` <= ``feature_px``, MSAC: 1 - (r / ``feature_px``)^2 within it. A
     pose within ``t_merge_m`` of the placed photo is at its place: there r is the match's
     angle from a pure turn (``planar.turn_residuals``; the epipolar plane of a nil baseline
-    holds every match of the right turn, and random ones by the thousand)."""
+    holds every match of the right turn, and random ones by the thousand).
+
+    Flat, not MSAC: a block's candidate poses are not refined (their directions are ~1 deg
+    off), and the matches' residuals within that say nothing about which candidate is right;
+    the layouts do (dev zr_r06: the poses put ~1.9x too far, along the line of three spots
+    where the matches cannot tell the distance, won over a candidate 0.05 m from the truth by
+    0.8 deg of direction, i.e. by 16 of ~830 MSAC points; flat within 8 px, 0 at 20-32 px: 10
+    of 14 right instead of 2, the other rooms unchanged; flat within 6 or 12 px, or 0 at 16
+    or 40 px: 2 of 14). MSAC serves ``find_spot``, which scores a found photo that nothing
+    refines after (a plan's poses are refined, ``adjust``). A match is independent evidence
+    (the wall's appearance) where neighbouring layout samples (6 px apart on one boundary
+    line) are not: one match weighs as 12 layout samples (3.0 / 0.25; chosen on dev among 1,
+    3: it turns zr_r10's flipped corridor spots right and changes no other room)."""
     total = np.zeros(len(cands))
     mem = set(int(m) for m in members)
-    pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
     for (i, j), (a, b) in matches.items():
         if (i in mem) == (j in mem):
             continue
@@ -135,19 +146,26 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
         if not np.isfinite(poses[i, 0]) or len(a) == 0:
             continue
         yaw, t2 = _in_frame(poses[i], _block_poses(cands, rel, j))
-        t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
-        r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
-        la, lb = planar.depths(yaw, t, a, b)
-        front = (la > 0) & (lb > 0)
-        turn = np.hypot(t2[:, 0], t2[:, 1]) < params.t_merge_m   # one place: a pure turn
-        if turn.any():
-            r[turn], front[turn] = planar.turn_residuals(yaw[turn], a, b), True
-        if fade > pix:
-            s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
-        else:          # MSAC
-            s = np.where(front & (r < pix), 1.0 - (r / pix) ** 2, 0.0)
-        total += params.feature_weight * np.sum(s, 1)
+        total += params.feature_weight * _pair_score(yaw, t2, a, b, params)
     return total
+
+
+def _pair_score(yaw, t2, a, b, params) -> np.ndarray:
+    """(C,) ``feature_score``'s sum over one pair's matches (bearings a, b (M, 3)) under C
+    motions (yaw (C,), t2 (C, 2) of the block photo in the placed photo's frame)."""
+    pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
+    t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
+    r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
+    la, lb = planar.depths(yaw, t, a, b)
+    front = (la > 0) & (lb > 0)
+    turn = np.hypot(t2[:, 0], t2[:, 1]) < params.t_merge_m   # one place: a pure turn
+    if turn.any():
+        r[turn], front[turn] = planar.turn_residuals(yaw[turn], a, b), True
+    if fade > pix:
+        s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
+    else:          # MSAC
+        s = np.where(front & (r < pix), 1.0 - (r / pix) ** 2, 0.0)
+    return np.sum(s, 1)
 
 
 def motion_score(motions, poses, rel, members, cands, params) -> np.ndarray:

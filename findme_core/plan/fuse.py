@@ -29,7 +29,7 @@ from findme_core.errors import GeometryError
 from findme_core.geometry import ties
 from findme_core.geometry.planar import wrap
 from findme_core.motion import register
-from findme_core.plan import evidence
+from findme_core.plan import evidence, heading
 
 
 @dataclass(frozen=True)
@@ -59,27 +59,14 @@ class FuseParams:
             scale along the baseline, which the epipolar score cannot see).
         beam: placements kept at each step of the search (and distinct poses tried per
             block): a block's best pose alone may be wrong where a later block tells.
-        feature_px, feature_fade_px, feature_weight: a feature match within
-            ``feature_px`` (at focal length 500 px) of its epipolar plane, in front of both
-            cameras, scores ``feature_weight``, falling linearly to 0 at
-            ``feature_fade_px``; the ``feature_top`` best candidates by layout are scored
-            so. Flat, not MSAC: a block's candidate poses are not refined (their
-            directions are ~1 deg off), and the matches' residuals within that say nothing
-            about which candidate is right; the layouts do (dev zr_r06: the poses put ~1.9x
-            too far, along the line of three spots where the matches cannot tell the
-            distance, won over a candidate 0.05 m from the truth by 0.8 deg of direction,
-            i.e. by 16 of ~830 MSAC points; flat within 8 px, 0 at 20-32 px: 10 of 14 right
-            instead of 2, the other rooms unchanged; flat within 6 or 12 px, or 0 at 16 or
-            40 px: 2 of 14). ``feature_fade_px`` <= ``feature_px``: MSAC within
-            ``feature_px``, as ``find_spot`` scores a found photo (nothing refines it after;
-            a plan's poses are refined, ``adjust``). A match is independent evidence (the
-            wall's appearance) where neighbouring layout samples (6 px apart on one boundary
-            line) are not: one match weighs as 12 layout samples (3.0 / 0.25; chosen on dev
-            among 1, 3: it turns zr_r10's flipped corridor spots right and changes no other
-            room).
+        feature_px, feature_fade_px, feature_weight, feature_top: a feature match near its
+            epipolar plane scores up to ``feature_weight``, for the ``feature_top`` best
+            candidates by layout (``evidence.feature_score``: the rule and why).
         turn_alike: a final state of the search that turns a block > 10 deg and scores
             this share of the block's score (``evidence.alike``) widens its 1-sigma to cover
             it (``pose.spread``).
+        heading_gate: a candidate turning a block more than this many sigmas from the
+            phone's headings is not tried (``heading.fits``; a Gaussian's 3, not fitted).
         register: the layout terms (``register.scores``). Samples count in full up to a
             1-sigma of 1 m (``sigma_ref``): the gate already scales with the sigma, and in a
             session every photo's far walls are the other photos' near ones (down-weighting
@@ -100,6 +87,7 @@ class FuseParams:
     motion_yaw_deg: float = 3.0
     feature_weight: float = 3.0
     turn_alike: float = 0.8
+    heading_gate: float = 3.0
     register: register.RegisterParams = field(
         default_factory=lambda: register.RegisterParams(sigma_ref=1.0))
 
@@ -168,7 +156,7 @@ def blocks(n: int, links) -> tuple[np.ndarray, np.ndarray]:
 
 
 def place(layouts, links=(), spots=None, matches=None, motions=(),
-          params: FuseParams = FuseParams()) -> Placement:
+          params: FuseParams = FuseParams(), headings=None) -> Placement:
     """Poses of N photos from their layouts, rotation links and (optional) spot labels.
 
     Args:
@@ -180,6 +168,8 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
             matches between photos i and j (i < j), or None.
         motions: ``Link`` s with a translation ``t`` (photo j's pose in photo i's level
             frame, e.g. two-photo motion from features): extra candidate poses.
+        headings: (N, 2) the phone's heading and its 1-sigma per photo, radians, NaN rows
+            where unknown (``heading.table``), or None.
 
     Raises:
         GeometryError: photo 0 has no layout and no link (nothing to anchor the room frame).
@@ -209,7 +199,8 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
         members = np.flatnonzero(block == b)
         nxt = []
         for total, ps, sp, info in beam:
-            r = place_block(layouts, ps, rel, block, spot, sp, matches, motions, b, params)
+            r = place_block(layouts, ps, rel, block, spot, sp, matches, motions, b, params,
+                            headings)
             if isinstance(r, str):
                 nxt.append((total, ps, sp, {**info, b: (0.0, float("nan"), r)}))
                 continue
@@ -236,7 +227,7 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
 
 
 def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions, b,
-                params: FuseParams):
+                params: FuseParams, headings=None):
     """Poses of block b against the photos placed so far: (poses (K, 3), scores (K,)), the
     best first and then the best of each clearly different pose (10 deg or 0.3 m apart), or
     the reason it cannot be placed (str).
@@ -246,7 +237,7 @@ def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions,
             photos not placed yet; rel: (N,) yaw of each photo in its block, radians;
             block, spot: (N,) block and spot index of each photo; placed_spot: {spot:
             (2,) position} of the spots placed so far (a block of one of them turns in
-            place); matches, motions: as ``place``.
+            place); matches, motions, headings: as ``place``.
     """
     members = np.flatnonzero(block == b)
     placed = np.flatnonzero(np.isfinite(poses[:, 0]) & np.array([L is not None for L in layouts]))
@@ -263,6 +254,10 @@ def place_block(layouts, poses, rel, block, spot, placed_spot, matches, motions,
     cands = np.vstack([_from_motions(motions, poses, rel, members, fixed), cands])
     if not len(cands):
         return "no wall of its photos matches a wall of the placed photos"
+    cands = cands[heading.fits(headings, poses, rel, np.flatnonzero(np.isfinite(poses[:, 0])),
+                               members, cands, params.heading_gate)]
+    if not len(cands):
+        return "none of the poses its walls allow turns it as the phone's heading says"
     sc = evidence.layout_score(layouts, poses, rel, placed, mine, cands, params)
     top = ties.order(sc)[: params.feature_top]   # ties (a symmetric room): candidate order
     cands, sc = cands[top], sc[top] + evidence.feature_score(matches or {}, poses, rel,

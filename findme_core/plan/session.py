@@ -28,8 +28,9 @@ from findme_core.geometry import planar
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import GRAVITY_KINDS
 from findme_core.motion import features, lifting, methods as motion
-from findme_core.plan import consistency, find_spot, floorplan, fuse, spot, walls
+from findme_core.plan import consistency, find_spot, floorplan, fuse, heading, spot, walls
 from findme_core.plan.pose import spread
+from findme_core.plan.spot import auto_spots  # noqa: F401  (it began here)
 from findme_core.single import layout
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
@@ -59,7 +60,8 @@ class Photo:
     """One photo's per-photo results: its layout (None without a usable hypothesis, with
     the reason), scene and features; what its gravity's error is like
     (``Provenance.gravity_kind``: "exact", "sensor" or "image"), which the plan's sigmas
-    must show (``PlanParams.image_gravity_models``)."""
+    must show (``PlanParams.image_gravity_models``); the phone's heading when it was taken
+    ((radians, 1-sigma), ``heading``; None: unknown)."""
 
     camera: Camera
     height: float
@@ -68,11 +70,13 @@ class Photo:
     features: features.Features
     reason: str | None = None
     gravity: str = "exact"
+    heading: tuple | None = None
 
     def __post_init__(self):
         if self.gravity not in GRAVITY_KINDS:
             raise CameraError(f"a photo's gravity kind must be one of {GRAVITY_KINDS}, got "
                               f"{self.gravity!r}")
+        self.heading = heading.check(self.heading)
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
@@ -173,49 +177,6 @@ def _across(i, j, pa: Photo, pb: Photo, m, params: SessionParams, motion_of):
     return bear, None if mo is None else fuse.Link(i, j, mo.yaw, mo.sigma_yaw, (mo.x, mo.z))
 
 
-def auto_spots(photos, match, turn=None) -> tuple[list[int], list]:
-    """(spot label per photo (N,), the rotation ``fuse.Link`` s that joined them), capture
-    order. Photo j joins the current spot when it
-    shares a rotation-only yaw (``spot.rotation_yaw``) with one of the spot's photos (the
-    latest first); else, when it shares one with a photo of the spot before, the current
-    spot was part of that one's turn (a gap of left-out views: no overlap across it) and
-    both are one spot again; else it starts a new spot. ``match(i, j)`` gives the
-    matches of photos i < j; ``turn(i, j)``, if given, their ``spot.rotation_yaw`` (a cached
-    one), else it is computed from the matches.
-
-    Every photo of the spot counts, not only the one before: a turn that skips views (too
-    little floor, a blurred photo) or comes round to its first photo still overlaps some
-    photo of it; rotation-only consensus refuses photos taken at another spot (parallax).
-    """
-    if turn is None:
-        def turn(i, j):
-            return spot.rotation_yaw(match(i, j), photos[i].camera, photos[j].camera)
-
-    def turned(members, j):   # the link to the latest photo of ``members`` j turned from
-        for i in reversed(members):
-            r = turn(i, j)
-            if r is not None:
-                return fuse.Link(i, j, r.yaw, r.sigma)
-        return None
-
-    lab, links, cur, prev = [], [], [], []
-    for j in range(len(photos)):
-        k = turned(cur, j) if cur else None
-        if k is None and prev:
-            k = turned(prev, j)
-            if k is not None:
-                for i in cur:
-                    lab[i] = lab[prev[0]]
-                cur, prev = prev + cur, []
-        if k is None:
-            prev, cur = cur, []
-        else:
-            links.append(k)
-        cur.append(j)
-        lab.append(lab[cur[0]] if len(cur) > 1 else (max(lab) + 1 if lab else 0))
-    return lab, links
-
-
 def _motion(pa: Photo, pb: Photo, m):
     def lifter(p, px):
         return None if p.scene is None else (lambda idx: lifting.lift(p.scene, px, idx))
@@ -303,7 +264,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
                                       else relations)
     t1 = clock()
     layouts = [p.layout for p in photos]
-    pl = fuse.place(layouts, links, spots, matches, motions, params.fuse)
+    pl = fuse.place(layouts, links, spots, matches, motions, params.fuse,
+                    heading.table([p.heading for p in photos]))
     t2 = clock()
     notes = [(pl.reasons[b] if not np.isfinite(q[0]) else None) or (
         f"no layout: {p.reason}" if p.layout is None else None)

@@ -1,5 +1,5 @@
 """Photos taken turning at one spot: the yaw between two of them from their feature matches,
-and whether they share a position at all.
+whether they share a position at all, and a session's spots found so (``auto_spots``).
 
 A user maps a room by standing at a few spots and turning round at each. Two photos of one
 spot differ by a pure rotation about gravity, so with gravity known (each photo's level
@@ -30,6 +30,7 @@ import numpy as np
 from findme_core.geometry.camera import Camera
 from findme_core.motion import rotation
 from findme_core.motion.features import Matches
+from findme_core.plan.fuse import Link
 
 
 @dataclass(frozen=True)
@@ -178,3 +179,46 @@ def _yaw_only(ba, bb, yaws, thr, params: SpotParams) -> SpotYaw | None:
     sigma = max(float(np.std(spread)) / np.sqrt(k), np.radians(params.sigma_floor_deg))
     return SpotYaw(float(np.angle(np.exp(1j * best))), sigma, k, n,
                    float(np.sqrt(np.mean(res[best_in] ** 2))) * params.residual_px / thr)
+
+
+def auto_spots(photos, match, turn=None) -> tuple[list[int], list]:
+    """(spot label per photo (N,), the rotation ``fuse.Link`` s that joined them), capture
+    order. Photo j joins the current spot when it
+    shares a rotation-only yaw (``rotation_yaw``) with one of the spot's photos (the
+    latest first); else, when it shares one with a photo of the spot before, the current
+    spot was part of that one's turn (a gap of left-out views: no overlap across it) and
+    both are one spot again; else it starts a new spot. ``match(i, j)`` gives the
+    matches of photos i < j; ``turn(i, j)``, if given, their ``rotation_yaw`` (a cached
+    one), else it is computed from the matches.
+
+    Every photo of the spot counts, not only the one before: a turn that skips views (too
+    little floor, a blurred photo) or comes round to its first photo still overlaps some
+    photo of it; rotation-only consensus refuses photos taken at another spot (parallax).
+    """
+    if turn is None:
+        def turn(i, j):
+            return rotation_yaw(match(i, j), photos[i].camera, photos[j].camera)
+
+    def turned(members, j):   # the link to the latest photo of ``members`` j turned from
+        for i in reversed(members):
+            r = turn(i, j)
+            if r is not None:
+                return Link(i, j, r.yaw, r.sigma)
+        return None
+
+    lab, links, cur, prev = [], [], [], []
+    for j in range(len(photos)):
+        k = turned(cur, j) if cur else None
+        if k is None and prev:
+            k = turned(prev, j)
+            if k is not None:
+                for i in cur:
+                    lab[i] = lab[prev[0]]
+                cur, prev = prev + cur, []
+        if k is None:
+            prev, cur = cur, []
+        else:
+            links.append(k)
+        cur.append(j)
+        lab.append(lab[cur[0]] if len(cur) > 1 else (max(lab) + 1 if lab else 0))
+    return lab, links

@@ -26,7 +26,7 @@ from foxglove_schemas_protobuf import CompressedImage_pb2 as foxglove_dot_Compre
 from schemas.v1 import common_pb2 as schemas_dot_v1_dot_common__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16schemas/v1/frame.proto\x12\tfindme.v1\x1a\x1e\x66oxglove/CompressedImage.proto\x1a\x17schemas/v1/common.proto\"\x9b\x03\n\x05\x46rame\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12\x17\n\x0f\x63\x61pture_time_ns\x18\x04 \x01(\x04\x12(\n\x05image\x18\x05 \x01(\x0b\x32\x19.foxglove.CompressedImage\x12+\n\nintrinsics\x18\x06 \x01(\x0b\x32\x15.findme.v1.IntrinsicsH\x00\x12\x12\n\x08hfov_deg\x18\x07 \x01(\x01H\x00\x12 \n\x07gravity\x18\x08 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\x1c\n\x0f\x63\x61mera_height_m\x18\t \x01(\x01H\x01\x88\x01\x01\x12\"\n\x15\x63\x61mera_height_sigma_m\x18\n \x01(\x01H\x02\x88\x01\x01\x12\x0e\n\x06\x64\x65vice\x18\x0b \x01(\t\x12\x1e\n\x11gravity_sigma_rad\x18\x0c \x01(\x01H\x03\x88\x01\x01\x42\x06\n\x04lensB\x12\n\x10_camera_height_mB\x18\n\x16_camera_height_sigma_mB\x14\n\x12_gravity_sigma_radb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16schemas/v1/frame.proto\x12\tfindme.v1\x1a\x1e\x66oxglove/CompressedImage.proto\x1a\x17schemas/v1/common.proto\"\xfb\x03\n\x05\x46rame\x12\x0e\n\x06schema\x18\x01 \x01(\t\x12\x0f\n\x07session\x18\x02 \x01(\t\x12\r\n\x05index\x18\x03 \x01(\r\x12\x17\n\x0f\x63\x61pture_time_ns\x18\x04 \x01(\x04\x12(\n\x05image\x18\x05 \x01(\x0b\x32\x19.foxglove.CompressedImage\x12+\n\nintrinsics\x18\x06 \x01(\x0b\x32\x15.findme.v1.IntrinsicsH\x00\x12\x12\n\x08hfov_deg\x18\x07 \x01(\x01H\x00\x12 \n\x07gravity\x18\x08 \x01(\x0b\x32\x0f.findme.v1.Vec3\x12\x1c\n\x0f\x63\x61mera_height_m\x18\t \x01(\x01H\x01\x88\x01\x01\x12\"\n\x15\x63\x61mera_height_sigma_m\x18\n \x01(\x01H\x02\x88\x01\x01\x12\x0e\n\x06\x64\x65vice\x18\x0b \x01(\t\x12\x1e\n\x11gravity_sigma_rad\x18\x0c \x01(\x01H\x03\x88\x01\x01\x12\x18\n\x0bheading_rad\x18\r \x01(\x01H\x04\x88\x01\x01\x12\x1e\n\x11heading_sigma_rad\x18\x0e \x01(\x01H\x05\x88\x01\x01\x42\x06\n\x04lensB\x12\n\x10_camera_height_mB\x18\n\x16_camera_height_sigma_mB\x14\n\x12_gravity_sigma_radB\x0e\n\x0c_heading_radB\x14\n\x12_heading_sigma_radb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -34,5 +34,5 @@ _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'schemas.v1.frame_pb2', _glo
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_FRAME']._serialized_start=95
-  _globals['_FRAME']._serialized_end=506
+  _globals['_FRAME']._serialized_end=602
 # @@protoc_insertion_point(module_scope)

@@ -38,25 +38,21 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field, replace
 
-import numpy as np
-
 import schemas
 from findme_core.errors import FindmeError, HypothesisError, InputError
 from findme_core.motion import features
-from findme_core.plan import fuse, pose as plan_pose, session as plan_session
+from findme_core.plan import heading, session as plan_session
 from findme_core.single import layout
 from findme_core.single.scene import Scene
 from findme_io.convert import msg_camera, msg_hypotheses
-from findme_io.frame_photo import frame_camera
+from findme_io.frame_photo import frame_camera, frame_heading
 from findme_core.single.segments import WORK_SIZE
 from findme_io.imageio import decode_photo, encode_jpeg
 
 from ..runtime import bus
 from . import mapper_gravity
+from .mapper_message import fill
 from ..runtime.handler import Handler, Input, Output
-
-#: A seen edge with floor seen beyond at least this share of it is an opening, not a wall.
-OPENING_SHARE = 0.9
 
 
 @dataclass
@@ -73,6 +69,7 @@ class _Photo:
     photo: plan_session.Photo | None = None
     key: tuple = ()                   # (rank, height) the photo was analysed with
     plain: object = None              # a frame without gravity: ``mapper_gravity.Plain``
+    heading: tuple | None = None      # the phone's (heading, 1-sigma), radians
 
 
 @dataclass
@@ -171,6 +168,7 @@ class MapperHandler(Handler):
                                     photo.scale, photo.width, photo.height)
             if not f.HasField("gravity"):   # its spot may correct its gravity
                 ph.plain = mapper_gravity.Plain(encode_jpeg(photo.image, 95), photo.scale)
+            ph.heading = heading.check(frame_heading(f))
         except FindmeError as e:
             ph.bad = f"its photo cannot be used: {str(e).splitlines()[0][:200]}"
             ph.camera = None
@@ -207,7 +205,7 @@ class MapperHandler(Handler):
                 why = None
             except FindmeError as e:
                 why = str(e).splitlines()[0][:200]
-        ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why,
+        ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why, heading=ph.heading,
                                       gravity=mapper_gravity.gravity_kind(ph.hset))
         ph.key = (rank, height)
         for pk in [pk for pk in st.pairs if pk[0] == "motion" and n in pk[1:]]:
@@ -257,7 +255,7 @@ class MapperHandler(Handler):
                     status[n] = schemas.PlanPhoto(index=n, reason=msg.reason,
                                                   status=schemas.PLAN_PHOTO_STATUS_NOT_PLACED)
             else:
-                _fill(msg, plan, pl, timing, photos, order, status)
+                fill(msg, plan, pl, timing, photos, order, status)
         else:
             msg.reason = ("no photo with a floor boundary yet" if status else "no photo yet")
         msg.poses.extend(status[n] for n in sorted(status))
@@ -276,44 +274,6 @@ def _left_out(ph: _Photo, first: int | None) -> str:
     if ph.camera is None:
         return "waiting for its frame"
     return "waiting for its hypotheses" if ph.hset is None else "waiting for its selection"
-
-
-def _fill(msg, plan, pl, timing, photos, order, status) -> None:
-    """The core plan into the message; each photo's status into ``status`` (n -> PlanPhoto)."""
-    for v in plan.polygon:
-        msg.polygon.add(x_m=float(v[0]), z_m=float(v[1]))
-    for w in plan.walls:
-        gaps = sum(b - a for a, b in w.apertures)
-        kind = (schemas.WALL_KIND_MISSING if not w.seen else schemas.WALL_KIND_OPENING
-                if gaps >= OPENING_SHARE * w.length_m else schemas.WALL_KIND_WALL)
-        # a wall nobody saw is inferred, not measured: no 1-sigma (0, unset; kind MISSING)
-        sigma = float(w.sigma_m) if np.isfinite(w.sigma_m) else 0.0
-        pw = msg.walls.add(length_m=float(w.length_m), sigma_m=sigma, kind=kind)
-        pw.a.x_m, pw.a.z_m, pw.b.x_m, pw.b.z_m = map(float, (*w.a, *w.b))
-        for a, b in w.apertures:
-            pw.openings.add(from_m=float(a), to_m=float(min(b, w.length_m)))
-    msg.area_m2, msg.closed, msg.manhattan = float(plan.area_m2), plan.closed, plan.manhattan
-    for stage, ms in timing.items():
-        msg.timing_ms[stage] = max(float(ms), 0.0)
-    for a, n in enumerate(order):
-        p = plan.poses[a]
-        q = schemas.PlanPhoto(index=n, spot=int(pl.spot[a]))
-        if np.all(np.isfinite(p)):
-            q.status = schemas.PLAN_PHOTO_STATUS_PLACED
-            q.x_m, q.z_m, q.yaw_rad = float(p[0]), float(p[1]), float(fuse.wrap(p[2]))
-            sig = plan.pose_sigma[a] if plan.pose_sigma is not None else np.full(3, np.nan)
-            if not np.all(np.isfinite(sig)):   # not refined jointly: from its wall samples
-                C = plan_pose.covariance(plan, photos[a].layout, p)
-                sig = np.sqrt(np.maximum(np.diag(C), 0.0)) if C is not None else sig
-            if np.all(np.isfinite(sig)):
-                q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad = map(float, sig)
-            if a < len(plan.ambiguity) and np.isfinite(plan.ambiguity[a]):
-                q.ambiguity = max(float(plan.ambiguity[a]), 0.0)
-        else:
-            q.status = schemas.PLAN_PHOTO_STATUS_NOT_PLACED
-            q.reason = (plan.notes[a] if a < len(plan.notes) and plan.notes[a]
-                        else "not placed")
-        status[n] = q
 
 
 def make_mapper(args) -> MapperHandler:

@@ -108,7 +108,7 @@ def agreed(st, order: list, params: plan_session.SessionParams,
             out.append(p if e is None else replace(p, gravity="image"))
         elif isinstance(v, str):
             out.append(plan_session.Photo(p.camera, p.height, None, None, p.features, v,
-                                          gravity="image"))
+                                          gravity="image", heading=p.heading))
         else:
             out.append(_relifted(ph, p, v, params))
     return out
@@ -131,7 +131,8 @@ def _relifted(ph, p: plan_session.Photo, g, params: plan_session.SessionParams
             hyp, why = _best_again(ph, cam, p.height, params)
     else:
         hyp, why = None, p.reason
-    out = plan_session.Photo(cam, p.height, None, None, p.features, why, gravity="image")
+    out = plan_session.Photo(cam, p.height, None, None, p.features, why, gravity="image",
+                             heading=p.heading)
     if hyp is not None:
         try:
             out = replace(out, layout=layout.from_hypothesis(cam, p.height, hyp.polyline,

@@ -21,8 +21,11 @@ reading into camera axes (findme/web/settings.js) and nothing here rotates it.
 ``gravity_sigma_deg`` (optional, (0, 20]) is its 1-sigma per axis: the page sends 1.5 for a
 reading of the phone's motion sensors in the hand (the hypotheses service refines it by the
 photo's lines, weighing it so), nothing for a typed one (the frame's default, 0.5).
-``camera_height_m`` is metres above the floor; ``capture_time_ms`` is Unix milliseconds (the
-server's clock is used instead when it is more than a day off).
+``heading_deg`` (optional, finite; with ``heading_sigma_deg`` in (0, 90], default 10) is which
+way the camera looked, turned about gravity, growing to the right: the page sends its motion
+sensors' reading with a live capture (settings.js), for the plan. ``camera_height_m`` is
+metres above the floor; ``capture_time_ms`` is Unix milliseconds (the server's clock is used
+instead when it is more than a day off).
 
 A JPEG with an EXIF rotation is decoded upright and re-encoded (quality 95) so that the
 frame's pixels are the ones the browser shows and taps refer to. Pixels follow the bus
@@ -34,8 +37,7 @@ horizon), "wall" (no point where the boundary puts the floor, saying what to do)
 the top of what stands on the floor line below it, or no point with the reason); the session
 passes them on as the MeasureRequest's ``said``.
 
-Pure functions: no bus, no server; ``parse_command`` returns a new dict built from its own
-parse of the text.
+Pure functions: no bus, no server. The text commands' parse is ``page_command``'s.
 """
 
 from __future__ import annotations
@@ -256,6 +258,8 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
         if math.hypot(*gravity) < 1e-3:
             raise _bad("gravity must not be the zero vector", CODE.ERROR_CODE_BAD_CAMERA)
     sigma = _number(header, "gravity_sigma_deg", 0, 20, "gravity's 1-sigma (degrees)")
+    heading = _number(header, "heading_deg", -1e6, 1e6, "heading (degrees)")
+    h_sigma = _number(header, "heading_sigma_deg", 0, 90, "heading's 1-sigma (degrees)")
     height = _number(header, "camera_height_m", 0, 100, "camera height (m)")
     device = header.get("device") or ""
     device = "web" + (": " + "".join(c for c in str(device) if c.isprintable())[:80]
@@ -267,7 +271,9 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
     frame = make_frame(session, index, data, intrinsics=intrinsics, hfov_deg=hfov,
                        gravity=gravity, camera_height_m=height, device=device, time_ns=t_ns,
                        gravity_sigma_rad=None if sigma is None or gravity is None
-                       else math.radians(sigma))
+                       else math.radians(sigma),
+                       heading_rad=None if heading is None else math.radians(heading % 360.0),
+                       heading_sigma_rad=None if h_sigma is None else math.radians(h_sigma))
     try:
         cam = frame_camera(frame, W, H)
     except (CameraError, InputError) as e:
@@ -276,54 +282,3 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
             "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
             "gravity": [float(x) for x in cam.gravity], "camera_height_m": height}
     return frame, info
-
-
-def parse_command(text: str) -> dict:
-    """A page's text message as a checked dict (``select``, ``measure`` or ``ping``)."""
-    if len(text) > MAX_TEXT_BYTES:
-        raise _bad(f"message of {len(text)} characters is over the {MAX_TEXT_BYTES} limit",
-                   CODE.ERROR_CODE_TOO_LARGE)
-    cmd = loads_bounded(text)
-    if not isinstance(cmd, dict) or cmd.get("type") not in ("select", "measure", "ping"):
-        raise _bad("message must be a JSON object with type select, measure or ping")
-    if cmd["type"] == "ping":
-        return cmd
-    idx = cmd.get("index")
-    if not isinstance(idx, int) or isinstance(idx, bool) or idx < 0:
-        raise _bad(f"index must be a photo number (0, 1, ...), got {idx!r}",
-                   CODE.ERROR_CODE_NO_SUCH_FRAME)
-    if cmd["type"] == "select":
-        r = cmd.get("rank")
-        if not isinstance(r, int) or isinstance(r, bool) or r < 1:
-            raise _bad(f"rank must be 1, 2, ..., got {r!r}", CODE.ERROR_CODE_NO_SUCH_HYPOTHESIS)
-        cmd["camera_height_m"] = _number(cmd, "camera_height_m", 0, 100, "camera height (m)")
-        return cmd
-    px = cmd.get("pixels")
-    if not isinstance(px, list) or not px:
-        raise _bad("measure needs pixels: [[u, v], ...]")
-    if len(px) > MAX_MEASURE_PIXELS:
-        raise _bad(f"{len(px)} points in one request, over the limit of {MAX_MEASURE_PIXELS}",
-                   CODE.ERROR_CODE_TOO_LARGE)
-    cmd["pixels"] = [_vector(p, 2, "a pixel") for p in px]
-    cmd["surfaces"] = _surfaces(cmd["surfaces"], len(px)) if "surfaces" in cmd else None
-    return cmd
-
-
-def _shown(v) -> str:
-    """A page's value as the JSON it sent (shortened)."""
-    text = json.dumps(v)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
-def _surfaces(sf, n: int) -> list:
-    """A measure's ``surfaces``: a list of n entries, each None, "floor", "wall" or "top"."""
-    if not isinstance(sf, list):
-        raise _bad(f'surfaces must be a list of null, "floor", "wall" or "top", one per pixel; '
-                   f"got {_shown(sf)}")
-    if len(sf) != n:
-        raise _bad(f"surfaces gives {len(sf)} for {n} pixels: give one per pixel "
-                   "(null: as the boundary says)")
-    for i, s in enumerate(sf):
-        if not (s is None or isinstance(s, str) and s in SURFACES):
-            raise _bad(f'surfaces[{i}] must be null, "floor", "wall" or "top", got {_shown(s)}')
-    return list(sf)

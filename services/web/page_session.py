@@ -46,7 +46,8 @@ import schemas
 from findme_core.errors import FindmeError
 
 from ..runtime import authority, bus
-from .page_input import CODE, GatewayError, _bad, build_frame, parse_command, parse_upload
+from .page_command import parse_command
+from .page_input import CODE, GatewayError, _bad, build_frame, parse_upload
 from .page_output import to_page
 from ..runtime.handler import Output
 from ..runtime.service import Service

@@ -16,7 +16,8 @@ import pytest
 import schemas
 from services.runtime import bus
 from services.web.gateway import Gateway, parse_http
-from services.web.page_input import GatewayError, build_frame, parse_command, parse_upload
+from services.web.page_command import parse_command
+from services.web.page_input import GatewayError, build_frame, parse_upload
 from services.web.page_output import to_page
 
 CODE = schemas.ErrorCode
@@ -55,6 +56,20 @@ def test_build_frame_takes_the_sensors_gravity_sigma():
     assert not f.HasField("gravity") and not f.HasField("gravity_sigma_rad")
 
 
+def test_build_frame_takes_the_sensors_heading():
+    """A live capture's heading (degrees, wrapped) reaches the Frame in radians, with the
+    1-sigma the page declared (the mapper's default when it declares none)."""
+    f, _ = build_frame("s1", 0, {"heading_deg": 370.0, "heading_sigma_deg": 5}, ROOM_A)
+    assert f.heading_rad == pytest.approx(math.radians(10.0))
+    assert f.heading_sigma_rad == pytest.approx(math.radians(5.0))
+    f, _ = build_frame("s1", 1, {"heading_deg": -90}, ROOM_A)
+    assert f.heading_rad == pytest.approx(math.radians(270.0))
+    assert not f.HasField("heading_sigma_rad")
+    f, _ = build_frame("s1", 2, {"heading_sigma_deg": 5}, ROOM_A)
+    assert not f.HasField("heading_rad") and not f.HasField("heading_sigma_rad")
+    schemas.decode(schemas.Frame, schemas.encode(f))   # valid on the bus (both check it)
+
+
 def test_build_frame_lenses_gravity_height():
     f, info = build_frame("s1", 0, {"lens": {"kind": "intrinsics", "fx": 500, "fy": 501, "cx": 320,
                                              "cy": 240, "width": 640, "height": 480},
@@ -84,6 +99,10 @@ def test_build_frame_lenses_gravity_height():
     ({"gravity": [0, 1, 0], "gravity_sigma_deg": 45}, "BAD_CAMERA", "1-sigma"),
     ({"gravity": [0, 0, 1]}, "BAD_CAMERA", "straight down"),
     ({"gravity": [0, "1", 0]}, "BAD_CAMERA", "3 finite numbers"),
+    ({"heading_deg": "north"}, "BAD_CAMERA", "heading"),
+    ({"heading_deg": float("inf")}, "BAD_CAMERA", "heading"),
+    ({"heading_deg": 10, "heading_sigma_deg": 0}, "BAD_CAMERA", "heading's 1-sigma"),
+    ({"heading_deg": 10, "heading_sigma_deg": 120}, "BAD_CAMERA", "heading's 1-sigma"),
     ({"camera_height_m": -1}, "BAD_CAMERA", "camera height"),
     ({"camera_height_m": True}, "BAD_CAMERA", "camera height"),
 ])

@@ -192,3 +192,49 @@ def test_live_camera_in_landscape_uses_the_screen_angle(browser, app):
             assert not page.js_errors
         finally:
             b.close()
+
+
+def orientation_from_angles(alpha: float, beta: float, gamma: float) -> dict:
+    """The quaternion (device -> earth) of W3C DeviceOrientation angles, degrees:
+    R = Rz(alpha) Rx(beta) Ry(gamma)."""
+    a, b, g = (math.radians(x) / 2 for x in (alpha, beta, gamma))
+    qz = np.array([math.cos(a), 0, 0, math.sin(a)])      # (w, x, y, z)
+    qx = np.array([math.cos(b), math.sin(b), 0, 0])
+    qy = np.array([math.cos(g), 0, math.sin(g), 0])
+
+    def mul(p, q):
+        w1, x1, y1, z1 = p
+        w2, x2, y2, z2 = q
+        return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                         w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                         w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                         w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+    w, x, y, z = mul(mul(qz, qx), qy)
+    return {"x": float(x), "y": float(y), "z": float(z), "w": float(w)}
+
+
+def test_turning_right_grows_the_heading_the_page_reads(browser, app):
+    """The heading the page would send with a live capture (``currentHeading``, from the
+    orientation sensor's alpha, beta, gamma): a phone held upright, tilted down 25 deg, turned
+    right by 40 deg about gravity, reads 40 deg more (the plan's yaw convention, whatever
+    alpha's zero); looking straight down there is no heading to read."""
+    page, cdp = open_sensing_page(browser, app, device_gravity(camera_gravity(25.0, 0.0), 0),
+                                  True)
+
+    def read(alpha, beta, gamma):
+        cdp.send("Emulation.setSensorOverrideReadings", {
+            "type": "relative-orientation",
+            "reading": {"quaternion": orientation_from_angles(alpha, beta, gamma)}})
+        page.wait_for_function(   # the reading of these angles has arrived
+            "(w) => { const a = FindMe.state.sensors.angles; return a && a.every("
+            "(x, i) => Math.abs(((x - w[i]) % 360 + 540) % 360 - 180) < 0.5); }",
+            arg=[alpha % 360.0, beta, gamma])
+        return page.evaluate("FindMe.currentHeading()")
+
+    turn_on_sensors(page)
+    h1 = read(30.0, 65.0, 0.0)
+    h2 = read(30.0 - 40.0, 65.0, 0.0)      # alpha grows counter-clockwise seen from above
+    assert abs((h2 - h1 + 180) % 360 - 180 - 40.0) < 1.0, (h1, h2)
+    assert page.evaluate("FindMe.cameraHeading(30, 0.5, 0)") is None   # flat: looking down
+    assert not page.js_errors
+    close(page)
