@@ -67,8 +67,7 @@ const HANDLERS = {
                sceneRank: 0, metric: false, height_m: m.camera_height_m, points: [],
                surfaces: [], reply: null, measureId: 0, camera: null,
                sentGravity: pend ? pend.gravity : null,
-               gravitySent: pend ? pend.gravitySource : null, serverGravity: m.gravity,
-               headingSent: pend ? pend.heading : null};
+               gravitySent: pend ? pend.gravitySource : null, serverGravity: m.gravity};
     state.photos.push(p);
     setBusy('upload', 'Finding the floor boundary…');
     show(p.index);

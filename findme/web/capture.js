@@ -152,8 +152,7 @@ export async function upload(file, sensorGravity = null, sensorHeading = null) {
     buf.set(head, 4);
     buf.set(bytes, 4 + head.length);
     state.pending.set(id, {url, name: file.name, gravity,
-                           gravitySource: fromSensors ? 'sensors' : typed ? 'typed' : null,
-                           heading: header.heading_deg ?? null});
+                           gravitySource: fromSensors ? 'sensors' : typed ? 'typed' : null});
     if (!send(buf.buffer)) { state.pending.delete(id); clearBusy('upload'); }
   } catch (e) {
     clearBusy('upload');

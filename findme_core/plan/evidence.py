@@ -138,6 +138,7 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
     3: it turns zr_r10's flipped corridor spots right and changes no other room)."""
     total = np.zeros(len(cands))
     mem = set(int(m) for m in members)
+    pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
     for (i, j), (a, b) in matches.items():
         if (i in mem) == (j in mem):
             continue
@@ -146,26 +147,19 @@ def feature_score(matches, poses, rel, members, cands, params) -> np.ndarray:
         if not np.isfinite(poses[i, 0]) or len(a) == 0:
             continue
         yaw, t2 = _in_frame(poses[i], _block_poses(cands, rel, j))
-        total += params.feature_weight * _pair_score(yaw, t2, a, b, params)
+        t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
+        r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
+        la, lb = planar.depths(yaw, t, a, b)
+        front = (la > 0) & (lb > 0)
+        turn = np.hypot(t2[:, 0], t2[:, 1]) < params.t_merge_m   # one place: a pure turn
+        if turn.any():
+            r[turn], front[turn] = planar.turn_residuals(yaw[turn], a, b), True
+        if fade > pix:
+            s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
+        else:          # MSAC
+            s = np.where(front & (r < pix), 1.0 - (r / pix) ** 2, 0.0)
+        total += params.feature_weight * np.sum(s, 1)
     return total
-
-
-def _pair_score(yaw, t2, a, b, params) -> np.ndarray:
-    """(C,) ``feature_score``'s sum over one pair's matches (bearings a, b (M, 3)) under C
-    motions (yaw (C,), t2 (C, 2) of the block photo in the placed photo's frame)."""
-    pix, fade = params.feature_px / 500.0, params.feature_fade_px / 500.0
-    t = np.column_stack([t2[:, 0], np.zeros(len(t2)), t2[:, 1]])
-    r = np.abs(planar.epipolar_residuals(yaw, t, a, b))
-    la, lb = planar.depths(yaw, t, a, b)
-    front = (la > 0) & (lb > 0)
-    turn = np.hypot(t2[:, 0], t2[:, 1]) < params.t_merge_m   # one place: a pure turn
-    if turn.any():
-        r[turn], front[turn] = planar.turn_residuals(yaw[turn], a, b), True
-    if fade > pix:
-        s = np.where(front & (r < fade), np.clip((fade - r) / (fade - pix), 0.0, 1.0), 0.0)
-    else:          # MSAC
-        s = np.where(front & (r < pix), 1.0 - (r / pix) ** 2, 0.0)
-    return np.sum(s, 1)
 
 
 def motion_score(motions, poses, rel, members, cands, params) -> np.ndarray:

@@ -52,18 +52,13 @@ def _matches(n=60, seed=0):
     return {(0, 1): (a, b)}
 
 
-def _raw(matches, poses, cands, params):
-    """The feature term of one pair (placed photo 0, block photo 1)."""
-    return evidence.feature_score(matches, poses, np.zeros(2), [1], cands, params)
-
-
 @pytest.mark.parametrize("fade", [24.0, 0.0])
 def test_the_feature_term_is_flat_within_its_pixels_or_msac(fade):
     params = replace(fuse.FuseParams(), feature_fade_px=fade)
     poses = np.array([A, [np.nan] * 3])
     cands = np.array([B, B + (0.0, 0.0, np.radians(0.2)), B + (0.0, 0.0, np.radians(5.0)),
                       B + (0.0, 0.0, np.radians(20.0))])
-    s = _raw(_matches(), poses, cands, params)
+    s = evidence.feature_score(_matches(), poses, np.zeros(2), [1], cands, params)
     assert s[0] == pytest.approx(60 * params.feature_weight)     # every match, in full
     if fade > params.feature_px:   # 0.2 deg (~2 px) is inside the flat part; 5 deg fades
         assert s[1] == pytest.approx(s[0]) and 0 < s[2] < s[0]
@@ -91,7 +86,7 @@ def test_at_the_placed_photos_place_the_feature_term_is_a_turn():
     a, b = _turn_matches(0.7)
     here = np.array([[A[0], A[1], A[2] + 0.7], [A[0] + 1e-13, A[1], A[2] + 0.7],
                      [A[0], A[1], A[2] + 1.7], [A[0], A[1] + 1e-13, A[2] - 2.4]])
-    s = _raw({(0, 1): (a, b)}, poses, here, params)
+    s = evidence.feature_score({(0, 1): (a, b)}, poses, np.zeros(2), [1], here, params)
     assert s[0] == pytest.approx(200 * params.feature_weight)   # the right turn: all of them
     assert s[1] == pytest.approx(s[0])                           # a last bit of baseline: alike
     assert s[2] == 0.0 and s[3] == 0.0                           # turned 1 rad, 3.1 rad: none
@@ -100,7 +95,7 @@ def test_at_the_placed_photos_place_the_feature_term_is_a_turn():
     rb = rng.normal(size=(3000, 3)) * (0.5, 0.3, 0.0) + (0.0, 0.0, 1.0)
     ra /= np.linalg.norm(ra, axis=1, keepdims=True)
     rb /= np.linalg.norm(rb, axis=1, keepdims=True)
-    s = _raw({(0, 1): (ra, rb)}, poses, here, params)
+    s = evidence.feature_score({(0, 1): (ra, rb)}, poses, np.zeros(2), [1], here, params)
     assert np.all(s < 0.01 * 3000 * params.feature_weight)     # chance matches: < 1 % count
     # away from the place (0.1 m and more) the epipolar term is used as before
     moved = np.array([[A[0] + 0.1, A[1], A[2] + 0.7]])
