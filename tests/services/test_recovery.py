@@ -143,20 +143,23 @@ def test_odometry_chains_past_a_photo_never_selected_and_one_that_failed(views):
 
 def test_a_selection_after_the_store_forgot_the_frames_still_gets_its_motion(views):
     """A sender without a cache (plain puts) and a user who chooses late: odometry asked for
-    each frame when its hypotheses came, so selections made after the store's window (1 s
+    each frame when its hypotheses came, so selections made after the store's window (2 s
     here) has dropped the frames still get their motion, without asking again."""
     from services.pipeline.hypotheses import HypothesesHandler
     from services.runtime.bus import get_all
     pb, s = ProcBus(), "late"
     try:
-        pb.serve("store", "stl", "--window", "1")
+        pb.serve("store", "stl", "--window", "2")
         pb.serve("odometry", "odl")
         res = Results(pb.client, s)
         hyp = HypothesesHandler()
-        for n in (0, 1):
-            f = frame_of(views[n], s, n)
-            bus.put(pb.client, bus.key(s, "frame", n), schemas.encode(f))
-            (out,) = hyp.on_message(bus.key(s, "frame", n), f)
+        frames = [frame_of(views[n], s, n) for n in (0, 1)]
+        # the hypotheses are computed first: sent right after its frame, each finds the
+        # frame still in the store (computed in between, on a loaded machine, they took
+        # longer than the store's window, and odometry found the frame gone)
+        hsets = [hyp.on_message(bus.key(s, "frame", f.index), f)[0] for f in frames]
+        for f, out in zip(frames, hsets):
+            bus.put(pb.client, bus.key(s, "frame", f.index), schemas.encode(f))
             bus.put(pb.client, out.key, schemas.encode(out.msg))
         pb.wait_status("odometry", "odl", lambda st: st.counters["handled"] >= 2)
         # the store's window passes: asked (paced) until it no longer holds the frames
