@@ -34,9 +34,10 @@ def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
                hfov_deg: float | None = None, gravity=None, camera_height_m=None,
                camera_height_sigma_m=None, device: str = "", time_ns: int | None = None,
                gravity_sigma_rad: float | None = None, heading_rad: float | None = None,
-               heading_sigma_rad: float | None = None):
+               heading_sigma_rad: float | None = None, heading_ref: str = ""):
     """A Frame message; ``intrinsics`` is (fx, fy, cx, cy, width, height) or None;
-    ``heading_rad`` / ``heading_sigma_rad``: the phone's heading and its 1-sigma (radians)."""
+    ``heading_rad`` / ``heading_sigma_rad`` / ``heading_ref``: the phone's heading, its
+    1-sigma (radians) and what it is measured from (``Frame.heading_ref``)."""
     t = time.time_ns() if time_ns is None else int(time_ns)
     f = schemas.Frame(session=session, index=int(index), capture_time_ns=t, device=device)
     f.image.data = image_bytes
@@ -61,6 +62,7 @@ def make_frame(session: str, index: int, image_bytes: bytes, *, intrinsics=None,
         f.heading_rad = float(heading_rad)
         if heading_sigma_rad is not None:
             f.heading_sigma_rad = float(heading_sigma_rad)
+        f.heading_ref = heading_ref
     return f
 
 

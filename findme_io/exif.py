@@ -1,4 +1,4 @@
-"""What a photo's EXIF block says about its camera: orientation and focal length.
+"""What a photo's EXIF block says about its camera: orientation, focal length and heading.
 
 Parsing is Pillow's (``Image.getexif``; pillow-heif fills it for HEIC), never by hand. A
 broken block (truncated, bad offsets, values of the wrong type or out of range) is ignored
@@ -14,6 +14,11 @@ Focal length in pixels of the UPRIGHT image (width x height after the orientatio
   43.27 mm, CIPA DC-008): f_px = f35 * diagonal_px / 43.27 (the diagonal does not depend on
   the orientation), fx = fy;
 * else nothing (a bare ``FocalLength`` without the sensor's size gives no pixels).
+
+Heading: ``GPSImgDirection`` (GPS IFD, degrees in [0, 360), the bearing the camera looked
+along, from the phone's compass when the photo was taken) with ``GPSImgDirectionRef`` ("T":
+from true north, "M": from magnetic north; absent: not said). Indoors a compass is off by
+10-30 deg and more near steel; ``plan.heading`` compares only headings from one reference.
 
 ``read_exif`` is the one EXIF reader of the package (the capture-time reader can use
 ``exif_tags`` for other tags).
@@ -36,6 +41,7 @@ _ORIENTATION, _EXIF_IFD = 0x0112, 0x8769
 _FOCAL, _FOCAL35 = 0x920A, 0xA405
 _FP_XRES, _FP_YRES, _FP_UNIT = 0xA20E, 0xA20F, 0xA210
 _PIX_X, _PIX_Y = 0xA002, 0xA003
+_GPS_IFD, _IMG_DIR_REF, _IMG_DIR = 0x8825, 0x0010, 0x0011
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,8 @@ class ExifInfo:
         focal35_mm: FocalLengthIn35mmFilm, mm (> 0) or None.
         plane_px_per_mm: (x, y) focal-plane resolution of the stored pixels, pixels/mm.
         plane_size: (PixelXDimension, PixelYDimension) the resolution refers to, or None.
+        heading_deg: GPSImgDirection, degrees in [0, 360), or None.
+        heading_ref: its GPSImgDirectionRef, "T" or "M"; "" when the file does not say.
         notes: what was ignored and why (one short sentence each).
     """
 
@@ -60,6 +68,8 @@ class ExifInfo:
     plane_px_per_mm: tuple[float, float] | None = None
     plane_size: tuple[int, int] | None = None
     notes: tuple[str, ...] = ()
+    heading_deg: float | None = None
+    heading_ref: str = ""
 
     @property
     def transposed(self) -> bool:
@@ -139,7 +149,39 @@ def read_exif(im, kind: str = "") -> ExifInfo:
         px, py = sub.get(_PIX_X), sub.get(_PIX_Y)
         if all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (px, py)):
             size = (px, py)
-    return ExifInfo(orientation, applies, f, f35, plane, size, tuple(notes))
+    heading, ref = _heading(im, notes)
+    return ExifInfo(orientation, applies, f, f35, plane, size, tuple(notes), heading, ref)
+
+
+def _heading(im, notes: list) -> tuple[float | None, str]:
+    """(GPSImgDirection in degrees [0, 360) or None, its reference "T" | "M" | "") of an open
+    Pillow image; a broken or out-of-range value is ignored with the reason in ``notes``."""
+    try:
+        gps = dict(im.getexif().get_ifd(_GPS_IFD))
+    except Exception as e:   # noqa: BLE001 - a broken GPS IFD: the rest of the block counts
+        notes.append(f"EXIF GPS IFD unreadable, ignored ({type(e).__name__})")
+        return None, ""
+    if _IMG_DIR not in gps:
+        return None, ""
+    v = gps[_IMG_DIR]
+    try:
+        if isinstance(v, (bytes, str, tuple, list, dict, bool)):
+            raise TypeError
+        d = float(v)
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+        notes.append(f"EXIF GPSImgDirection ignored: {type(v).__name__} {str(v)[:40]!r} is not "
+                     "a number")
+        return None, ""
+    if not (math.isfinite(d) and 0.0 <= d <= 360.0):
+        notes.append(f"EXIF GPSImgDirection ignored: {d:g} is not a bearing in [0, 360] deg")
+        return None, ""
+    ref = gps.get(_IMG_DIR_REF, "")
+    ref = ref.strip("\x00 ").upper() if isinstance(ref, str) else ""
+    if ref not in ("T", "M"):
+        if ref:
+            notes.append(f"EXIF GPSImgDirectionRef {ref[:10]!r} is not T or M: not said")
+        ref = ""
+    return d % 360.0, ref
 
 
 def _hfov_ok(fx: float, width: int) -> bool:
@@ -168,3 +210,16 @@ def focal_px(info: ExifInfo, width: int, height: int) -> tuple[tuple[float, floa
         notes.append(f"EXIF FocalLengthIn35mmFilm {info.focal35_mm:g} mm gives a field of view "
                      "outside 10-150 deg: ignored")
     return None, "", notes
+
+
+def direction_block(degrees: float, ref: str = ""):
+    """A ``PIL.Image.Exif`` holding only a compass bearing: GPSImgDirection ``degrees`` in
+    [0, 360) and GPSImgDirectionRef ``ref`` ("T" | "M"; "" leaves it out). Nothing else of
+    the GPS block (no position) is written."""
+    from PIL import Image, TiffImagePlugin
+    ex = Image.Exif()
+    gps = ex.get_ifd(_GPS_IFD)
+    gps[_IMG_DIR] = TiffImagePlugin.IFDRational(round(degrees % 360.0 * 100), 100)
+    if ref:
+        gps[_IMG_DIR_REF] = ref
+    return ex

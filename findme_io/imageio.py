@@ -254,7 +254,8 @@ def for_bus(data: bytes, name: str = "image") -> tuple[bytes, dict]:
     """(bytes a Frame can carry, lens facts) of a photo: JPEG, PNG and WebP as they are (the
     server reads their EXIF); any other format (HEIC, AVIF, BMP, TIFF) decoded, turned
     upright and re-encoded as JPEG (quality 95), with its EXIF focal length returned as
-    ``{"intrinsics": {fx, fy, cx, cy, width, height}}`` since the JPEG has no EXIF.
+    ``{"intrinsics": {fx, fy, cx, cy, width, height}}``; the JPEG's EXIF holds only its
+    compass bearing (GPSImgDirection and its reference) when the photo had one.
 
     Raises:
         ImageError: as ``decode_photo``.
@@ -267,7 +268,14 @@ def for_bus(data: bytes, name: str = "image") -> tuple[bytes, dict]:
     f, _, _ = focal_px(photo.exif, W, H) if photo.exif is not None else (None, "", [])
     lens = {} if f is None else {"intrinsics": {"fx": f[0], "fy": f[1], "cx": (W - 1) / 2.0,
                                                 "cy": (H - 1) / 2.0, "width": W, "height": H}}
-    return encode_jpeg(photo.image, 95), lens
+    info = photo.exif
+    if info is None or info.heading_deg is None:
+        return encode_jpeg(photo.image, 95), lens
+    from .exif import direction_block
+    out = io.BytesIO()
+    _pillow().fromarray(photo.image[:, :, ::-1]).save(
+        out, "JPEG", quality=95, exif=direction_block(info.heading_deg, info.heading_ref))
+    return out.getvalue(), lens
 
 
 def encode_jpeg(image: np.ndarray, quality: int = 90) -> bytes:

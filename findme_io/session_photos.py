@@ -6,6 +6,7 @@ the photos whose gravity came from their own lines agree on it spot by spot
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import NamedTuple
 
 from findme_core.geometry.camera import Camera
@@ -38,13 +39,16 @@ def final_gravity(img, cam, prov, height: float, metric: bool) -> PhotoGravity:
     return PhotoGravity(cam, height, metric, est, prov.gravity_kind)
 
 
-def session_photos(images, inputs: list[PhotoGravity]) -> tuple[list, dict]:
+def session_photos(images, inputs: list[PhotoGravity], headings=None) -> tuple[list, dict]:
     """``session.Photo`` of each photo from its ``final_gravity`` (its gravity's kind with
-    it); {index: why} of the photos left out because their gravity could not be told
-    (``shared_gravity``)."""
+    it) and its heading (``headings``: one per photo, ``session.Photo.heading``, e.g. the
+    file's ``frame_photo.exif_heading``; None: none); {index: why} of the photos left out
+    because their gravity could not be told (``shared_gravity``)."""
     photos, sg = shared_gravity.analyse_plain(
         images, [i.camera for i in inputs], [i.height for i in inputs],
         [i.estimate for i in inputs], kinds=[i.kind for i in inputs])
+    if headings is not None:
+        photos = [replace(p, heading=h) for p, h in zip(photos, headings, strict=True)]
     return photos, ({} if sg is None else {i: p.reason for i, p in enumerate(photos)
                                              if p.layout is None and p.reason
                                              and p.reason.startswith("gravity unknown")})

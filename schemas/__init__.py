@@ -31,8 +31,9 @@ from ._codec import (
     schema_of,
     validate,
 )
-from ._validate import (IMAGE_FORMATS, MAX_ALTERNATIVES, MAX_GRAVITY_ALTERNATIVES,
-                        MAX_LAYOUT_PAIRS, MAX_MEASURE_PIXELS, SESSION_PATTERN, is_valid_session)
+from ._validate import (HEADING_REFS, IMAGE_FORMATS, MAX_ALTERNATIVES,
+                        MAX_GRAVITY_ALTERNATIVES, MAX_LAYOUT_PAIRS, MAX_MEASURE_PIXELS,
+                        SESSION_PATTERN, is_valid_session)
 from .helpers import (
     level_frame_id,
     msg_to_pixels,
@@ -104,6 +105,7 @@ VERSION = "findme.v1"
 __all__ = [
     "VERSION", "MESSAGE_TYPES", "SchemaError", "WrongTypeError", "Payload",
     "encode", "decode", "decode_any", "schema_of", "validate",
+    "HEADING_REFS",
     "IMAGE_FORMATS", "SESSION_PATTERN", "is_valid_session", "MAX_ALTERNATIVES", "MAX_GRAVITY_ALTERNATIVES", "MAX_LAYOUT_PAIRS",
     "MAX_MEASURE_PIXELS",
     "pixels_to_msg", "msg_to_pixels", "surfaces_to_msg", "msg_to_surfaces",

@@ -38,6 +38,8 @@ MAX_LAYOUT_PAIRS = 64
 MAX_MEASURE_PIXELS = 1024
 #: Gravity alternatives a Camera may carry.
 MAX_GRAVITY_ALTERNATIVES = 8
+#: Frame.heading_ref: the page's sensors (""), true or magnetic north, a compass's unsaid
+HEADING_REFS = frozenset({"", "T", "M", "?"})
 
 
 def is_valid_session(session: object) -> bool:
@@ -193,6 +195,12 @@ def _frame(m: frame_pb2.Frame) -> Problems:
             p.append("heading_sigma_rad is set without heading_rad")
         elif not (math.isfinite(s) and 0 < s <= math.pi / 2):
             p.append(f"heading_sigma_rad must be in (0, pi/2] radians, got {s!r}")
+    if m.heading_ref:
+        if not m.HasField("heading_rad"):
+            p.append("heading_ref is set without heading_rad")
+        elif m.heading_ref not in HEADING_REFS:
+            p.append(f"heading_ref must be one of {sorted(HEADING_REFS)}, got "
+                     f"{m.heading_ref[:20]!r}")
     return p
 
 

@@ -6,7 +6,9 @@ the truth in the level frame of photo 0 (the plan's frame).
 Photos turn right at each spot (``yaws`` degrees, the spot's heading offset by 7 deg per
 spot), tilted down ``pitch`` degrees, 1.4 m above the floor. With ``heading_sigma_deg``, each
 Frame carries the phone's heading as a page would send it: the true yaw plus a session offset
-and a seeded N(0, sigma) reading error, declared at that sigma.
+and a seeded N(0, sigma) reading error, declared at that sigma; with ``heading_in="exif"``
+the photo file carries it instead, as a phone's camera app writes its compass bearing
+(GPSImgDirection, from magnetic north), and the Frame none.
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ def boundary_kinds(cam, poly, height=H) -> np.ndarray:
 
 def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, hfov=70.0,
                      session="plan-test", size=(640, 480), heading_sigma_deg=None,
-                     seed=0) -> RenderedSession:
+                     seed=0, heading_in: str = "frame") -> RenderedSession:
     poses = [Pose(x, z, H, float(y) + 7.0 * s, pitch, 0.0)
              for s, (x, z) in enumerate(spots_xz) for y in yaws]
     rng = np.random.default_rng(seed)
@@ -74,15 +76,20 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
     for n, p in enumerate(poses):
         v = render(room, p, size[0], size[1], hfov_deg=hfov, supersample=1)
         c = v.camera
-        data = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
+        heading = None
+        if heading_sigma_deg is not None:
+            s = math.radians(heading_sigma_deg)
+            heading = math.radians(p.yaw_deg) + 2.0 + s * rng.standard_normal()
+        if heading is not None and heading_in == "exif":
+            data = _jpeg_with_direction(v.image, math.degrees(heading) % 360.0)
+        else:
+            data = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
         frames.append(make_frame(session, n, data, intrinsics=(c.fx, c.fy, c.cx, c.cy,
                                                                  c.width, c.height),
                                  gravity=c.gravity, camera_height_m=H,
                                  time_ns=1_700_000_000_000_000_000 + n * 10**9))
-        if heading_sigma_deg is not None:
-            s = math.radians(heading_sigma_deg)
-            frames[-1].heading_rad = math.radians(p.yaw_deg) + 2.0 + s * rng.standard_normal()
-            frames[-1].heading_sigma_rad = s
+        if heading is not None and heading_in == "frame":
+            frames[-1].heading_rad, frames[-1].heading_sigma_rad = heading, s
         poly = v.ground_truth_boundary_polyline()
         poly = poly[np.isfinite(poly[:, 1])]
         hs = schemas.HypothesisSet(session=session, index=n, width=c.width, height=c.height,
@@ -96,6 +103,19 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
         views.append(v)
     truth, poly = first_frame_truth(room, poses)
     return RenderedSession(frames, hsets, sels, jpegs, views, poly, truth)
+
+
+def _jpeg_with_direction(bgr, degrees: float) -> bytes:
+    """A JPEG whose EXIF says the camera looked ``degrees`` from magnetic north."""
+    import io
+
+    from PIL import Image, TiffImagePlugin
+    ex = Image.Exif()
+    gps = ex.get_ifd(0x8825)
+    gps[0x0010], gps[0x0011] = "M", TiffImagePlugin.IFDRational(round(degrees * 100), 100)
+    out = io.BytesIO()
+    Image.fromarray(bgr[:, :, ::-1]).save(out, "JPEG", quality=95, exif=ex)
+    return out.getvalue()
 
 
 def first_frame_truth(room, poses):

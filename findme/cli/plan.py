@@ -25,6 +25,7 @@ from findme_core.plan import relocalise, session
 from findme_core.plan.floorplan import Plan
 
 from findme_io.camera_source import with_gravity
+from findme_io.frame_photo import exif_heading
 from findme_io.imageio import read_photo
 from findme_io.plan_svg import plan_svg
 from findme_io.session_photos import final_gravity, session_photos
@@ -86,10 +87,11 @@ def register(sub) -> None:
 
 
 def photo_inputs(path: str, args) -> tuple:
-    """(image, ``session_photos.PhotoGravity``) of one photo: the sidecar's inputs, else
-    the flags, then the photo's EXIF; its gravity as ``findme hypotheses`` takes it (a given
-    one refined by the photo's lines unless ``--gravity-sigma 0``, else estimated from them:
-    then ``estimate`` is that ``GravityEstimate``, else None)."""
+    """(image, ``session_photos.PhotoGravity``, heading) of one photo: the sidecar's inputs,
+    else the flags, then the photo's EXIF; its gravity as ``findme hypotheses`` takes it (a
+    given one refined by the photo's lines unless ``--gravity-sigma 0``, else estimated from
+    them: then ``estimate`` is that ``GravityEstimate``, else None); its heading from the
+    file's EXIF compass bearing (``frame_photo.exif_heading``; None without one)."""
     photo = read_photo(path)
     img = photo.image
     sigma = None if args.gravity_sigma is None else math.radians(args.gravity_sigma)
@@ -112,7 +114,7 @@ def photo_inputs(path: str, args) -> tuple:
         h, metric = float(height), True
     else:
         h, metric = camera_height(args.camera_height)
-    return img, final_gravity(img, cam, prov, h, metric)
+    return img, final_gravity(img, cam, prov, h, metric), exif_heading(photo.exif)
 
 
 def cmd_plan(args) -> int:
@@ -121,13 +123,9 @@ def cmd_plan(args) -> int:
         spots = [s.strip() for s in args.spots.split(",")]
         if len(spots) != len(args.photos):
             raise InputError(f"--spots has {len(spots)} labels for {len(args.photos)} photos")
-    images, inputs = [], []
-    for path in args.photos:
-        img, g = photo_inputs(path, args)
-        images.append(img)
-        inputs.append(g)
+    images, inputs, headings = zip(*(photo_inputs(path, args) for path in args.photos))
     metric = all(g.metric for g in inputs)
-    photos, _ = session_photos(images, inputs)
+    photos, _ = session_photos(images, inputs, headings)
     plan, _, timing = session.plan(photos, spots)
     names = [os.path.basename(p) for p in args.photos]
     out = plan.to_dict(names)
@@ -212,12 +210,8 @@ def _where(q: dict, many: bool, sigma=None) -> str:
 
 def _photos(paths, args) -> list:
     """``session.Photo`` of photos taken together (``session_photos``)."""
-    images, inputs = [], []
-    for p in paths:
-        img, g = photo_inputs(p, args)
-        images.append(img)
-        inputs.append(g)
-    return session_photos(images, inputs)[0]
+    images, inputs, headings = zip(*(photo_inputs(p, args) for p in paths))
+    return session_photos(images, inputs, headings)[0]
 
 
 def _pose(c) -> dict:

@@ -8,7 +8,8 @@
  * re-encoded upright through a canvas first, at most 1600 px long (the header's ``scale``
  * and typed intrinsics scaled to match). The live camera (secure pages only) sends the motion sensors' reading of the moment
  * the shutter is pressed: gravity, and the heading (which way the phone looked, for the
- * floor plan's placement: photos that share nothing cannot tell a room's twin turns apart).
+ * floor plan's placement: photos that share nothing cannot tell a room's twin turns apart);
+ * a photo file sends its EXIF compass bearing instead, when it has one.
  */
 import {$, ERROR_HINTS, clearBusy, mb, notify, send, setBusy, state} from './common.js';
 import {SENSOR_GRAVITY_SIGMA_DEG, SENSOR_HEADING_SIGMA_DEG, currentGravity, currentHeading,
@@ -23,9 +24,11 @@ export function sniff(b) {
       b[8] === 0x57 && b[9] === 0x45 && b[10] === 0x42 && b[11] === 0x50) return 'webp';
   return null;
 }
-export function exifFacts(b) {  // JPEG EXIF: orientation (0x0112, 1 when absent) and the
-  // 35 mm-equivalent focal length (Exif IFD 0x8769 -> 0xA405, null when absent)
-  const out = {orientation: 1, focal35: null};
+export function exifFacts(b) {  // JPEG EXIF: orientation (0x0112, 1 when absent), the
+  // 35 mm-equivalent focal length (Exif IFD 0x8769 -> 0xA405, null when absent) and the
+  // compass bearing the camera looked along (GPS IFD 0x8825 -> GPSImgDirection 0x0011, a
+  // rational in [0, 360], and its reference 0x0010, 'T' or 'M'; null / '' when absent)
+  const out = {orientation: 1, focal35: null, heading: null, headingRef: ''};
   try {
     const dv = new DataView(b.buffer, b.byteOffset, b.byteLength);
     let i = 2;
@@ -44,6 +47,17 @@ export function exifFacts(b) {  // JPEG EXIF: orientation (0x0112, 1 when absent
           if (tag === 0x8769) {
             for (const f of entries(t + dv.getUint32(e + 8, le))) {
               if (dv.getUint16(f, le) === 0xa405) out.focal35 = dv.getUint16(f + 8, le) || null;
+            }
+          }
+          if (tag === 0x8825) {
+            for (const f of entries(t + dv.getUint32(e + 8, le))) {
+              const g = dv.getUint16(f, le);
+              if (g === 0x0010) out.headingRef = String.fromCharCode(b[f + 8]).trim();
+              if (g === 0x0011) {
+                const at = t + dv.getUint32(f + 8, le);
+                const d = dv.getUint32(at, le) / dv.getUint32(at + 4, le);
+                out.heading = Number.isFinite(d) && d >= 0 && d <= 360 ? d % 360 : null;
+              }
             }
           }
         }
@@ -145,6 +159,9 @@ export async function upload(file, sensorGravity = null, sensorHeading = null) {
     if (sensorHeading !== null) {   // a live capture: which way the phone looked, for the plan
       header.heading_deg = sensorHeading;
       header.heading_sigma_deg = SENSOR_HEADING_SIGMA_DEG;
+    } else if (exif.heading !== null) {   // a file's compass bearing (lost if re-encoded);
+      header.heading_deg = exif.heading;  // the server takes it at a compass's 1-sigma
+      header.heading_ref = ['T', 'M'].includes(exif.headingRef) ? exif.headingRef : '?';
     }
     const head = new TextEncoder().encode(JSON.stringify(header));
     const buf = new Uint8Array(4 + head.length + bytes.length);

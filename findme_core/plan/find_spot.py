@@ -27,7 +27,8 @@ from findme_core.plan import fuse
 
 
 def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
-          params: fuse.FuseParams = fuse.FuseParams()) -> tuple[np.ndarray, np.ndarray]:
+          params: fuse.FuseParams = fuse.FuseParams(),
+          headings=None) -> tuple[np.ndarray, np.ndarray]:
     """Where K new photos taken at one place are in the room frame of N placed photos.
 
     Args:
@@ -39,6 +40,9 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
             placed photo i and a new photo j.
         motions: ``fuse.Link`` (i, j, yaw, sigma, t): new photo j's pose in placed photo i's
             level frame.
+        headings: (N + K, 3) each photo's heading (``heading.table``: placed photos first),
+            or None: a candidate that turns the new photos away from what the phone
+            measured is not tried (``heading.fits``), as in a plan.
 
     Returns:
         (poses (C, K, 3), scores (C,)): per candidate (clearly different poses of the
@@ -67,7 +71,7 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
     has = np.array([x is not None for x in new_layouts])
     sizes = np.bincount(nb, weights=has, minlength=int(nb.max()) + 1)
     first = n + int(np.argmax(sizes))
-    r = fuse.place_block(L, P, rel, block, spot, {}, matches, motions, first, params)
+    r = fuse.place_block(L, P, rel, block, spot, {}, matches, motions, first, params, headings)
     if isinstance(r, str):
         raise GeometryError(r)
     cands, scores = r
@@ -79,7 +83,7 @@ def place(layouts, poses, new_layouts, links=(), matches=None, motions=(),
             Q[i] = (pose[0], pose[1], wrap(pose[2] + rel[i]))
         for b in others:     # a block the turn did not link: it turns in place, and its
             rb = fuse.place_block(L, Q, rel, block, spot, {n: pose[:2]}, matches, motions,
-                                  b, params)   # agreement counts for the candidate
+                                  b, params, headings)   # agreement counts for the candidate
             if not isinstance(rb, str):
                 total[c] += rb[1][0]
                 for i in np.flatnonzero(block == b):

@@ -168,8 +168,8 @@ def place(layouts, links=(), spots=None, matches=None, motions=(),
             matches between photos i and j (i < j), or None.
         motions: ``Link`` s with a translation ``t`` (photo j's pose in photo i's level
             frame, e.g. two-photo motion from features): extra candidate poses.
-        headings: (N, 2) the phone's heading and its 1-sigma per photo, radians, NaN rows
-            where unknown (``heading.table``), or None.
+        headings: (N, 3) the phone's heading, its 1-sigma (radians) and its reference
+            number per photo, NaN rows where unknown (``heading.table``), or None.
 
     Raises:
         GeometryError: photo 0 has no layout and no link (nothing to anchor the room frame).

@@ -61,7 +61,7 @@ class Photo:
     the reason), scene and features; what its gravity's error is like
     (``Provenance.gravity_kind``: "exact", "sensor" or "image"), which the plan's sigmas
     must show (``PlanParams.image_gravity_models``); the phone's heading when it was taken
-    ((radians, 1-sigma), ``heading``; None: unknown)."""
+    ((radians, 1-sigma[, reference]), ``heading``; None: unknown)."""
 
     camera: Camera
     height: float
@@ -228,7 +228,8 @@ def _rotation_links(photos, first: int, params: SessionParams) -> list:
 def find(photos, poses, new, params: SessionParams = SessionParams()):
     """"Find me" with the session's photos: where ``new`` (one ``Photo``, or several taken
     at one place, a user turning round) was taken, given the analysed photos of a plan and
-    their poses (N, 3) in its frame (``find_spot.place``).
+    their poses (N, 3) in its frame (``find_spot.place``). Photos with a heading of one
+    reference (``Photo.heading``) keep the candidates that turn as the phone says.
 
     Returns:
         (poses, scores (C,)), best first: poses (C, 3) for one photo, (C, K, 3) for K.
@@ -241,7 +242,8 @@ def find(photos, poses, new, params: SessionParams = SessionParams()):
     matches, motions, links = relate_to(photos, group, params)
     cands, scores = find_spot.place([p.layout for p in photos], poses,
                                     [p.layout for p in group], links, matches, motions,
-                                    params.fuse)
+                                    params.fuse, heading.table([p.heading for p in photos]
+                                                               + [p.heading for p in group]))
     return (cands[:, 0], scores) if one else (cands, scores)
 
 

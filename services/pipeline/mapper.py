@@ -168,7 +168,7 @@ class MapperHandler(Handler):
                                     photo.scale, photo.width, photo.height)
             if not f.HasField("gravity"):   # its spot may correct its gravity
                 ph.plain = mapper_gravity.Plain(encode_jpeg(photo.image, 95), photo.scale)
-            ph.heading = heading.check(frame_heading(f))
+            ph.heading = heading.check(frame_heading(f, photo.exif))
         except FindmeError as e:
             ph.bad = f"its photo cannot be used: {str(e).splitlines()[0][:200]}"
             ph.camera = None

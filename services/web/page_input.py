@@ -21,11 +21,14 @@ reading into camera axes (findme/web/settings.js) and nothing here rotates it.
 ``gravity_sigma_deg`` (optional, (0, 20]) is its 1-sigma per axis: the page sends 1.5 for a
 reading of the phone's motion sensors in the hand (the hypotheses service refines it by the
 photo's lines, weighing it so), nothing for a typed one (the frame's default, 0.5).
-``heading_deg`` (optional, finite; with ``heading_sigma_deg`` in (0, 90], default 10) is which
-way the camera looked, turned about gravity, growing to the right: the page sends its motion
-sensors' reading with a live capture (settings.js), for the plan. ``camera_height_m`` is
-metres above the floor; ``capture_time_ms`` is Unix milliseconds (the server's clock is used
-instead when it is more than a day off).
+``heading_deg`` (optional, finite) is which way the camera looked, turned about gravity,
+growing to the right, for the plan: the page sends its motion sensors' reading with a live
+capture (settings.js), and a gallery photo's EXIF compass bearing. ``heading_sigma_deg`` is
+its 1-sigma in (0, 90] (default 10, a compass's 15); ``heading_ref`` what it is measured
+from (``Frame.heading_ref``: none for the page's sensors, "T" / "M" / "?" for a compass).
+Without a heading, the photo file's own EXIF bearing (GPSImgDirection) goes into the Frame.
+``camera_height_m`` is metres above the floor; ``capture_time_ms`` is Unix milliseconds (the
+server's clock is used instead when it is more than a day off).
 
 A JPEG with an EXIF rotation is decoded upright and re-encoded (quality 95) so that the
 frame's pixels are the ones the browser shows and taps refer to. Pixels follow the bus
@@ -49,12 +52,13 @@ import struct
 import time
 
 import schemas
-from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, decode_photo, encode_jpeg
+from findme_io.imageio import (MAX_PIXELS, _declared_size, decode_image, decode_photo,
+                               encode_jpeg, probe)
 from findme_core.errors import CameraError, FindmeError, ImageError, InputError
 from findme_core.single import scene
 
 from findme_io.convert import image_format, make_frame
-from findme_io.frame_photo import frame_camera
+from findme_io.frame_photo import EXIF_HEADING_SIGMA_RAD, exif_heading, frame_camera
 
 #: Largest photo a page may upload (bytes). Below the bus's 16 MB message limit, with room
 #: for the rest of the Frame.
@@ -260,6 +264,16 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
     sigma = _number(header, "gravity_sigma_deg", 0, 20, "gravity's 1-sigma (degrees)")
     heading = _number(header, "heading_deg", -1e6, 1e6, "heading (degrees)")
     h_sigma = _number(header, "heading_sigma_deg", 0, 90, "heading's 1-sigma (degrees)")
+    h_ref = header.get("heading_ref") or ""
+    if not isinstance(h_ref, str) or h_ref not in schemas.HEADING_REFS:
+        raise _bad(f"heading_ref must be one of T, M, ? (or none), got {str(h_ref)[:20]!r}",
+                   CODE.ERROR_CODE_BAD_CAMERA)
+    if heading is None:    # the file's compass bearing, kept when the photo was re-encoded
+        told = exif_heading(probe(image)[2])
+        if told is not None:
+            heading, h_sigma, h_ref = math.degrees(told[0]), math.degrees(told[1]), told[2]
+    elif h_ref and h_sigma is None:     # a compass's, as the page read it from the file
+        h_sigma = math.degrees(EXIF_HEADING_SIGMA_RAD)
     height = _number(header, "camera_height_m", 0, 100, "camera height (m)")
     device = header.get("device") or ""
     device = "web" + (": " + "".join(c for c in str(device) if c.isprintable())[:80]
@@ -273,12 +287,15 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
                        gravity_sigma_rad=None if sigma is None or gravity is None
                        else math.radians(sigma),
                        heading_rad=None if heading is None else math.radians(heading % 360.0),
-                       heading_sigma_rad=None if h_sigma is None else math.radians(h_sigma))
+                       heading_sigma_rad=None if h_sigma is None else math.radians(h_sigma),
+                       heading_ref=h_ref if heading is not None else "")
     try:
         cam = frame_camera(frame, W, H)
     except (CameraError, InputError) as e:
         raise _bad(str(e), CODE.ERROR_CODE_BAD_CAMERA) from None
     info = {"index": index, "width": W, "height": H, "bytes": len(data), "reencoded": reencoded,
             "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
-            "gravity": [float(x) for x in cam.gravity], "camera_height_m": height}
+            "gravity": [float(x) for x in cam.gravity], "camera_height_m": height,
+            "heading_deg": None if heading is None else heading % 360.0,
+            "heading_ref": frame.heading_ref}
     return frame, info

@@ -161,3 +161,37 @@ def test_a_turn_at_a_new_place_is_found_together(session_on_disk, turn_on_disk):
     walls = as_json(run_findme("locate-in", plan_path, *turn, "--json"))
     errs = [_err(q, truth[0]) for q in [walls["pose"], *walls["alternatives"]]]
     assert any(t < 0.2 and y < 3.0 for t, y in errs), (walls, truth[0])
+
+
+def _with_direction(src, dst, degrees):
+    """A copy of photo ``src`` (and its sidecar) whose EXIF says the camera looked
+    ``degrees`` from magnetic north, as a phone's camera app writes its compass bearing."""
+    from tests.plan_room import _jpeg_with_direction
+    img = cv2.imread(str(src))
+    dst.write_bytes(_jpeg_with_direction(img, degrees % 360.0))
+    dst.with_suffix(".json").write_text(src.with_suffix(".json").read_text())
+    return dst
+
+
+def test_the_files_compass_bearings_rule_out_the_rooms_twin(session_on_disk, tmp_path):
+    # every file says which way it looked (a compass bearing 12 deg off at most, taken at
+    # its 15 deg): locate-in keeps only the places that turn the photo as the compass says;
+    # without them places turned a quarter and more are among those found
+    paths, plan_path, _, new, truth, room = session_on_disk
+    rng = np.random.default_rng(5)
+    north = 40.0    # where magnetic north is in the plan's frame, degrees
+
+    def bearing(yaw):
+        return math.degrees(yaw) + north + rng.uniform(-12.0, 12.0)
+    copies = [_with_direction(p, tmp_path / p.name, bearing(y))
+              for p, y in zip(paths, room.poses[:, 2])]
+    newc = _with_direction(new, tmp_path / "new.jpg", bearing(truth[2]))
+    plain = as_json(run_findme("locate-in", plan_path, new, "--photos", *paths, "--json",
+                               timeout=300))
+    told = as_json(run_findme("locate-in", plan_path, newc, "--photos", *copies, "--json",
+                              timeout=300))
+
+    def yaw_errs(out):
+        return [_err(q, truth)[1] for q in [out["pose"], *out["alternatives"]]]
+    assert max(yaw_errs(plain)) > 60.0, plain       # turned a quarter and more: 67, 91 deg
+    assert _err(told["pose"], truth)[0] < 0.15 and max(yaw_errs(told)) < 30.0, told

@@ -1,5 +1,6 @@
 """Camera from EXIF (findme_io.exif, camera_source) on files written by Pillow: the 35 mm
-equivalent, FocalLength with the focal-plane resolution, orientation, broken blocks."""
+equivalent, FocalLength with the focal-plane resolution, orientation, the compass heading
+(GPSImgDirection), broken blocks."""
 
 import io
 import json
@@ -12,7 +13,9 @@ import pytest
 from PIL import Image, TiffImagePlugin
 
 from findme_io.camera_source import lens_camera, photo_camera
+from findme_io.convert import make_frame
 from findme_io.exif import FILM_DIAGONAL_MM, focal_px
+from findme_io.frame_photo import EXIF_HEADING_SIGMA_RAD, exif_heading, frame_heading
 from findme_io.imageio import decode_photo
 from tests.io.test_imageio import encode, exif_block, upright_pattern
 
@@ -115,3 +118,33 @@ def test_cli_reports_the_exif_camera(tmp_path):
     assert out["camera"]["hfov_deg"] == pytest.approx(math.degrees(2 * math.atan(320 / fpx)), rel=1e-5)
     assert out["gravity"]["source"] in ("image", "level") and len(out["gravity"]["vector"]) == 3
     assert np.isfinite(out["gravity"]["sigma_deg"])
+
+
+@pytest.mark.parametrize("ref,want", [("M", "M"), ("T", "T"), (None, "?")])
+def test_the_files_compass_heading_and_its_reference(ref, want):
+    photo = decode_photo(jpeg(direction=R(24350, 100), direction_ref=ref))
+    assert photo.exif.heading_deg == pytest.approx(243.5) and not photo.exif.notes
+    h, sigma, got = exif_heading(photo.exif)
+    assert h == pytest.approx(math.radians(243.5)) and got == want
+    assert sigma == EXIF_HEADING_SIGMA_RAD
+    assert exif_heading(decode_photo(jpeg()).exif) is None
+
+
+@pytest.mark.parametrize("tags,why", [
+    (dict(direction=R(400)), "not a bearing"),
+    (dict(direction=R(1, 0)), "not a bearing"),       # 1/0: NaN in Pillow's rational
+    (dict(direction=R(90), direction_ref="X"), "not T or M"),
+])
+def test_a_broken_heading_is_ignored_with_the_reason(tags, why):
+    exif = decode_photo(jpeg(**tags)).exif
+    assert why in " ".join(exif.notes), exif.notes
+    assert tags.get("direction_ref") == "X" or exif_heading(exif) is None
+
+
+def test_a_frames_own_heading_comes_before_its_files():
+    data = jpeg(direction=R(90), direction_ref="T")
+    frame = make_frame("s", 0, data)
+    h, _, ref = frame_heading(frame)
+    assert h == pytest.approx(math.pi / 2) and ref == "T"
+    frame = make_frame("s", 0, data, heading_rad=0.25, heading_sigma_rad=0.1)
+    assert frame_heading(frame) == (0.25, 0.1, "")

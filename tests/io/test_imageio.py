@@ -47,8 +47,15 @@ def encode(img_rgb, fmt="JPEG", exif=None, **kw):
     return buf.getvalue()
 
 
-def exif_block(orientation=None, f35=None, focal=None, plane=None, unit=None, size=None):
+def exif_block(orientation=None, f35=None, focal=None, plane=None, unit=None, size=None,
+               direction=None, direction_ref=None):
     ex = Image.Exif()
+    if direction is not None or direction_ref is not None:
+        gps = ex.get_ifd(0x8825)     # GPSImgDirection, GPSImgDirectionRef
+        if direction is not None:
+            gps[0x0011] = direction
+        if direction_ref is not None:
+            gps[0x0010] = direction_ref
     if orientation is not None:
         ex[0x0112] = orientation
     sub = ex.get_ifd(0x8769)
@@ -182,6 +189,22 @@ def test_heic_goes_on_the_bus_as_an_upright_jpeg_with_its_exif_lens():
     assert (k["width"], k["height"]) == (320, 240) and k["fx"] == pytest.approx(26 * 400 / 43.2666, rel=1e-3)
     jpg = encode(up, "JPEG")
     assert for_bus(jpg) == (jpg, {})        # JPEG, PNG, WebP travel as they are
+    assert probe(data)[2].heading_deg is None
+
+
+def test_a_heic_photos_compass_bearing_goes_on_the_bus_with_it():
+    from PIL import TiffImagePlugin
+
+    from findme_io.imageio import for_bus
+    buf = io.BytesIO()
+    Image.fromarray(upright_pattern(320, 240)).save(
+        buf, format="HEIF", quality=90,
+        exif=exif_block(direction=TiffImagePlugin.IFDRational(3071, 10),
+                        direction_ref="T").tobytes())
+    data, _ = for_bus(buf.getvalue(), "IMG.HEIC")
+    info = probe(data)[2]
+    assert sniff(data) == "jpeg" and (info.heading_deg, info.heading_ref) == (307.1, "T")
+    assert set(Image.open(io.BytesIO(data)).getexif().get_ifd(0x8825)) == {0x10, 0x11}
 
 
 def test_findme_run_takes_a_heic_photo(tmp_path):

@@ -28,7 +28,7 @@ def sample_messages() -> list[tuple[str, object]]:
     frame = S.Frame(session=SESSION, index=3, capture_time_ns=T0, intrinsics=intr,
                     gravity=gravity, camera_height_m=1.42, camera_height_sigma_m=0.05,
                     device="Pixel 7 / Android 14 / findme-app 0.3", gravity_sigma_rad=0.012,
-                    heading_rad=2.4, heading_sigma_rad=0.087)
+                    heading_rad=2.4, heading_sigma_rad=0.087, heading_ref="M")
     frame.image.data = JPEG
     frame.image.format = "jpeg"
     frame.image.frame_id = f"{SESSION}/camera/3"

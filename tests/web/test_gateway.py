@@ -4,6 +4,7 @@ in-process bus (isolation between sessions, refusals, cross-origin)."""
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import math
 import struct
@@ -65,9 +66,38 @@ def test_build_frame_takes_the_sensors_heading():
     f, _ = build_frame("s1", 1, {"heading_deg": -90}, ROOM_A)
     assert f.heading_rad == pytest.approx(math.radians(270.0))
     assert not f.HasField("heading_sigma_rad")
-    f, _ = build_frame("s1", 2, {"heading_sigma_deg": 5}, ROOM_A)
+    f, _ = build_frame("s1", 2, {"heading_sigma_deg": 5, "heading_ref": "M"}, ROOM_A)
     assert not f.HasField("heading_rad") and not f.HasField("heading_sigma_rad")
+    assert f.heading_ref == ""
     schemas.decode(schemas.Frame, schemas.encode(f))   # valid on the bus (both check it)
+    # a gallery photo's compass bearing, read by the page (it sends the photo re-encoded)
+    f, info = build_frame("s1", 3, {"heading_deg": 200, "heading_sigma_deg": 15,
+                                    "heading_ref": "T"}, ROOM_A)
+    assert f.heading_ref == "T" and (info["heading_deg"], info["heading_ref"]) == (200.0, "T")
+    assert build_frame("s1", 4, {"heading_deg": 5}, ROOM_A)[0].heading_ref == ""
+    f, _ = build_frame("s1", 5, {"heading_deg": 5, "heading_ref": "?"}, ROOM_A)  # a compass's
+    assert f.heading_sigma_rad == pytest.approx(math.radians(15.0)) and f.heading_ref == "?"
+
+
+def test_build_frame_keeps_the_files_compass_bearing_through_its_re_encoding():
+    """A portrait JPEG (EXIF orientation 6) is re-encoded upright, without its EXIF: the
+    compass bearing it carried goes into the Frame (true north, the files' 1-sigma)."""
+    from PIL import Image, TiffImagePlugin
+
+    from findme_io.frame_photo import EXIF_HEADING_SIGMA_RAD
+    ex = Image.Exif()
+    ex[0x0112] = 6
+    gps = ex.get_ifd(0x8825)
+    gps[0x0010], gps[0x0011] = "T", TiffImagePlugin.IFDRational(1234, 10)
+    buf = io.BytesIO()
+    Image.open(io.BytesIO(ROOM_A)).save(buf, "JPEG", quality=90, exif=ex)
+    f, info = build_frame("s1", 0, {}, buf.getvalue())
+    assert info["reencoded"] and (info["width"], info["height"]) == (480, 640)
+    assert f.heading_rad == pytest.approx(math.radians(123.4))
+    assert f.heading_sigma_rad == pytest.approx(EXIF_HEADING_SIGMA_RAD) and f.heading_ref == "T"
+    # what the page said comes first
+    f, _ = build_frame("s1", 1, {"heading_deg": 10.0}, buf.getvalue())
+    assert f.heading_rad == pytest.approx(math.radians(10.0)) and f.heading_ref == ""
 
 
 def test_build_frame_lenses_gravity_height():
@@ -103,6 +133,8 @@ def test_build_frame_lenses_gravity_height():
     ({"heading_deg": float("inf")}, "BAD_CAMERA", "heading"),
     ({"heading_deg": 10, "heading_sigma_deg": 0}, "BAD_CAMERA", "heading's 1-sigma"),
     ({"heading_deg": 10, "heading_sigma_deg": 120}, "BAD_CAMERA", "heading's 1-sigma"),
+    ({"heading_deg": 10, "heading_ref": "north"}, "BAD_CAMERA", "heading_ref"),
+    ({"heading_deg": 10, "heading_ref": ["T"]}, "BAD_CAMERA", "heading_ref"),
     ({"camera_height_m": -1}, "BAD_CAMERA", "camera height"),
     ({"camera_height_m": True}, "BAD_CAMERA", "camera height"),
 ])

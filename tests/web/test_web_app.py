@@ -305,6 +305,38 @@ def test_a_large_photo_is_sent_at_1600_px_with_its_intrinsics_scaled(browser, ap
     close(page)
 
 
+def test_a_photo_files_compass_bearing_survives_the_pages_re_encoding(browser, app, tmp_path):
+    """A 12 MP-like photo is re-encoded by the page (EXIF gone); the compass bearing its
+    EXIF held (GPSImgDirection 123.4 deg from magnetic north) goes in the upload's header
+    and reaches the Frame, as a compass's."""
+    import io
+
+    import cv2
+    from PIL import Image, TiffImagePlugin
+    ex = Image.Exif()
+    gps = ex.get_ifd(0x8825)
+    gps[0x0010], gps[0x0011] = "M", TiffImagePlugin.IFDRational(1234, 10)
+    img = cv2.resize(cv2.imread(ROOM_A), (1920, 1440), interpolation=cv2.INTER_CUBIC)
+    buf = io.BytesIO()
+    Image.fromarray(img[:, :, ::-1]).save(buf, "JPEG", quality=90, exif=ex)
+    big = tmp_path / "bearing.jpg"
+    big.write_bytes(buf.getvalue())
+    context = browser.new_context(**PHONE)
+    page = context.new_page()
+    page.js_errors = []
+    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    received = []
+    page.on("websocket", lambda ws: ws.on("framereceived", lambda d: received.append(d)))
+    page.goto(app.url)
+    page.wait_for_selector('#status[data-state="connected"]')
+    upload(page, str(big), 0)
+    ack = next(m for m in (json.loads(r) for r in received if isinstance(r, str))
+               if m.get("type") == "frame")
+    assert (ack["width"], ack["height"]) == (1600, 1200)      # re-encoded by the page
+    assert ack["heading_deg"] == pytest.approx(123.4) and ack["heading_ref"] == "M"
+    close(page)
+
+
 def test_bad_input_gets_a_message_and_others_are_served(browser, app, shots, tmp_path):
     not_image = tmp_path / "notes.jpg"
     not_image.write_text("this is not a photo\n" * 100)

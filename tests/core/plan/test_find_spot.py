@@ -11,7 +11,7 @@ import pytest
 
 from findme_core.errors import GeometryError, HypothesisError
 from findme_core.motion import register
-from findme_core.plan import find_spot, floorplan, fuse, relocalise
+from findme_core.plan import find_spot, floorplan, fuse, heading, relocalise
 from findme_core.single import layout
 from findme_core.synth.room import Pose, Room
 from tests.core.plan.test_floorplan import H, _layout, _session
@@ -60,6 +60,27 @@ def test_a_symmetric_room_gives_the_truth_among_its_candidates():
     cands, scores = find_spot.place(lays, truth, new, links)
     assert len(scores) > 1             # the half-turn twin is an answer too
     assert any(_near(c[0], want[0]) and _near(c[1], want[1]) for c in cands)
+
+
+def test_the_phones_heading_leaves_the_symmetric_rooms_truth_alone():
+    room = Room.rectangle(5.0, 4.0)
+    lays, truth, new, links, want = _turn(room, [(-0.8, -0.5), (1.0, 0.6)], (0.3, -1.0),
+                                          (115, 175))
+    # every photo's heading: its room yaw plus one offset (a compass's north), 20 deg off at
+    # most; the half-turn twin turns the new photos 180 deg from what the phone says
+    rng = np.random.default_rng(3)
+    yaws = np.concatenate([truth[:, 2], want[:, 2]])
+    yaws = yaws + 1.1 + rng.uniform(-0.3, 0.3, len(yaws))
+    h = heading.table([(y, math.radians(20), "M") for y in yaws])
+    cands, scores = find_spot.place(lays, truth, new, links, headings=h)
+    assert _near(cands[0, 0], want[0]) and _near(cands[0, 1], want[1]), cands[0]
+    assert all(abs(fuse.wrap(c[0, 2] - want[0, 2])) < math.radians(60) for c in cands)
+    # the phone read the new photos 45 deg off (a magnet nearby): nothing the walls allow
+    # (the room's quarter turns) fits, and it says so rather than pick one
+    h = heading.table([(y + (math.pi / 4 if k >= len(truth) else 0.0), math.radians(5), "M")
+                       for k, y in enumerate(yaws)])
+    with pytest.raises(GeometryError, match="phone's heading"):
+        find_spot.place(lays, truth, new, links, headings=h)
 
 
 def test_degenerate_turns_are_clear_errors():
