@@ -52,8 +52,7 @@ import struct
 import time
 
 import schemas
-from findme_io.imageio import (MAX_PIXELS, _declared_size, decode_image, decode_photo,
-                               encode_jpeg, probe)
+from findme_io.imageio import MAX_PIXELS, _declared_size, decode_image, decode_photo, encode_jpeg
 from findme_core.errors import CameraError, FindmeError, ImageError, InputError
 from findme_core.single import scene
 
@@ -196,8 +195,9 @@ def _exif_rotated(data: bytes) -> bool:
     return False
 
 
-def checked_image(image: bytes, max_pixels: int = MAX_PIXELS) -> tuple[bytes, int, int, bool]:
-    """(bytes to publish, width, height, re-encoded?) of an uploaded photo.
+def checked_image(image: bytes, max_pixels: int = MAX_PIXELS):
+    """(bytes to publish, width, height, re-encoded?, ``ExifInfo`` or None) of an uploaded
+    photo.
 
     Refuses other formats than JPEG/PNG/WebP, more than ``max_pixels`` (from the header,
     before decoding), and undecodable data. An EXIF-rotated JPEG comes back upright.
@@ -223,14 +223,14 @@ def checked_image(image: bytes, max_pixels: int = MAX_PIXELS) -> tuple[bytes, in
     if rotated or (w and h and (w, h) != (W, H)):
         img = photo.image if photo.scale == 1.0 else decode_image(
             image, "photo", max_bytes=len(image) + 1, max_pixels=max_pixels)
-        return encode_jpeg(img, 95), W, H, True
-    return image, W, H, False
+        return encode_jpeg(img, 95), W, H, True, photo.exif
+    return image, W, H, False, photo.exif
 
 
 def build_frame(session: str, index: int, header: dict, image: bytes,
                 now_ns: int | None = None):
     """(Frame, info for the page) from a parsed upload; GatewayError if anything is off."""
-    data, W, H, reencoded = checked_image(image)
+    data, W, H, reencoded, exif = checked_image(image)
     lens = header.get("lens") or {}
     if not isinstance(lens, dict):
         raise _bad(f"lens must be an object, got {lens!r}", CODE.ERROR_CODE_BAD_CAMERA)
@@ -269,7 +269,7 @@ def build_frame(session: str, index: int, header: dict, image: bytes,
         raise _bad(f"heading_ref must be one of T, M, ? (or none), got {str(h_ref)[:20]!r}",
                    CODE.ERROR_CODE_BAD_CAMERA)
     if heading is None:    # the file's compass bearing, kept when the photo was re-encoded
-        told = exif_heading(probe(image)[2])
+        told = exif_heading(exif)
         if told is not None:
             heading, h_sigma, h_ref = math.degrees(told[0]), math.degrees(told[1]), told[2]
     elif h_ref and h_sigma is None:     # a compass's, as the page read it from the file

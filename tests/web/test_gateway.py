@@ -98,6 +98,13 @@ def test_build_frame_keeps_the_files_compass_bearing_through_its_re_encoding():
     # what the page said comes first
     f, _ = build_frame("s1", 1, {"heading_deg": 10.0}, buf.getvalue())
     assert f.heading_rad == pytest.approx(math.radians(10.0)) and f.heading_ref == ""
+    # upright already: published as it came, its bearing said in the Frame too
+    del ex[0x0112]
+    buf = io.BytesIO()
+    Image.open(io.BytesIO(ROOM_A)).save(buf, "JPEG", quality=90, exif=ex)
+    f, info = build_frame("s1", 2, {}, buf.getvalue())
+    assert not info["reencoded"] and f.image.data == buf.getvalue()
+    assert f.heading_rad == pytest.approx(math.radians(123.4)) and f.heading_ref == "T"
 
 
 def test_build_frame_lenses_gravity_height():
