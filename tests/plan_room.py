@@ -8,7 +8,8 @@ spot), tilted down ``pitch`` degrees, 1.4 m above the floor. With ``heading_sigm
 Frame carries the phone's heading as a page would send it: the true yaw plus a session offset
 and a seeded N(0, sigma) reading error, declared at that sigma; with ``heading_in="exif"``
 the photo file carries it instead, as a phone's camera app writes its compass bearing
-(GPSImgDirection, from magnetic north), and the Frame none.
+(GPSImgDirection, from magnetic north), and the Frame none; ``heading_bias_deg`` more on
+every reading at the second spot (a compass near steel: indoor errors are local).
 """
 
 from __future__ import annotations
@@ -68,9 +69,11 @@ def boundary_kinds(cam, poly, height=H) -> np.ndarray:
 
 def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, hfov=70.0,
                      session="plan-test", size=(640, 480), heading_sigma_deg=None,
-                     seed=0, heading_in: str = "frame") -> RenderedSession:
+                     seed=0, heading_in: str = "frame",
+                     heading_bias_deg: float = 0.0) -> RenderedSession:
     poses = [Pose(x, z, H, float(y) + 7.0 * s, pitch, 0.0)
              for s, (x, z) in enumerate(spots_xz) for y in yaws]
+    spot_of = [s for s in range(len(spots_xz)) for _ in yaws]
     rng = np.random.default_rng(seed)
     frames, hsets, sels, jpegs, views = [], [], [], [], []
     for n, p in enumerate(poses):
@@ -79,7 +82,8 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
         heading = None
         if heading_sigma_deg is not None:
             s = math.radians(heading_sigma_deg)
-            heading = math.radians(p.yaw_deg) + 2.0 + s * rng.standard_normal()
+            heading = (math.radians(p.yaw_deg) + 2.0 + s * rng.standard_normal()
+                       + math.radians(heading_bias_deg) * (spot_of[n] == 1))
         if heading is not None and heading_in == "exif":
             data = _jpeg_with_direction(v.image, math.degrees(heading) % 360.0)
         else:

@@ -1,7 +1,8 @@
 """Confident wrong poses in mapping sessions the project renders: rooms whose every answer is
 known, photos turning at each spot with and without overlap, through the mapper's handler.
 
-    python tools/rendered_sessions.py [--json OUT.json] [--heading-sigma DEG [--heading-in exif]]
+    python tools/rendered_sessions.py [--json OUT.json]
+        [--heading-sigma DEG [--heading-in exif] [--heading-bias DEG]]
 
 Rooms: 5 x 4, 7 x 3 and 8 x 6 m rectangles, an L (6 x 5 m less 2.5 x 2), a trapezoid; two or
 three spots each; turns in steps of 50, 55 or 60 deg (overlapping views), 65 or 70 deg (a
@@ -14,7 +15,8 @@ render), and the plan's area against the room's. ``--heading-sigma DEG``: each F
 the phone's heading as the page sends it, the truth read off by a seeded N(0, DEG), declared
 at DEG; with ``--heading-in exif`` each photo file carries it instead, as a camera app's
 compass bearing (GPSImgDirection), taken at the files' 1-sigma
-(``frame_photo.EXIF_HEADING_SIGMA_RAD``) whatever DEG is. A tool, not the product: it reads
+(``frame_photo.EXIF_HEADING_SIGMA_RAD``) whatever DEG is; ``--heading-bias DEG`` adds DEG to
+every reading at the second spot (a compass near steel). A tool, not the product: it reads
 the rendered truth.
 """
 
@@ -52,11 +54,13 @@ def confident_wrong(stated, sigma, truth, slack=(0.02, 0.02, 0.01)) -> bool:
     return any(e > 3.0 * s + k for e, s, k in zip(err, sigma, slack))
 
 
-def run(room: str, spots, yaws, heading_sigma_deg=None, heading_in="frame") -> dict:
+def run(room: str, spots, yaws, heading_sigma_deg=None, heading_in="frame",
+        heading_bias_deg=0.0) -> dict:
     from services.pipeline.mapper import MapperHandler
     from tests.plan_room import rendered_session
     s = rendered_session(ROOMS[room], spots, yaws=yaws, heading_sigma_deg=heading_sigma_deg,
-                         seed=len(spots) * 1000 + len(yaws), heading_in=heading_in)
+                         seed=len(spots) * 1000 + len(yaws), heading_in=heading_in,
+                         heading_bias_deg=heading_bias_deg)
     last = s.plans(MapperHandler())[-1]
     placed = [q for q in last.poses if q.status == schemas.PLAN_PHOTO_STATUS_PLACED]
     wrong = [q.index for q in placed if q.index and confident_wrong(
@@ -77,11 +81,14 @@ def main(argv=None) -> int:
     ap.add_argument("--heading-in", choices=("frame", "exif"), default="frame",
                     help="where the heading goes: the Frame (the page's sensor, default) or "
                          "the photo file's EXIF (a compass bearing, taken at the files' sigma)")
+    ap.add_argument("--heading-bias", type=float, default=0.0, metavar="DEG",
+                    help="every heading at the second spot reads DEG more (a compass near "
+                         "steel), on top of the N(0, --heading-sigma) error")
     a = ap.parse_args(argv)
     out = []
     for room, spots in LAYOUTS:
         for yaws in TURNS:
-            r = run(room, spots, yaws, a.heading_sigma, a.heading_in)
+            r = run(room, spots, yaws, a.heading_sigma, a.heading_in, a.heading_bias)
             out.append(r)
             step = "skip" if len(yaws) == 4 else f"{yaws[1]:>4d}"
             print(f"{room:9s} {len(spots)} spots, turn {step}: placed {r['placed']:2d}/"

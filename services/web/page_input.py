@@ -24,7 +24,7 @@ photo's lines, weighing it so), nothing for a typed one (the frame's default, 0.
 ``heading_deg`` (optional, finite) is which way the camera looked, turned about gravity,
 growing to the right, for the plan: the page sends its motion sensors' reading with a live
 capture (settings.js), and a gallery photo's EXIF compass bearing. ``heading_sigma_deg`` is
-its 1-sigma in (0, 90] (default 10, a compass's 15); ``heading_ref`` what it is measured
+its 1-sigma in (0, 90] (default 10, a compass's 30); ``heading_ref`` what it is measured
 from (``Frame.heading_ref``: none for the page's sensors, "T" / "M" / "?" for a compass).
 Without a heading, the photo file's own EXIF bearing (GPSImgDirection) goes into the Frame.
 ``camera_height_m`` is metres above the floor; ``capture_time_ms`` is Unix milliseconds (the

@@ -76,7 +76,7 @@ def test_build_frame_takes_the_sensors_heading():
     assert f.heading_ref == "T" and (info["heading_deg"], info["heading_ref"]) == (200.0, "T")
     assert build_frame("s1", 4, {"heading_deg": 5}, ROOM_A)[0].heading_ref == ""
     f, _ = build_frame("s1", 5, {"heading_deg": 5, "heading_ref": "?"}, ROOM_A)  # a compass's
-    assert f.heading_sigma_rad == pytest.approx(math.radians(15.0)) and f.heading_ref == "?"
+    assert f.heading_sigma_rad == pytest.approx(math.radians(30.0)) and f.heading_ref == "?"
 
 
 def test_build_frame_keeps_the_files_compass_bearing_through_its_re_encoding():
