@@ -18,7 +18,8 @@ import {initCapture} from './capture.js';
 import {expectMotion, renderMotion} from './motion.js';
 import {measure} from './points.js';
 import {initResults, render, show} from './results.js';
-import {autoRotation, cameraHeading, currentGravity, currentHeading, deviceGravityFromMotion,
+import {autoRotation, cameraHeading, currentGravity, currentHeading, currentHeadingFields,
+        deviceGravityFromMotion,
         deviceGravityFromOrientation, deviceToCamera, initSettings, rotation} from './settings.js';
 
 // ------------------------------------------------------------------ connection
@@ -177,7 +178,8 @@ function init() {
 
 // for tests and the curious: the pure conversions and the state
 window.FindMe = {deviceGravityFromOrientation, deviceGravityFromMotion, deviceToCamera,
-                 autoRotation, currentGravity, rotation, cameraHeading, currentHeading, state,
+                 autoRotation, currentGravity, rotation, cameraHeading, currentHeading,
+                 currentHeadingFields, state,
                  send, handle};
 if (document.readyState === 'loading') document.addEventListener('DOMContentLoaded', init);
 else init();

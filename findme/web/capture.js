@@ -12,9 +12,8 @@
  * a photo file sends its EXIF compass bearing instead, when it has one.
  */
 import {$, ERROR_HINTS, clearBusy, mb, notify, send, setBusy, state} from './common.js';
-import {SENSOR_GRAVITY_SIGMA_DEG, SENSOR_HEADING_SIGMA_DEG, currentGravity, currentHeading,
-        deviceToCamera, gravityFromForm,
-        heightFromForm, lensFromForm, rotation} from './settings.js';
+import {SENSOR_GRAVITY_SIGMA_DEG, currentGravity, currentHeadingFields, deviceToCamera,
+        gravityFromForm, heightFromForm, lensFromForm, rotation} from './settings.js';
 
 // ------------------------------------------------------------------ uploading
 export function sniff(b) {
@@ -107,7 +106,7 @@ export function imageSize(url) {
   });
 }
 
-export async function upload(file, sensorGravity = null, sensorHeading = null) {
+export async function upload(file, sensorGravity = null, sensorHeading = {}) {
   if (!file) return;
   if (!state.session) { notify('Not connected to the server yet.', 'error', 'CLOSED'); return; }
   if (state.photos.length >= state.limits.max_photos) {
@@ -156,9 +155,8 @@ export async function upload(file, sensorGravity = null, sensorHeading = null) {
               gravity_sigma_deg: gravity && fromSensors ? SENSOR_GRAVITY_SIGMA_DEG : undefined,
               camera_height_m: heightFromForm(), device: $('device').value.trim(),
               capture_time_ms: file.lastModified || Date.now()};
-    if (sensorHeading !== null) {   // a live capture: which way the phone looked, for the plan
-      header.heading_deg = sensorHeading;
-      header.heading_sigma_deg = SENSOR_HEADING_SIGMA_DEG;
+    if (sensorHeading.heading_deg !== undefined) {   // a live capture: which way the phone
+      Object.assign(header, sensorHeading);           // looked (headingFields), for the plan
     } else if (exif.heading !== null) {   // a file's compass bearing (lost if re-encoded);
       header.heading_deg = exif.heading;  // the server takes it at a compass's 1-sigma
       header.heading_ref = ['T', 'M'].includes(exif.headingRef) ? exif.headingRef : '?';
@@ -202,7 +200,7 @@ export function shutter() {
   c.getContext('2d').drawImage(v, 0, 0);
   const g = currentGravity();
   const sensed = g ? deviceToCamera(g, rotation(true)) : null;
-  const heading = currentHeading();
+  const heading = currentHeadingFields();
   c.toBlob((b) => upload(new File([b], 'live.jpg', {type: 'image/jpeg', lastModified: Date.now()}),
                          sensed, heading), 'image/jpeg', 0.92);
 }

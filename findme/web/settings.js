@@ -51,6 +51,10 @@ import {$, DEG, notify, state} from './common.js';
 
 export const SENSOR_GRAVITY_SIGMA_DEG = 1.5;   // a phone's motion-sensor gravity in the hand (1-sigma per axis)
 export const SENSOR_HEADING_SIGMA_DEG = 5;     // the gyroscope's heading between photos of a session (1-sigma)
+// a compass's (deviceorientation with absolute: true, e.g. Firefox on Android): indoors it
+// is off by tens of degrees near steel, the same way for every photo there; the server
+// takes a photo file's compass bearing so too (frame_photo.EXIF_HEADING_SIGMA_RAD)
+export const COMPASS_HEADING_SIGMA_DEG = 30;
 
 // ------------------------------------------------------------------ gravity (pure)
 export function normalize(v) {
@@ -72,6 +76,17 @@ export function cameraHeading(alphaDeg, betaDeg, gammaDeg) {
 export function currentHeading() {   // the latest reading, if fresh (0.5 s)
   const h = state.sensors.heading;
   return h && performance.now() - h.t < 500 ? h.deg : null;
+}
+export function headingFields(deg, compass) {   // what a live capture's upload header says
+  // of the heading: the gyroscope's (its own zero, +-5 deg) or a compass's ('?': true or
+  // magnetic north, not said; +-30 deg)
+  if (deg === null) return {};
+  return compass ? {heading_deg: deg, heading_sigma_deg: COMPASS_HEADING_SIGMA_DEG, heading_ref: '?'}
+    : {heading_deg: deg, heading_sigma_deg: SENSOR_HEADING_SIGMA_DEG};
+}
+export function currentHeadingFields() {   // headingFields of the latest fresh reading
+  const h = state.sensors.heading;
+  return headingFields(currentHeading(), Boolean(h && h.compass));
 }
 export function deviceToCamera(g, thetaDeg) {
   const t = thetaDeg / DEG;
@@ -187,7 +202,9 @@ export async function startSensors(quiet = false) {
   window.addEventListener('deviceorientation', (e) => {
     if (e.beta !== null && e.gamma !== null) pushSample(deviceGravityFromOrientation(e.beta, e.gamma), 'orientation');
     const h = e.alpha !== null && e.beta !== null && e.gamma !== null ? cameraHeading(e.alpha, e.beta, e.gamma) : null;
-    if (h !== null && Number.isFinite(h)) state.sensors.heading = {t: performance.now(), deg: h};
+    if (h !== null && Number.isFinite(h)) {
+      state.sensors.heading = {t: performance.now(), deg: h, compass: e.absolute === true};
+    }
     state.sensors.angles = [e.alpha, e.beta, e.gamma];   // as read (for tests and the curious)
   });
   window.addEventListener('devicemotion', (e) => {

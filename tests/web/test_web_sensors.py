@@ -238,3 +238,33 @@ def test_turning_right_grows_the_heading_the_page_reads(browser, app):
     assert page.evaluate("FindMe.cameraHeading(30, 0.5, 0)") is None   # flat: looking down
     assert not page.js_errors
     close(page)
+
+
+def test_a_compass_heading_is_sent_as_a_compass_s(browser, app):
+    """A browser whose deviceorientation alpha follows the compass (``absolute: true``,
+    e.g. Firefox on Android) is sent as a compass's heading (reference "?", +-30 deg, as a
+    photo file's bearing), a gyroscope's relative alpha as the page's own (+-5 deg): a
+    compass near steel may be off by a quarter turn, which a 5-deg heading would rule in."""
+    context = browser.new_context(**PHONE)
+    context.grant_permissions(SENSOR_PERMISSIONS)
+    page = context.new_page()
+    page.js_errors = []
+    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    page.goto(app.url)
+    page.wait_for_selector('#status[data-state="connected"]')
+    if not page.evaluate("document.getElementById('settings').open"):
+        page.click("#settings summary")
+    page.click("#sensors-btn")
+    page.wait_for_function("() => FindMe.state.sensors.on")
+
+    def fields(absolute):
+        # this headless page has no sensors of its own: the event is the only reading
+        page.evaluate("(a) => window.dispatchEvent(new DeviceOrientationEvent("
+                      "'deviceorientation', {alpha: 30, beta: 65, gamma: 0, absolute: a}))",
+                      absolute)
+        return page.evaluate("FindMe.currentHeadingFields()")
+    compass, gyro = fields(True), fields(False)
+    assert compass["heading_ref"] == "?" and compass["heading_sigma_deg"] == 30
+    assert "heading_ref" not in gyro and gyro["heading_sigma_deg"] == 5
+    assert compass["heading_deg"] == pytest.approx(gyro["heading_deg"])
+    close(page)
