@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 import schemas
+from findme_core.geometry.planar import wrap
 from findme_core.single.search import SegKind
 from findme_core.synth.render import render
 from findme_core.synth.room import Pose, Room
@@ -110,15 +111,16 @@ def rendered_session(room: Room, spots_xz, yaws=range(0, 360, 45), pitch=28.0, h
 
 
 def _jpeg_with_direction(bgr, degrees: float) -> bytes:
-    """A JPEG whose EXIF says the camera looked ``degrees`` from magnetic north."""
+    """A JPEG whose EXIF says the camera looked ``degrees`` from magnetic north (and
+    nothing else, ``exif.direction_block``)."""
     import io
 
-    from PIL import Image, TiffImagePlugin
-    ex = Image.Exif()
-    gps = ex.get_ifd(0x8825)
-    gps[0x0010], gps[0x0011] = "M", TiffImagePlugin.IFDRational(round(degrees * 100), 100)
+    from PIL import Image
+
+    from findme_io.exif import direction_block
     out = io.BytesIO()
-    Image.fromarray(bgr[:, :, ::-1]).save(out, "JPEG", quality=95, exif=ex)
+    Image.fromarray(bgr[:, :, ::-1]).save(out, "JPEG", quality=95,
+                                          exif=direction_block(degrees, "M"))
     return out.getvalue()
 
 
@@ -133,3 +135,12 @@ def first_frame_truth(room, poses):
         return np.array([c * dx - s * dz, s * dx + c * dz])
     truth = np.array([[*to0(p.x, p.z), math.radians(p.yaw_deg - p0.yaw_deg)] for p in poses])
     return truth, np.array([to0(X, Z) for X, Z in room.floor_polygon])
+
+
+def confident_wrong(stated, sigma, truth, slack=(0.02, 0.02, 0.01)) -> bool:
+    """Whether the true pose (x, z, yaw) lies outside 3 sigma of the stated one on any axis
+    (metres, radians; the yaw error wrapped), with ``slack`` for the render: what the
+    mapper's tests and ``tools/rendered_sessions.py`` call confidently wrong."""
+    err = (abs(stated[0] - truth[0]), abs(stated[1] - truth[1]),
+           abs(float(wrap(stated[2] - truth[2]))))
+    return any(e > 3.0 * s + k for e, s, k in zip(err, sigma, slack))

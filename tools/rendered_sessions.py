@@ -32,9 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import schemas  # noqa: E402
-from findme_core.geometry.planar import wrap  # noqa: E402
 from findme_core.plan import polygon  # noqa: E402
 from findme_core.synth.room import Room  # noqa: E402
+from tests.plan_room import confident_wrong, rendered_session  # noqa: E402
 
 ROOMS = {"5x4": Room.rectangle(5.0, 4.0), "L": Room.l_shape(6.0, 5.0, 2.5, 2.0),
          "7x3": Room.rectangle(7.0, 3.0), "8x6": Room.rectangle(8.0, 6.0),
@@ -46,18 +46,9 @@ LAYOUTS = [("5x4", [(-0.8, -0.5), (1.0, 0.6)]), ("L", [(-1.5, -1.0), (1.2, -1.4)
 TURNS = [tuple(range(0, 360, s))[: 360 // s] for s in (50, 55, 60, 65, 70)] + [(0, 50, 180, 230)]
 
 
-def confident_wrong(stated, sigma, truth, slack=(0.02, 0.02, 0.01)) -> bool:
-    """Whether the true pose (x, z, yaw) lies outside 3 sigma of the stated one on any axis
-    (metres, radians; the yaw error wrapped)."""
-    err = (abs(stated[0] - truth[0]), abs(stated[1] - truth[1]),
-           abs(float(wrap(stated[2] - truth[2]))))
-    return any(e > 3.0 * s + k for e, s, k in zip(err, sigma, slack))
-
-
 def run(room: str, spots, yaws, heading_sigma_deg=None, heading_in="frame",
         heading_bias_deg=0.0) -> dict:
     from services.pipeline.mapper import MapperHandler
-    from tests.plan_room import rendered_session
     s = rendered_session(ROOMS[room], spots, yaws=yaws, heading_sigma_deg=heading_sigma_deg,
                          seed=len(spots) * 1000 + len(yaws), heading_in=heading_in,
                          heading_bias_deg=heading_bias_deg)

@@ -69,7 +69,7 @@ class _Photo:
     photo: plan_session.Photo | None = None
     key: tuple = ()                   # (rank, height) the photo was analysed with
     plain: object = None              # a frame without gravity: ``mapper_gravity.Plain``
-    heading: tuple | None = None      # the phone's (heading, 1-sigma), radians
+    heading: tuple | None = None      # the phone's (heading, 1-sigma, reference), radians
 
 
 @dataclass

@@ -24,7 +24,7 @@ from findme_io.convert import camera_msg
 from services.pipeline.mapper import MapperHandler
 from services.runtime.service import Service
 from tests.services.conftest import Collector
-from tests.plan_room import rendered_session
+from tests.plan_room import confident_wrong, rendered_session
 
 
 @pytest.fixture(scope="module")
@@ -339,9 +339,7 @@ def _eight_by_six(heading_sigma_deg, seed, where="frame"):
 
 
 def _beyond_3_sigma(got, sig, truth):
-    err = np.abs(got - truth)
-    err[:, 2] = np.abs(fuse.wrap(got[:, 2] - truth[:, 2]))
-    return np.flatnonzero((err > 3 * sig + [0.02, 0.02, 0.01]).any(axis=1)).tolist()
+    return [i for i in range(len(got)) if confident_wrong(got[i], sig[i], truth[i])]
 
 
 @pytest.mark.parametrize("sigma_deg,seed", [(5.0, 1), (10.0, 2)])

@@ -4,7 +4,6 @@ in-process bus (isolation between sessions, refusals, cross-origin)."""
 from __future__ import annotations
 
 import asyncio
-import io
 import json
 import math
 import struct
@@ -82,28 +81,27 @@ def test_build_frame_takes_the_sensors_heading():
 def test_build_frame_keeps_the_files_compass_bearing_through_its_re_encoding():
     """A portrait JPEG (EXIF orientation 6) is re-encoded upright, without its EXIF: the
     compass bearing it carried goes into the Frame (true north, the files' 1-sigma)."""
-    from PIL import Image, TiffImagePlugin
+    from PIL import TiffImagePlugin
 
     from findme_io.frame_photo import EXIF_HEADING_SIGMA_RAD
-    ex = Image.Exif()
-    ex[0x0112] = 6
-    gps = ex.get_ifd(0x8825)
-    gps[0x0010], gps[0x0011] = "T", TiffImagePlugin.IFDRational(1234, 10)
-    buf = io.BytesIO()
-    Image.open(io.BytesIO(ROOM_A)).save(buf, "JPEG", quality=90, exif=ex)
-    f, info = build_frame("s1", 0, {}, buf.getvalue())
+    from tests.io.test_imageio import encode, exif_block
+
+    def jpeg(orientation):
+        rgb = cv2.imdecode(np.frombuffer(ROOM_A, np.uint8), cv2.IMREAD_COLOR)[:, :, ::-1]
+        return encode(rgb, "JPEG", exif_block(
+            orientation, direction=TiffImagePlugin.IFDRational(1234, 10), direction_ref="T"),
+            quality=90)
+    f, info = build_frame("s1", 0, {}, jpeg(6))
     assert info["reencoded"] and (info["width"], info["height"]) == (480, 640)
     assert f.heading_rad == pytest.approx(math.radians(123.4))
     assert f.heading_sigma_rad == pytest.approx(EXIF_HEADING_SIGMA_RAD) and f.heading_ref == "T"
     # what the page said comes first
-    f, _ = build_frame("s1", 1, {"heading_deg": 10.0}, buf.getvalue())
+    f, _ = build_frame("s1", 1, {"heading_deg": 10.0}, jpeg(6))
     assert f.heading_rad == pytest.approx(math.radians(10.0)) and f.heading_ref == ""
     # upright already: published as it came, its bearing said in the Frame too
-    del ex[0x0112]
-    buf = io.BytesIO()
-    Image.open(io.BytesIO(ROOM_A)).save(buf, "JPEG", quality=90, exif=ex)
-    f, info = build_frame("s1", 2, {}, buf.getvalue())
-    assert not info["reencoded"] and f.image.data == buf.getvalue()
+    upright = jpeg(None)
+    f, info = build_frame("s1", 2, {}, upright)
+    assert not info["reencoded"] and f.image.data == upright
     assert f.heading_rad == pytest.approx(math.radians(123.4)) and f.heading_ref == "T"
 
 

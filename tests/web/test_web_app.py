@@ -28,11 +28,15 @@ PHONE = {"viewport": {"width": 390, "height": 844}, "device_scale_factor": 3,
 
 
 # ------------------------------------------------------------------------------ helpers
-def open_page(browser, app, **ctx):
+def open_page(browser, app, received=None, **ctx):
+    """A connected page (a phone's unless ``ctx`` says); ``received``: a list the
+    WebSocket's incoming messages are appended to."""
     context = browser.new_context(**(ctx or PHONE))
     page = context.new_page()
     page.js_errors = []
     page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    if received is not None:
+        page.on("websocket", lambda ws: ws.on("framereceived", lambda d: received.append(d)))
     page.goto(app.url)
     page.wait_for_selector('#status[data-state="connected"]')
     # log every busy-indicator state, to show it was up while the server worked
@@ -40,6 +44,12 @@ def open_page(browser, app, **ctx):
         new MutationObserver(() => window.__busy.push(document.body.dataset.busy || ''))
           .observe(document.body, {attributes: true, attributeFilter: ['data-busy']}); }""")
     return page
+
+
+def frame_ack(received) -> dict:
+    """The gateway's acknowledgement of the first photo sent (``type`` "frame")."""
+    return next(m for m in (json.loads(r) for r in received if isinstance(r, str))
+                if m.get("type") == "frame")
 
 
 def close(*pages):
@@ -284,18 +294,11 @@ def test_a_large_photo_is_sent_at_1600_px_with_its_intrinsics_scaled(browser, ap
     k = SIDE_A["intrinsics"]
     typed = {"fx": 3 * k["fx"], "fy": 3 * k["fy"], "cx": (k["cx"] + 0.5) * 3 - 0.5,
              "cy": (k["cy"] + 0.5) * 3 - 0.5}
-    context = browser.new_context(**PHONE)
-    page = context.new_page()
-    page.js_errors = []
-    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
     received = []
-    page.on("websocket", lambda ws: ws.on("framereceived", lambda d: received.append(d)))
-    page.goto(app.url)
-    page.wait_for_selector('#status[data-state="connected"]')
+    page = open_page(browser, app, received)
     type_camera(page, {**SIDE_A, "intrinsics": typed})
     upload(page, str(big), 0)
-    ack = next(m for m in (json.loads(r) for r in received if isinstance(r, str))
-               if m.get("type") == "frame")
+    ack = frame_ack(received)
     s = 1600 / 1920
     assert (ack["width"], ack["height"]) == (1600, 1200)
     assert ack["bytes"] < big.stat().st_size
@@ -309,29 +312,18 @@ def test_a_photo_files_compass_bearing_survives_the_pages_re_encoding(browser, a
     """A 12 MP-like photo is re-encoded by the page (EXIF gone); the compass bearing its
     EXIF held (GPSImgDirection 123.4 deg from magnetic north) goes in the upload's header
     and reaches the Frame, as a compass's."""
-    import io
-
     import cv2
-    from PIL import Image, TiffImagePlugin
-    ex = Image.Exif()
-    gps = ex.get_ifd(0x8825)
-    gps[0x0010], gps[0x0011] = "M", TiffImagePlugin.IFDRational(1234, 10)
+    from PIL import TiffImagePlugin
+
+    from tests.io.test_imageio import encode, exif_block
     img = cv2.resize(cv2.imread(ROOM_A), (1920, 1440), interpolation=cv2.INTER_CUBIC)
-    buf = io.BytesIO()
-    Image.fromarray(img[:, :, ::-1]).save(buf, "JPEG", quality=90, exif=ex)
     big = tmp_path / "bearing.jpg"
-    big.write_bytes(buf.getvalue())
-    context = browser.new_context(**PHONE)
-    page = context.new_page()
-    page.js_errors = []
-    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
+    big.write_bytes(encode(img[:, :, ::-1], "JPEG", exif_block(
+        direction=TiffImagePlugin.IFDRational(1234, 10), direction_ref="M"), quality=90))
     received = []
-    page.on("websocket", lambda ws: ws.on("framereceived", lambda d: received.append(d)))
-    page.goto(app.url)
-    page.wait_for_selector('#status[data-state="connected"]')
+    page = open_page(browser, app, received)
     upload(page, str(big), 0)
-    ack = next(m for m in (json.loads(r) for r in received if isinstance(r, str))
-               if m.get("type") == "frame")
+    ack = frame_ack(received)
     assert (ack["width"], ack["height"]) == (1600, 1200)      # re-encoded by the page
     assert ack["heading_deg"] == pytest.approx(123.4) and ack["heading_ref"] == "M"
     close(page)
