@@ -46,3 +46,19 @@ class BusError(FindmeError):
 
 class RecordingError(FindmeError):
     """An MCAP recording is unreadable or cannot be written."""
+
+
+class OutlineRefused(GeometryError):
+    """A floor plan's outline contradicts its own photos (they saw past one of its walls), so
+    it must not be shown; where the photos were taken stands, each with its own 1-sigma.
+
+    Attributes:
+        plan: the ``floorplan.Plan`` whose outline was refused (its poses and their sigmas
+            are the photos' places; its polygon and walls must not be shown).
+        placement: the ``fuse.Placement`` behind it (spots, blocks, alternatives).
+        timing_ms: stage -> milliseconds, as ``session.plan`` gives them.
+    """
+
+    def __init__(self, reason: str, plan=None, placement=None, timing_ms=None):
+        super().__init__(reason)
+        self.plan, self.placement, self.timing_ms = plan, placement, dict(timing_ms or {})

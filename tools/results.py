@@ -156,8 +156,10 @@ def _room_answer_rows(runs) -> list[str]:
         cells = []
         for (_, _, preds), p in zip(runs, per):
             why = (preds.get("rooms_refused") or {}).get(rid)
+            kept = len(((preds.get("rooms") or {}).get(rid) or {}).get("poses") or {})
             if why:
-                cells.append(f"refused: {why}")
+                cells.append(f"refused: {why}" + (f" (outline only: {kept} photos' poses kept)"
+                                                   if kept else ""))
             elif rid in p and not p[rid].get("predicted_polygon", True):
                 cells.append("no plan")
             elif rid in p:
@@ -297,8 +299,9 @@ def main(argv=None):
         *_room_rows([("spots by id", ours), ("spots found", auto_spots),
                      ("gravity withheld", nograv)]), "",
         "Each room's plan, or why it was refused (\"gravity withheld\": `--no-gravity`, "
-        "the photos agree on gravity spot by spot; a refused room counts as a failure "
-        "above):", "",
+        "the photos agree on gravity spot by spot; a refused outline counts as IoU 0 and its "
+        "walls as failures above, while its photos' poses, kept with their 1-sigmas, are "
+        "scored as placed):", "",
         *_room_answer_rows([("spots by id", ours, ours_preds),
                             ("gravity withheld", nograv, nograv_preds)]), "",
         "\"Find me\" on a plan (`tools/locate_report.py`): each spot's photos left out of their "

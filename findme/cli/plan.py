@@ -19,7 +19,7 @@ import os
 
 import numpy as np
 
-from findme_core.errors import FindmeError, InputError
+from findme_core.errors import FindmeError, InputError, OutlineRefused
 from findme_core.geometry.camera import Camera
 from findme_core.plan import relocalise, session
 from findme_core.plan.floorplan import Plan
@@ -126,8 +126,11 @@ def cmd_plan(args) -> int:
     images, inputs, headings = zip(*(photo_inputs(path, args) for path in args.photos))
     metric = all(g.metric for g in inputs)
     photos, _ = session_photos(images, inputs, headings)
-    plan, _, timing = session.plan(photos, spots)
     names = [os.path.basename(p) for p in args.photos]
+    try:
+        plan, _, timing = session.plan(photos, spots)
+    except OutlineRefused as e:   # where the photos were taken stands; the outline does not
+        return _refused_outline(e, names, metric, args.json)
     out = plan.to_dict(names)
     out["metric"] = metric
     out["timing_ms"] = {k: round(v, 1) for k, v in timing.items()}
@@ -146,10 +149,33 @@ def cmd_plan(args) -> int:
               + (f"± {w.sigma_m:.2f} {unit}" if w.seen else f"{unit} (not seen: inferred, not "
                                                             "measured)")
               + "".join(f", opening {a:.2f}-{b:.2f}" for a, b in w.apertures))
+    _print_poses(out)
+    return 0
+
+
+def _print_poses(out: dict) -> None:
     for name, p in out["poses"].items():
         print(f"  {name}: " + ("not placed: " + out["notes"].get(name, "") if p is None else
-                              f"x {p['x_m']:+.2f} z {p['z_m']:+.2f} yaw {p['yaw_deg']:+.1f} deg"))
-    return 0
+                              f"x {p['x_m']:+.2f} z {p['z_m']:+.2f} yaw {p['yaw_deg']:+.1f} deg"
+                              + (f" (1-sigma {p['sigma_xz_m']:.2f} and {p['sigma_yaw_deg']:.1f} "
+                                 "deg)" if "sigma_xz_m" in p else "")))
+
+
+def _refused_outline(e: OutlineRefused, names, metric: bool, as_json: bool) -> int:
+    """``findme plan`` whose outline's walls its photos saw past (``OutlineRefused``): the
+    reason, and where each photo was taken with its 1-sigma (a plan without walls, which
+    ``locate-in --photos`` takes). Exit status 1: no floor plan."""
+    d = e.plan.to_dict(names)
+    out = {"reason": str(e), "floor_polygon_m": [], "walls": [], "area_m2": 0.0,
+           "metric": metric, "poses": d["poses"], "notes": d["notes"]}
+    if as_json:
+        print(json.dumps(out))
+    else:
+        print(f"no floor plan: {e}")
+        print("where the photos were taken (x, z in "
+              + ("m" if metric else "camera heights") + "; the outline is not drawn):")
+        _print_poses(out)
+    return 1
 
 
 def cmd_locate_in(args) -> int:
@@ -159,6 +185,9 @@ def cmd_locate_in(args) -> int:
         plan, plan_names = Plan.from_dict(d), list(d.get("poses", {}))
     except (OSError, KeyError, TypeError, ValueError) as e:
         raise InputError(f"{args.plan}: not a plan from findme plan --json ({e})") from None
+    if not plan.walls and not args.photos:   # an outline refused: its photos' places only
+        raise InputError(f"{args.plan} has no walls ({d.get('reason') or 'no outline'}); "
+                         "find a photo on it with --photos and the plan's photos")
     photos = _photos(args.photo, args)
     if all(p.layout is None for p in photos):
         raise FindmeError("no photo shows a usable floor boundary: "

@@ -16,7 +16,7 @@ from concurrent.futures import ProcessPoolExecutor
 import cv2
 from tqdm import tqdm
 
-from findme_core.errors import FindmeError
+from findme_core.errors import FindmeError, OutlineRefused
 from findme_core.plan import session
 
 from findme_io.imageio import read_image
@@ -53,8 +53,15 @@ def room_spots(views, spots_mode: str):
 
 
 def room_prediction(views, photos, spots_mode: str) -> dict:
-    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON."""
-    plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
+    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON. A
+    refused outline (``OutlineRefused``) gives the poses alone, with ``refused``: the reason
+    (the scorer counts the room's outline missing and scores the poses)."""
+    try:
+        plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
+    except OutlineRefused as e:
+        poses = e.plan.to_dict(views)["poses"]
+        return {"poses": {k: p for k, p in poses.items() if p is not None},
+                "refused": str(e)}
     d = plan.to_dict(views)
     d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
     return d
@@ -67,7 +74,8 @@ def room_job(args) -> tuple[str, dict | None, str | None]:
     cv2.setNumThreads(1)
     try:
         views, photos = room_photos(room_dir, view_dir, rid, *gravity)
-        return rid, room_prediction(views, photos, spots_mode), None
+        pred = room_prediction(views, photos, spots_mode)
+        return rid, pred, pred.get("refused")
     except (FindmeError, OSError, KeyError, ValueError) as e:
         return rid, None, str(e)
 
@@ -76,8 +84,9 @@ def predict_rooms(dataset, index, view_dir, spots: str, jobs: int, gravity=True,
                   refused: dict | None = None) -> dict:
     """Plans of the dataset's room sets (rooms/<id>.json), in each room's frame; each view's
     gravity as ``gravity`` gives it (withheld: from the photos, agreed spot by spot). A room
-    whose plan is refused has no entry (the scorer counts it a failure); its reason goes
-    into ``refused`` (room id -> the message), when given."""
+    whose plan fails has no entry (the scorer counts it a failure), one whose outline is
+    refused has its photos' poses alone; either reason goes into ``refused`` (room id -> the
+    message), when given."""
     room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
     rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
     out = {}
@@ -89,6 +98,6 @@ def predict_rooms(dataset, index, view_dir, spots: str, jobs: int, gravity=True,
                 print(f"  {rid}: {err}", file=sys.stderr)
                 if refused is not None:
                     refused[rid] = err
-            else:
+            if pred is not None:
                 out[rid] = pred
     return out

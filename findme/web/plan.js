@@ -83,6 +83,10 @@ window.FindMePlan = (function () {
       const tip = [q.x_m + 1.8 * r * s, -(q.z_m + 1.8 * r * c)];
       const l = [q.x_m - r * c, -(q.z_m + r * s)], rt = [q.x_m + r * c, -(q.z_m - r * s)];
       const g = el('svg:g', {class: 'plan-cam', 'data-index': q.index});
+      if (q.sigma_x_m > 0 || q.sigma_z_m > 0) {   // where it may be: its 1-sigma in x and z
+        g.append(el('svg:ellipse', {class: 'plan-cam-sigma', cx: q.x_m, cy: -q.z_m,
+                                    rx: q.sigma_x_m, ry: q.sigma_z_m}));
+      }
       g.append(el('svg:polygon', {points: `${tip.join(',')} ${l.join(',')} ${rt.join(',')}`}));
       svg.append(g);
     }
@@ -107,11 +111,19 @@ window.FindMePlan = (function () {
     sec.hidden = false;
     sec.dataset.upTo = latest.up_to_index;
     if (!latest.reason) lastOutline = latest;
-    const plan = latest.reason && lastOutline ? lastOutline : latest;
+    // an outline refused (the photos disagree about the room) still places its photos: show
+    // where they were taken, not an older outline that they now contradict
+    const refused = !!latest.reason && placed(latest).length > 0;
+    const plan = latest.reason && lastOutline && !refused ? lastOutline : latest;
     sec.dataset.shown = plan.up_to_index;
+    sec.dataset.refused = String(refused);
     const text = document.getElementById('plan-text');
     const n = plan.poses.length, k = placed(plan).length;
-    if (plan !== latest) {
+    if (refused) {
+      text.textContent = `No floor plan from ${n} photos: they disagree about the room, so its ` +
+        `outline is not drawn (the server says: ${latest.reason}). Where ${k} of them were ` +
+        'taken is shown.';
+    } else if (plan !== latest) {
       text.textContent = `With photo ${latest.up_to_index + 1} there is no outline yet (the server says: ` +
         `${latest.reason}); the plan of the first ${plan.photos} photos is shown.`;
     } else if (plan.reason) {
@@ -126,7 +138,7 @@ window.FindMePlan = (function () {
         (plan.metric ? '' : ' No camera height: lengths in camera heights (h).');
     }
     const svg = document.getElementById('plan-map');
-    svg.toggleAttribute('hidden', !!plan.reason);   // an SVG element has no .hidden
+    svg.toggleAttribute('hidden', !!plan.reason && !refused);   // an SVG element has no .hidden
     draw(svg, plan, units);
     const list = document.getElementById('plan-walls');
     list.replaceChildren(...plan.walls.map((w, i) => el('li', {'data-kind': w.kind, 'data-length-m': w.length_m},

@@ -85,8 +85,11 @@ class Outline:
 
 
 def area(P) -> float:
-    """Signed shoelace area of (V, 2) vertices (> 0 counter-clockwise in (x, z))."""
-    P = np.asarray(P, float)
+    """Signed shoelace area of (V, 2) vertices (> 0 counter-clockwise in (x, z)); 0 for fewer
+    than 3 (no outline: an empty list too)."""
+    P = np.asarray(P, float).reshape(-1, 2)
+    if len(P) < 3:
+        return 0.0
     Q = np.roll(P, -1, axis=0)
     return 0.5 * float(np.sum(P[:, 0] * Q[:, 1] - Q[:, 0] * P[:, 1]))
 

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from findme_core.errors import CameraError, FindmeError, GeometryError
+from findme_core.errors import CameraError, FindmeError, GeometryError, OutlineRefused
 from findme_core.geometry import planar
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.provenance import GRAVITY_KINDS
@@ -256,8 +256,12 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     Returns:
         (plan, placement, timing_ms).
     Raises:
-        GeometryError: no photo, no placed photo saw any floor, or the plan contradicts its
-            photos (``consistency.check``: the reason says how).
+        GeometryError: no photo, no placed photo saw any floor, or the outline leaves a
+            camera outside (``consistency.cameras_outside``: the reason says how).
+        OutlineRefused: the photos saw past a wall of the outline
+            (``consistency.walls_seen_past``); it carries the plan, whose poses and their
+            1-sigmas stand (a caller may show where the photos were taken) and whose
+            outline must not be shown.
     """
     if not photos:
         raise GeometryError("a plan needs at least one photo")
@@ -285,10 +289,13 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
         layouts, pl.poses, plan_params, notes, amb, spot=pl.spot, links=links,
         matches=matches, focal=np.array([p.camera.fx for p in photos]),
         spread=np.array([spread(pl.alternatives[b]) for b in pl.block]))
-    why = consistency.check(result, params.consistency, evidence=walls.evidence(
-        layouts, result.poses), seen=plan_params.seen_past)
-    if why:
+    why = consistency.cameras_outside(result, params.consistency)
+    if why:        # placed wrongly as often as walls wrong: nothing of it stands
         raise GeometryError(why)
+    why = consistency.walls_seen_past(result, walls.evidence(layouts, result.poses),
+                                      plan_params.seen_past)
     t3 = clock()
-    return result, pl, {"relate": 1e3 * (t1 - t0), "place": 1e3 * (t2 - t1),
-                        "plan": 1e3 * (t3 - t2)}
+    timing = {"relate": 1e3 * (t1 - t0), "place": 1e3 * (t2 - t1), "plan": 1e3 * (t3 - t2)}
+    if why:
+        raise OutlineRefused(why, result, pl, timing)
+    return result, pl, timing

@@ -28,9 +28,12 @@ session idle for ``idle_s`` seconds is dropped.
 
 Errors: a photo that cannot be placed is NOT_PLACED with its reason in the Plan, one that
 cannot be read is LEFT_OUT with the reason; a session whose photos cannot make an outline
-yet gets a Plan with the reason. Camera height: the selection's, else the frame's, else 1
-(``metric`` false: lengths in camera heights). Instances share the load by session. Plain
-photos agree on gravity spot by spot; gravity not exact widens pose sigmas (``mapper_gravity``).
+yet gets a Plan with the reason. An outline whose walls its photos saw past
+(``OutlineRefused``) is not sent: the Plan says why and keeps the poses with their
+1-sigmas; one that leaves a camera outside places no photo (its poses may be as wrong as
+its walls). Camera height: the selection's, else the frame's, else 1 (``metric`` false:
+lengths in camera heights). Instances share the load by session. Plain photos agree on
+gravity spot by spot; gravity not exact widens pose sigmas (``mapper_gravity``).
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ import time
 from dataclasses import dataclass, field, replace
 
 import schemas
-from findme_core.errors import FindmeError, HypothesisError, InputError
+from findme_core.errors import FindmeError, HypothesisError, InputError, OutlineRefused
 from findme_core.motion import features
 from findme_core.plan import heading, session as plan_session
 from findme_core.single import layout
@@ -249,6 +252,10 @@ class MapperHandler(Handler):
                 t_rel = 1e3 * (time.perf_counter() - t0)
                 plan, pl, timing = plan_session.plan(photos, None, self.params, relations=rel)
                 timing["relate"] = t_rel   # the new pairs' share: the others were cached
+            except OutlineRefused as e:   # where the photos stand holds; the outline does not
+                msg.reason = str(e).splitlines()[0][:500]
+                fill(msg, e.plan, e.placement, {**e.timing_ms, "relate": t_rel}, photos,
+                     order, status, outline=False)
             except FindmeError as e:
                 msg.reason = str(e).splitlines()[0][:500]
                 for n in order:

@@ -16,8 +16,19 @@ from findme_core.plan import fuse, pose as plan_pose
 OPENING_SHARE = 0.9
 
 
-def fill(msg, plan, pl, timing, photos, order, status) -> None:
-    """The core plan into the message; each photo's status into ``status`` (n -> PlanPhoto)."""
+def fill(msg, plan, pl, timing, photos, order, status, outline: bool = True) -> None:
+    """The core plan into the message; each photo's status into ``status`` (n -> PlanPhoto).
+    ``outline`` False (a refused outline, ``OutlineRefused``: ``msg.reason`` says why): the
+    photos' poses only, no polygon or walls."""
+    for stage, ms in timing.items():
+        msg.timing_ms[stage] = max(float(ms), 0.0)
+    if outline:
+        _outline(msg, plan)
+    for a, n in enumerate(order):
+        status[n] = _photo(plan, pl, photos, a, n)
+
+
+def _outline(msg, plan) -> None:
     for v in plan.polygon:
         msg.polygon.add(x_m=float(v[0]), z_m=float(v[1]))
     for w in plan.walls:
@@ -31,24 +42,25 @@ def fill(msg, plan, pl, timing, photos, order, status) -> None:
         for a, b in w.apertures:
             pw.openings.add(from_m=float(a), to_m=float(min(b, w.length_m)))
     msg.area_m2, msg.closed, msg.manhattan = float(plan.area_m2), plan.closed, plan.manhattan
-    for stage, ms in timing.items():
-        msg.timing_ms[stage] = max(float(ms), 0.0)
-    for a, n in enumerate(order):
-        p = plan.poses[a]
-        q = schemas.PlanPhoto(index=n, spot=int(pl.spot[a]))
-        if np.all(np.isfinite(p)):
-            q.status = schemas.PLAN_PHOTO_STATUS_PLACED
-            q.x_m, q.z_m, q.yaw_rad = float(p[0]), float(p[1]), float(fuse.wrap(p[2]))
-            sig = plan.pose_sigma[a] if plan.pose_sigma is not None else np.full(3, np.nan)
-            if not np.all(np.isfinite(sig)):   # not refined jointly: from its wall samples
-                C = plan_pose.covariance(plan, photos[a].layout, p)
-                sig = np.sqrt(np.maximum(np.diag(C), 0.0)) if C is not None else sig
-            if np.all(np.isfinite(sig)):
-                q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad = map(float, sig)
-            if a < len(plan.ambiguity) and np.isfinite(plan.ambiguity[a]):
-                q.ambiguity = max(float(plan.ambiguity[a]), 0.0)
-        else:
-            q.status = schemas.PLAN_PHOTO_STATUS_NOT_PLACED
-            q.reason = (plan.notes[a] if a < len(plan.notes) and plan.notes[a]
-                        else "not placed")
-        status[n] = q
+
+
+def _photo(plan, pl, photos, a: int, n: int):
+    """Photo ``a`` of the plan (its index ``n`` in the session) as a PlanPhoto."""
+    p = plan.poses[a]
+    q = schemas.PlanPhoto(index=n, spot=int(pl.spot[a]))
+    if np.all(np.isfinite(p)):
+        q.status = schemas.PLAN_PHOTO_STATUS_PLACED
+        q.x_m, q.z_m, q.yaw_rad = float(p[0]), float(p[1]), float(fuse.wrap(p[2]))
+        sig = plan.pose_sigma[a] if plan.pose_sigma is not None else np.full(3, np.nan)
+        if not np.all(np.isfinite(sig)):   # not refined jointly: from its wall samples
+            C = plan_pose.covariance(plan, photos[a].layout, p)
+            sig = np.sqrt(np.maximum(np.diag(C), 0.0)) if C is not None else sig
+        if np.all(np.isfinite(sig)):
+            q.sigma_x_m, q.sigma_z_m, q.sigma_yaw_rad = map(float, sig)
+        if a < len(plan.ambiguity) and np.isfinite(plan.ambiguity[a]):
+            q.ambiguity = max(float(plan.ambiguity[a]), 0.0)
+    else:
+        q.status = schemas.PLAN_PHOTO_STATUS_NOT_PLACED
+        q.reason = (plan.notes[a] if a < len(plan.notes) and plan.notes[a]
+                    else "not placed")
+    return q

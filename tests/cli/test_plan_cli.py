@@ -163,6 +163,41 @@ def test_a_turn_at_a_new_place_is_found_together(session_on_disk, turn_on_disk):
     assert any(t < 0.2 and y < 3.0 for t, y in errs), (walls, truth[0])
 
 
+def test_a_refused_outline_still_says_where_the_photos_were_and_finds_a_new_one(
+        session_on_disk, turn_on_disk, tmp_path, monkeypatch, capsys):
+    """A plan whose outline contradicts its photos prints no walls, the reason, and where each
+    photo was taken with its 1-sigma (exit 1); locate-in takes that plan with the session's
+    photos and finds a turn on it, and without them says why it cannot. (The seen-past check,
+    tested on its own in tests/core/plan/test_seen_past.py, is made to refuse this closed
+    room, in process.)"""
+    from findme.cli import main
+    from findme_core.plan import consistency
+    paths, _, plan, _, _, room = session_on_disk
+    why = "the outline puts a wall where 2 photo(s) (photo_03.jpg, photo_08.jpg) saw past it"
+    monkeypatch.setattr(consistency, "walls_seen_past", lambda plan, *a, **k: why)
+    assert main(["plan", *map(str, paths), "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["reason"] == why
+    assert out["floor_polygon_m"] == [] and out["walls"] == []
+    assert out["poses"] == plan["poses"]                 # the same places, with their sigmas
+    assert all("sigma_xz_m" in p for p in list(out["poses"].values())[1:])
+    assert main(["plan", *map(str, paths)]) == 1
+    text = capsys.readouterr().out.splitlines()
+    assert text[0] == "no floor plan: " + out["reason"].splitlines()[0]
+    assert text[1].startswith("where the photos were taken (x, z in m;")
+    assert len(text) == 2 + len(paths) and "(1-sigma " in text[-1]
+    refused = tmp_path / "refused.json"
+    refused.write_text(json.dumps(out))
+    monkeypatch.undo()
+    turn, truth = turn_on_disk
+    p = run_findme("locate-in", refused, *turn, check=False)
+    assert p.returncode == 2 and "has no walls" in p.stderr and "--photos" in p.stderr
+    found = as_json(run_findme("locate-in", refused, *turn, "--photos", *paths, "--json",
+                               timeout=300))
+    t, y = _err(found["pose"], truth[0])
+    assert t < 0.15 and y < 3.0 and found["found"], (found["pose"], truth[0])
+
+
 def _with_direction(src, dst, degrees):
     """A copy of photo ``src`` (and its sidecar) whose EXIF says the camera looked
     ``degrees`` from magnetic north, as a phone's camera app writes its compass bearing."""

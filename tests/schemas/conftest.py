@@ -153,6 +153,18 @@ def sample_messages() -> list[tuple[str, object]]:
                          reason="no placed photo saw any floor", time_ns=T0,
                          poses=[S.PlanPhoto(index=0, status=S.PLAN_PHOTO_STATUS_NOT_PLACED,
                                             reason="no layout: no floor lines")])
+    # an outline whose walls its photos saw past: not sent, the photos' places kept
+    plan_refused = S.Plan(
+        session=SESSION, up_to_index=2, photos=3, camera_height_m=1.4, metric=True,
+        time_ns=T0, reason="the outline puts a wall where 2 photo(s) (photo 1, photo 3) saw "
+                           "past it: floor and a wall 0.3-1 m further out, along 3.6 m",
+        poses=[S.PlanPhoto(index=0, status=S.PLAN_PHOTO_STATUS_PLACED, x_m=0.0, z_m=0.0,
+                           yaw_rad=0.0, sigma_x_m=0.0, sigma_z_m=0.0, sigma_yaw_rad=0.0),
+               S.PlanPhoto(index=1, status=S.PLAN_PHOTO_STATUS_PLACED, x_m=0.0, z_m=0.0,
+                           yaw_rad=1.0, sigma_x_m=0.0, sigma_z_m=0.0, sigma_yaw_rad=0.01),
+               S.PlanPhoto(index=2, status=S.PLAN_PHOTO_STATUS_PLACED, x_m=2.1, z_m=-0.4,
+                           yaw_rad=2.5, sigma_x_m=0.3, sigma_z_m=0.2, sigma_yaw_rad=0.05,
+                           spot=1)])
 
     err = S.Error(session=SESSION, key=f"findme/{SESSION}/selection/9",
                   code=S.ErrorCode.Value("ERROR_CODE_NO_SUCH_HYPOTHESIS"),
@@ -174,7 +186,7 @@ def sample_messages() -> list[tuple[str, object]]:
            ("measure-reply", reply), ("measure-reply-error", reply_err), ("motion", motion),
            ("motion-agreed", motion_agreed), ("motion-failed", motion_failed), ("pose", pose), ("trajectory", traj),
            ("plan", plan), ("plan-closed", plan_closed),
-           ("plan-reason", plan_reason),
+           ("plan-reason", plan_reason), ("plan-refused", plan_refused),
            ("error", err), ("error-no-session", err_nosession), ("status", status)]
     for _, m in out:
         if not m.schema:

@@ -18,7 +18,7 @@ import pytest
 import schemas
 from findme_core.errors import HypothesisError, InputError
 from findme_core.geometry.provenance import Provenance, tilt_cov
-from findme_core.plan import floorplan, fuse, polygon, session as plan_session
+from findme_core.plan import consistency, floorplan, fuse, polygon, session as plan_session
 from findme_core.synth.room import Room
 from findme_io.convert import camera_msg
 from services.pipeline.mapper import MapperHandler
@@ -153,6 +153,40 @@ def test_the_mapper_gives_what_the_core_gives_for_the_same_photos(mapped):
     photos = [st.photos[n].photo for n in range(12)]
     core, _, _ = plan_session.plan(photos)                 # relates every pair afresh
     np.testing.assert_allclose(_vertices(plans[-1]), core.polygon, atol=1e-9)
+
+
+def test_an_outline_seen_past_is_refused_but_the_photos_places_stand(room, mapped,
+                                                                     monkeypatch):
+    """An outline whose walls the photos saw past is not sent, but the photos' places stand:
+    the plan says why and carries every pose with its 1-sigma (``walls_seen_past``, tested
+    on its own in tests/core/plan/test_seen_past.py, made to refuse this closed room)."""
+    why = "the outline puts a wall where 3 photo(s) (photo 1, photo 4, photo 9) saw past it"
+    monkeypatch.setattr(consistency, "walls_seen_past", lambda plan, *a, **k: why)
+    m = MapperHandler()
+    last = [o.msg for key, msg in room.messages() for o in m.on_message(key, msg)][-1]
+    plan = schemas.decode(schemas.Plan, schemas.encode(last))     # a valid Plan message
+    assert plan.reason == why
+    assert not plan.polygon and not plan.walls and plan.area_m2 == 0.0
+    assert set(plan.timing_ms) == {"relate", "place", "plan"}
+    want = mapped[1][-1].poses                                # the same photos, outline kept
+    assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
+    for a, b in zip(plan.poses, want):
+        assert (a.x_m, a.z_m, a.yaw_rad, a.sigma_x_m, a.sigma_z_m, a.sigma_yaw_rad) == (
+            b.x_m, b.z_m, b.yaw_rad, b.sigma_x_m, b.sigma_z_m, b.sigma_yaw_rad)
+    got = np.array([(q.x_m, q.z_m) for q in plan.poses])
+    assert np.abs(got - room.poses[:, :2]).max() < 0.01
+
+
+def test_an_outline_that_leaves_a_camera_outside_places_no_photo(room):
+    """Photos placed wrongly leave cameras outside as often as wrong walls do, so neither the
+    outline nor the poses are sent (the check made strict: a camera must stand 10 m inside)."""
+    strict = plan_session.SessionParams(consistency=consistency.ConsistencyParams(-10.0))
+    m = MapperHandler(params=strict)
+    last = [o.msg for key, msg in room.messages() for o in m.on_message(key, msg)][-1]
+    assert last.reason.startswith("the outline leaves 12 camera(s) outside the room")
+    assert not last.polygon and [q.status for q in last.poses] == [
+        schemas.PLAN_PHOTO_STATUS_NOT_PLACED] * 12
+    assert all(q.reason == last.reason for q in last.poses)
 
 
 def test_debounce_by_photo_count_and_the_last_photo_always_counts(room):

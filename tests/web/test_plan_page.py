@@ -34,6 +34,41 @@ def test_plan_as_the_page_reads_it():
     assert d["poses"][0]["x_m"] is None and d["poses"][2]["ambiguity"] == 0.35
     r = to_page("s", samples["plan-reason"])
     assert r["reason"] and r["walls"] == [] and r["polygon"] == []
+    r = to_page("s", samples["plan-refused"])       # no outline, the photos' places kept
+    assert r["reason"] and r["walls"] == [] and r["polygon"] == []
+    assert [q["status"] for q in r["poses"]] == ["placed"] * 3 and r["poses"][2]["x_m"] == 2.1
+
+
+def test_a_refused_outline_shows_where_the_photos_were_not_an_older_outline(browser, app,
+                                                                           shots):
+    samples = dict(sample_messages())
+    page = open_page(browser, app, **PHONE)
+    render = "m => FindMePlan.render(m, 'm')"
+    page.evaluate(render, to_page("s", samples["plan-closed"]))
+    assert page.get_attribute("#plan-map", "data-walls") == "4"
+    refused = to_page("s", samples["plan-refused"])
+    page.evaluate(render, refused)
+    assert page.get_attribute("#plan", "data-refused") == "true"
+    assert page.get_attribute("#plan", "data-shown") == "2"        # this plan, not the last
+    assert page.get_attribute("#plan-map", "hidden") is None        # drawn: the cameras
+    assert page.get_attribute("#plan-map", "data-walls") == "0"
+    assert page.locator("#plan-map polygon.floor").count() == 0
+    assert page.locator("#plan-map g.plan-cam").count() == 3        # each photo, heading
+    assert page.locator("#plan-map text.plan-cam-label").count() == 2   # at two spots
+    # each photo's 1-sigma drawn where it has one: photo 3's, 0.3 x 0.2 m
+    sig = page.eval_on_selector_all("#plan-map ellipse.plan-cam-sigma",
+                                    "els => els.map(e => [+e.getAttribute('rx'), +e.getAttribute('ry')])")
+    assert sig == [[0.3, 0.2]]
+    text = page.inner_text("#plan-text")
+    assert "disagree about the room" in text and refused["reason"] in text, text
+    assert "Where 3 of them were taken is shown" in text
+    shots(page, "plan-4-outline-refused-photos-shown", at="#plan")
+    # nothing placed and no outline yet: the last outline stays on screen, as before
+    page.evaluate(render, to_page("s", samples["plan-reason"]))
+    assert page.get_attribute("#plan", "data-refused") == "false"
+    assert page.get_attribute("#plan", "data-shown") == "7"
+    assert not page.js_errors, page.js_errors
+    close(page)
 
 
 @pytest.fixture(scope="module")

@@ -175,3 +175,16 @@ def test_refined_wall_lengths_within_their_sigma():
         err = np.abs(true_len - w.length_m).min()
         assert err < 3 * w.sigma_m, (w.length_m, w.sigma_m, true_len)
         assert w.sigma_m < 0.02 * w.length_m + 0.03
+
+
+@pytest.mark.parametrize("verts", [[], [[0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]]])
+def test_fewer_than_three_vertices_have_no_area_and_a_plan_without_walls_reads_back(verts):
+    assert polygon.area(verts) == 0.0
+    assert polygon.area([[0, 0], [2, 0], [2, 1], [0, 1]]) == 2.0          # counter-clockwise
+    assert polygon.area([[0, 0], [0, 1], [2, 1], [2, 0]]) == -2.0
+    # a refused outline's JSON (``findme plan``): poses, no polygon, no walls
+    plan = floorplan.Plan.from_dict({"floor_polygon_m": verts, "walls": [],
+                                     "poses": {"a": {"x_m": 0.5, "z_m": 1.0, "yaw_deg": 90.0},
+                                               "b": None}})
+    assert plan.walls == () and plan.area_m2 == 0.0
+    assert plan.poses[0] == pytest.approx([0.5, 1.0, math.pi / 2]) and np.isnan(plan.poses[1]).all()
