@@ -34,7 +34,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from findme.evaluation.rooms import room_spots  # noqa: E402
 from findme_core.plan import fuse, relocalise, session  # noqa: E402
-from findme_core.errors import FindmeError  # noqa: E402
+from findme_core.errors import FindmeError, OutlineRefused  # noqa: E402
 from tools.plan_report import cached_photos  # noqa: E402 (the same --cache files)
 
 
@@ -58,6 +58,9 @@ def room(dataset, rid, cache=None) -> list[dict]:
             rel = session.relate([photos[k] for k in rest], [spots[k] for k in rest],
                                  cache=pairs, ids=rest)
             plan, _, _ = session.plan([photos[k] for k in rest], relations=rel)
+            no_walls = None
+        except OutlineRefused as e:   # its outline refused, its poses stand: --photos only
+            plan, no_walls = e.plan, f"the plan has no walls: {e}".splitlines()[0]
         except FindmeError as e:
             rows += [{"room": rid, "view": views[v], "error": str(e).splitlines()[0]}
                      for v in range(len(views)) if spots[v] == s]
@@ -65,9 +68,9 @@ def room(dataset, rid, cache=None) -> list[dict]:
         o = rest[0]                  # the plan's frame: its first photo's level frame
         mine = [k for k in range(len(views)) if spots[k] == s]
         new = [_locate(plan, [photos[k] for k in rest], photos[v], fuse.relative(T[o], T[v]),
-                       {"room": rid, "view": views[v]}) for v in mine]
+                       {"room": rid, "view": views[v]}, no_walls) for v in mine]
         rows += _locate_turn(plan, [photos[k] for k in rest], [photos[v] for v in mine],
-                             [fuse.relative(T[o], T[v]) for v in mine], new)
+                             [fuse.relative(T[o], T[v]) for v in mine], new, no_walls)
     return rows
 
 
@@ -83,13 +86,16 @@ def _errors(cands, truth) -> dict:
             "dyaw_deg": math.degrees(float(fuse.wrap(cands[0][2] - yaw_t)))}
 
 
-def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
+def _locate_turn(plan, photos, new, truths, rows, no_walls=None) -> list[dict]:
     """``rows`` (one per photo of ``new``, photos taken at one spot) with each photo's errors
     when the spot's photos are found together: "turn walls" (their layouts merged by the
     turn's rotation-only yaws, on the plan's walls: ``findme locate-in PLAN.json PHOTO...``)
-    and "turn photos" (with the plan's photos: ``session.find`` of the group)."""
+    and "turn photos" (with the plan's photos: ``session.find`` of the group). ``no_walls``:
+    why the plan has no walls (its outline refused), which the walls' ways answer."""
     block, rel = session.turn(new)
     try:
+        if no_walls:
+            raise FindmeError(no_walls)
         cands, found = relocalise.locate_turn(plan, [p.layout for p in new], block, rel)
         ev = _evidence([p.score for p in found], found[0].agreeing, with_photos=False,
                        turn=True)
@@ -113,11 +119,14 @@ def _locate_turn(plan, photos, new, truths, rows) -> list[dict]:
     return rows
 
 
-def _locate(plan, photos, new, truth, row) -> dict:
-    """``row`` with photo ``new``'s errors on ``plan`` (made from ``photos``) both ways."""
+def _locate(plan, photos, new, truth, row, no_walls=None) -> dict:
+    """``row`` with photo ``new``'s errors on ``plan`` (made from ``photos``) both ways
+    (``no_walls``: as ``_locate_turn``)."""
     for how in ("walls", "photos"):
         try:
             if how == "walls":       # findme locate-in PLAN.json PHOTO: the plan's walls only
+                if no_walls:
+                    raise FindmeError(no_walls)
                 if new.layout is None:
                     raise FindmeError(f"no layout: {new.reason}")
                 found = relocalise.locate(plan, new.layout)

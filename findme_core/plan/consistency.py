@@ -12,7 +12,7 @@ A plan is refused (``check`` gives the reason) when it contradicts its own photo
   the room's walls, not about where they stand. On the dev rooms (2026-11-30, a phone's
   gravity) this refused the kitchen zr_r06 (IoU 0.41: a hallway seen through an opening
   taken in, its long wall drawn through the kitchen), whose 12 placed photos were right
-  within 0.26 m and 1.01 sigma. Only the outline is refused.
+  within 0.26 m and 0.74 deg, each within 1.6 sigma. Only the outline is refused.
 
 Frames and units as ``floorplan``: the room frame's (x, z), metres. Pure numpy + OpenCV's
 point-in-polygon test.
