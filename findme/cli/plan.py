@@ -130,7 +130,7 @@ def cmd_plan(args) -> int:
     try:
         plan, _, timing = session.plan(photos, spots)
     except OutlineRefused as e:   # where the photos were taken stands; the outline does not
-        return _refused_outline(e, names, metric, args.json)
+        return _refused_outline(e, names, metric, args)
     out = plan.to_dict(names)
     out["metric"] = metric
     out["timing_ms"] = {k: round(v, 1) for k, v in timing.items()}
@@ -161,14 +161,19 @@ def _print_poses(out: dict) -> None:
                                  "deg)" if "sigma_xz_m" in p else "")))
 
 
-def _refused_outline(e: OutlineRefused, names, metric: bool, as_json: bool) -> int:
+def _refused_outline(e: OutlineRefused, names, metric: bool, args) -> int:
     """``findme plan`` whose outline's walls its photos saw past (``OutlineRefused``): the
     reason, and where each photo was taken with its 1-sigma (a plan without walls, which
-    ``locate-in --photos`` takes). Exit status 1: no floor plan."""
+    ``locate-in --photos`` takes; ``--svg`` draws the photos alone). Exit status 1: no
+    floor plan."""
     d = e.plan.to_dict(names)
     out = {"reason": str(e), "floor_polygon_m": [], "walls": [], "area_m2": 0.0,
            "metric": metric, "poses": d["poses"], "notes": d["notes"]}
-    if as_json:
+    if args.svg:
+        with open(args.svg, "w") as f:
+            f.write(plan_svg(Plan.from_dict(out), names, feet=args.feet,
+                             title="no outline: " + str(e).split(":")[0]))
+    if args.json:
         print(json.dumps(out))
     else:
         print(f"no floor plan: {e}")

@@ -175,9 +175,13 @@ def test_a_refused_outline_still_says_where_the_photos_were_and_finds_a_new_one(
     paths, _, plan, _, _, room = session_on_disk
     why = "the outline puts a wall where 2 photo(s) (photo_03.jpg, photo_08.jpg) saw past it"
     monkeypatch.setattr(consistency, "walls_seen_past", lambda plan, *a, **k: why)
-    assert main(["plan", *map(str, paths), "--json"]) == 1
+    svg = tmp_path / "photos.svg"
+    assert main(["plan", *map(str, paths), "--json", "--svg", str(svg)]) == 1
     out = json.loads(capsys.readouterr().out)
     assert out["reason"] == why
+    drawn = svg.read_text()                  # the photos alone, and why there are no walls
+    assert drawn.count("<circle ") == len(paths) and 'stroke="#1a4f9c"' not in drawn
+    assert "no outline: the outline puts a wall where 2 photo(s)" in drawn
     assert out["floor_polygon_m"] == [] and out["walls"] == []
     assert out["poses"] == plan["poses"]                 # the same places, with their sigmas
     assert all("sigma_xz_m" in p for p in list(out["poses"].values())[1:])
