@@ -21,8 +21,13 @@ def log_plan(rec, path: str, plan) -> None:
     (x, -z), metres) and in 3D on the floor (y = h) of the plan frame, the level frame of
     photo ``origin_index`` (``world/photo/<origin>/plan``). Walls with their lengths as
     labels (seen: blue; not seen: thin red, "(not seen)"; openings orange), each placed
-    photo's position and heading, numbered; a plan without an outline only clears them."""
+    photo's position and heading, numbered; a plan without an outline clears the walls,
+    still draws the photos it placed (an outline refused: ``OutlineRefused``) and says why
+    in the session's log (``log``)."""
     rr = _rr()
+    if plan.reason:
+        rec.log("log", rr.TextLog(f"plan of photos up to {plan.up_to_index + 1}: no outline: "
+                                  f"{plan.reason}", level="WARN"))
     h = plan.camera_height_m or 1.0
     unit = "m" if plan.metric else "h"
     world = f"{photo_path(plan.origin_index)}/plan"

@@ -200,3 +200,21 @@ def test_viewer_bounds_what_sessions_cost(tmp_path):
     assert full == [1]
     h.close()
     assert not h.views
+
+
+def test_a_refused_outline_in_rerun_draws_the_photos_and_says_why(tmp_path):
+    import rerun as rr
+
+    from findme_io.rerun_plan import log_plan
+    from tests.schemas.conftest import sample_messages
+    plan = dict(sample_messages())["plan-refused"]
+    rec = rr.RecordingStream("findme-test")
+    out = tmp_path / "refused.rrd"
+    rec.save(str(out))
+    log_plan(rec, "plan", plan)
+    rec.flush()
+    rec.disconnect()
+    assert column(out, "/plan/cameras", "Arrows2D:labels")[-1] == ["1", "2", "3"]
+    assert "LineStrips2D:strips" not in rrd_contents(out)["/plan/walls"]    # cleared
+    ((text,),) = column(out, "/log", "TextLog:text")
+    assert text == f"plan of photos up to 3: no outline: {plan.reason}"
