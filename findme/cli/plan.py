@@ -38,7 +38,10 @@ floor, move to the next spot. It prints the walls with their lengths and 1-sigma
 (walls not seen marked), openings, the floor area and where each photo was taken
 (x to the right, z forward of the first photo, yaw in degrees). A photo's camera
 comes from PHOTO.json beside it when there is one (intrinsics, gravity_cam,
-camera_height_m), else from the options and its EXIF.
+camera_height_m), else from the options and its EXIF. An outline the photos
+contradict is not drawn: when they saw past one of its walls, where each photo
+was taken is still printed, with its 1-sigma, and the exit status is 1; when it
+leaves a camera outside, nothing is (exit status 2, as for an error).
 
 Example:  findme plan spot1_*.jpg spot2_*.jpg --camera-height 1.45 \\
               --svg plan.svg"""
