@@ -19,13 +19,13 @@ OPENING_SHARE = 0.9
 def fill(msg, plan, pl, timing, photos, order, status, outline: bool = True) -> None:
     """The core plan into the message; each photo's status into ``status`` (n -> PlanPhoto).
     ``outline`` False (a refused outline, ``OutlineRefused``: ``msg.reason`` says why): the
-    photos' poses only, no polygon or walls."""
+    photos' poses only, no polygon or walls, and no 1-sigma taken from those walls."""
     for stage, ms in timing.items():
         msg.timing_ms[stage] = max(float(ms), 0.0)
     if outline:
         _outline(msg, plan)
     for a, n in enumerate(order):
-        status[n] = _photo(plan, pl, photos, a, n)
+        status[n] = _photo(plan, pl, photos, a, n, outline)
 
 
 def _outline(msg, plan) -> None:
@@ -44,15 +44,16 @@ def _outline(msg, plan) -> None:
     msg.area_m2, msg.closed, msg.manhattan = float(plan.area_m2), plan.closed, plan.manhattan
 
 
-def _photo(plan, pl, photos, a: int, n: int):
-    """Photo ``a`` of the plan (its index ``n`` in the session) as a PlanPhoto."""
+def _photo(plan, pl, photos, a: int, n: int, walls_stand: bool = True):
+    """Photo ``a`` of the plan (its index ``n`` in the session) as a PlanPhoto; its 1-sigma
+    the joint refinement's, else (``walls_stand``) from its wall samples on the plan's walls."""
     p = plan.poses[a]
     q = schemas.PlanPhoto(index=n, spot=int(pl.spot[a]))
     if np.all(np.isfinite(p)):
         q.status = schemas.PLAN_PHOTO_STATUS_PLACED
         q.x_m, q.z_m, q.yaw_rad = float(p[0]), float(p[1]), float(fuse.wrap(p[2]))
         sig = plan.pose_sigma[a] if plan.pose_sigma is not None else np.full(3, np.nan)
-        if not np.all(np.isfinite(sig)):   # not refined jointly: from its wall samples
+        if walls_stand and not np.all(np.isfinite(sig)):   # not refined jointly: its walls
             C = plan_pose.covariance(plan, photos[a].layout, p)
             sig = np.sqrt(np.maximum(np.diag(C), 0.0)) if C is not None else sig
         if np.all(np.isfinite(sig)):
