@@ -59,7 +59,7 @@ def raw_plan(job) -> tuple[str, dict | None, str | None]:
         try:
             d = session.plan(photos, room_spots(views, "ids"), p)[0].to_dict(views)
         except OutlineRefused as e:   # its poses are published without the outline
-            d = {"poses": e.plan.to_dict(views)["poses"], "walls": []}
+            d = e.plan.to_dict(views, outline=False)
         d["poses"] = {k: v for k, v in d["poses"].items() if v is not None}
         return rid, d, None
     except FindmeError as e:

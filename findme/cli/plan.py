@@ -169,9 +169,7 @@ def _refused_outline(e: OutlineRefused, names, metric: bool, args) -> int:
     reason, and where each photo was taken with its 1-sigma (a plan without walls, which
     ``locate-in --photos`` takes; ``--svg`` draws the photos alone). Exit status 1: no
     floor plan."""
-    d = e.plan.to_dict(names)
-    out = {"reason": str(e), "floor_polygon_m": [], "walls": [], "area_m2": 0.0,
-           "metric": metric, "poses": d["poses"], "notes": d["notes"]}
+    out = {**e.plan.to_dict(names, outline=False), "reason": str(e), "metric": metric}
     if args.svg:
         with open(args.svg, "w") as f:
             f.write(plan_svg(Plan.from_dict(out), names, feet=args.feet,

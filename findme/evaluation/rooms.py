@@ -57,12 +57,9 @@ def room_prediction(views, photos, spots_mode: str) -> dict:
     refused outline (``OutlineRefused``) gives the poses alone, with ``refused``: the reason
     (the scorer counts the room's outline missing and scores the poses)."""
     try:
-        plan, _, _ = session.plan(photos, room_spots(views, spots_mode))
+        d = session.plan(photos, room_spots(views, spots_mode))[0].to_dict(views)
     except OutlineRefused as e:
-        poses = e.plan.to_dict(views)["poses"]
-        return {"poses": {k: p for k, p in poses.items() if p is not None},
-                "refused": str(e)}
-    d = plan.to_dict(views)
+        d = {**e.plan.to_dict(views, outline=False), "refused": str(e)}
     d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
     return d
 

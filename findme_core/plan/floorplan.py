@@ -20,7 +20,7 @@ Pure numpy + OpenCV rasterisation; no I/O.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -128,8 +128,13 @@ class Plan:
         """Indices of the edges that close the outline where no wall was seen."""
         return [k for k, w in enumerate(self.walls) if not w.seen]
 
-    def to_dict(self, ids=None) -> dict:
-        """JSON-ready dict: metres and degrees. ``ids`` name the photos (default 0..N-1)."""
+    def to_dict(self, ids=None, outline: bool = True) -> dict:
+        """JSON-ready dict: metres and degrees. ``ids`` name the photos (default 0..N-1).
+        ``outline`` False: the poses without the outline (an empty polygon, no walls), as a
+        refused outline's photos are given (``errors.OutlineRefused``)."""
+        if not outline:
+            return {**replace(self, polygon=np.zeros((0, 2)), walls=(), area_m2=0.0,
+                              manhattan=False).to_dict(ids), "closed": False}
         ids = list(ids) if ids is not None else [str(i) for i in range(len(self.poses))]
         poses = {}
         sig = self.pose_sigma if self.pose_sigma is not None else np.full((len(ids), 3), np.nan)

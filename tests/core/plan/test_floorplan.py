@@ -188,3 +188,16 @@ def test_fewer_than_three_vertices_have_no_area_and_a_plan_without_walls_reads_b
                                                "b": None}})
     assert plan.walls == () and plan.area_m2 == 0.0
     assert plan.poses[0] == pytest.approx([0.5, 1.0, math.pi / 2]) and np.isnan(plan.poses[1]).all()
+
+
+def test_a_plans_poses_without_its_outline():
+    walls = (floorplan.Wall(np.array([0.0, 0.0]), np.array([4.0, 0.0]), 4.0, 0.02, True, ()),)
+    plan = floorplan.Plan(np.array([[0.0, 0.0], [4.0, 0.0], [2.0, 3.0]]), walls, 6.0,
+                          np.array([[1.0, 1.0, 0.0], [np.nan] * 3]), True,
+                          notes=(None, "no layout"), pose_sigma=np.array([[0.03, 0.04, 0.01],
+                                                                          [np.nan] * 3]))
+    full, bare = plan.to_dict(["a", "b"]), plan.to_dict(["a", "b"], outline=False)
+    assert bare["floor_polygon_m"] == [] and bare["walls"] == [] and bare["area_m2"] == 0.0
+    assert bare["closed"] is False and bare["manhattan"] is False
+    assert bare["poses"] == full["poses"] and bare["poses"]["a"]["sigma_xz_m"] == 0.05
+    assert bare["notes"] == {"b": "no layout"} and len(full["walls"]) == 1
