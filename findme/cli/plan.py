@@ -152,16 +152,17 @@ def cmd_plan(args) -> int:
               + (f"± {w.sigma_m:.2f} {unit}" if w.seen else f"{unit} (not seen: inferred, not "
                                                             "measured)")
               + "".join(f", opening {a:.2f}-{b:.2f}" for a, b in w.apertures))
-    _print_poses(out)
+    _print_poses(out, unit)
     return 0
 
 
-def _print_poses(out: dict) -> None:
+def _print_poses(out: dict, unit: str) -> None:
+    """Each photo's pose (x, z in ``unit``), with its 1-sigma when it has one."""
     for name, p in out["poses"].items():
         print(f"  {name}: " + ("not placed: " + out["notes"].get(name, "") if p is None else
                               f"x {p['x_m']:+.2f} z {p['z_m']:+.2f} yaw {p['yaw_deg']:+.1f} deg"
-                              + (f" (1-sigma {p['sigma_xz_m']:.2f} and {p['sigma_yaw_deg']:.1f} "
-                                 "deg)" if "sigma_xz_m" in p else "")))
+                              + (f" (1-sigma {p['sigma_xz_m']:.2f} {unit} and "
+                                 f"{p['sigma_yaw_deg']:.1f} deg)" if "sigma_xz_m" in p else "")))
 
 
 def _refused_outline(e: OutlineRefused, names, metric: bool, args) -> int:
@@ -178,9 +179,9 @@ def _refused_outline(e: OutlineRefused, names, metric: bool, args) -> int:
         print(json.dumps(out))
     else:
         print(f"no floor plan: {e}")
-        print("where the photos were taken (x, z in "
-              + ("m" if metric else "camera heights") + "; the outline is not drawn):")
-        _print_poses(out)
+        unit = "m" if metric else "camera heights"
+        print(f"where the photos were taken (x, z in {unit}; the outline is not drawn):")
+        _print_poses(out, unit)
     return 1
 
 

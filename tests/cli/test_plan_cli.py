@@ -189,7 +189,7 @@ def test_a_refused_outline_still_says_where_the_photos_were_and_finds_a_new_one(
     text = capsys.readouterr().out.splitlines()
     assert text[0] == "no floor plan: " + out["reason"].splitlines()[0]
     assert text[1].startswith("where the photos were taken (x, z in m;")
-    assert len(text) == 2 + len(paths) and "(1-sigma " in text[-1]
+    assert len(text) == 2 + len(paths) and " m and " in text[-1] and "(1-sigma " in text[-1]
     refused = tmp_path / "refused.json"
     refused.write_text(json.dumps(out))
     monkeypatch.undo()
