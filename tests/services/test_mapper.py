@@ -162,8 +162,7 @@ def test_an_outline_seen_past_is_refused_but_the_photos_places_stand(room, mappe
     on its own in tests/core/plan/test_seen_past.py, made to refuse this closed room)."""
     why = "the outline puts a wall where 3 photo(s) (photo 1, photo 4, photo 9) saw past it"
     monkeypatch.setattr(consistency, "walls_seen_past", lambda plan, *a, **k: why)
-    m = MapperHandler()
-    last = [o.msg for key, msg in room.messages() for o in m.on_message(key, msg)][-1]
+    last = room.plans(MapperHandler())[-1]
     plan = schemas.decode(schemas.Plan, schemas.encode(last))     # a valid Plan message
     assert plan.reason == why
     assert not plan.polygon and not plan.walls and plan.area_m2 == 0.0
@@ -181,8 +180,7 @@ def test_an_outline_that_leaves_a_camera_outside_places_no_photo(room):
     """Photos placed wrongly leave cameras outside as often as wrong walls do, so neither the
     outline nor the poses are sent (the check made strict: a camera must stand 10 m inside)."""
     strict = plan_session.SessionParams(consistency=consistency.ConsistencyParams(-10.0))
-    m = MapperHandler(params=strict)
-    last = [o.msg for key, msg in room.messages() for o in m.on_message(key, msg)][-1]
+    last = room.plans(MapperHandler(params=strict))[-1]
     assert last.reason.startswith("the outline leaves 12 camera(s) outside the room")
     assert not last.polygon and [q.status for q in last.poses] == [
         schemas.PLAN_PHOTO_STATUS_NOT_PLACED] * 12
@@ -467,8 +465,7 @@ def test_a_session_of_large_photos_is_planned_from_their_reduced_decode():
     big = rendered_session(Room.rectangle(5.0, 4.0), [(-0.8, -0.5), (1.0, 0.6)],
                            yaws=range(0, 360, 60), size=(1280, 960))
     m = MapperHandler()
-    plans = [out.msg for key, msg in big.messages() for out in m.on_message(key, msg)]
-    plan = plans[-1]
+    plan = big.plans(m)[-1]
     assert (plan.photos, plan.closed) == (12, True)
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)
     V, T = _vertices(plan), big.polygon
