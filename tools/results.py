@@ -24,6 +24,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import openings_report  # noqa: E402
 import results_trust  # noqa: E402
 
 SINGLE = ["zind-level", "zind-tilted", "zind-pairs-tilted", "tum-cabinet", "zind-level-lowfloor",
@@ -171,6 +172,18 @@ def _room_answer_rows(runs) -> list[str]:
     return out
 
 
+def _opening_rows(split, runs) -> list[str]:
+    """Doors and openings said (``tools/openings_report.py``) per run, pooled over the rooms."""
+    out = ["| run | said | on a true door or opening (share) | true doors and openings | "
+           "of them said |", "|---|---|---|---|---|"]
+    for name, preds in runs:
+        s = [sum(v) for v in zip(*(r for _, r in openings_report.prediction_rows(split, preds)))]
+        if s:
+            out.append(f"| {name} | {s[0]:.2f} m | {s[1]:.2f} m ({s[1] / max(s[0], 1e-9):.2f}) | "
+                       f"{s[2]:.2f} m | {s[3]:.2f} m |")
+    return out
+
+
 def _locate_rows(rows) -> list[str]:
     """"Find me" rows from ``tools/locate_report.py --json``: per room and pooled, each way."""
     out = ["| room | photos | from | localised | a right pose among the candidates | "
@@ -304,6 +317,15 @@ def main(argv=None):
         "scored as placed):", "",
         *_room_answer_rows([("spots by id", ours, ours_preds),
                             ("gravity withheld", nograv, nograv_preds)]), "",
+        "Doors and openings (`tools/openings_report.py`): a stretch of wall is said open where "
+        "at least as many photos saw the floor go on past it as saw its base standing there "
+        "(`apertures`); said metres within 0.1 m of one of the dataset's doors or openings are "
+        "on a true one. A closed door shows no floor beyond, so not every door can be said. "
+        "The tool's `--rendered` run counts the openings said in closed rendered rooms (every "
+        "one wrong).", "",
+        *_opening_rows(a.split, [("dataset's gravity", ours_preds),
+                                 (f"phone's gravity ({PHONE_NOISE_DEG:g}°)", phone_preds),
+                                 ("gravity withheld", nograv_preds)]), "",
         "\"Find me\" on a plan (`tools/locate_report.py`): each spot's photos left out of their "
         "room's plan and found, one by one, on the plan of the other spots, as new photos from "
         "a new place: \"walls\" from the plan's walls alone (`findme locate-in PLAN.json "

@@ -14,7 +14,7 @@ refinement a wall's ends move with its neighbours' offsets: sigma_L^2 = sum over
 neighbours of (sigma_d / sin(angle))^2 plus the height term; a line's offset sigma is the
 spread of its samples about it over the square root of their number.
 
-Pure numpy + OpenCV rasterisation; no I/O.
+Pure numpy; no I/O (doors and openings: ``apertures``).
 """
 
 from __future__ import annotations
@@ -22,14 +22,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from findme_core.errors import GeometryError
 from findme_core.motion import register
-from findme_core.plan import adjust, polygon, seen_past, walls
+from findme_core.plan import adjust, apertures, polygon, seen_past, walls
 from findme_core.single.layout import Layout
-from findme_core.single.search import SegKind
 
 
 @dataclass(frozen=True)
@@ -186,29 +184,6 @@ def world_walls(L: Layout, pose) -> np.ndarray:
     return register.rot2(np.array([pose[2]]), L.walls.reshape(-1, 2))[0].reshape(-1, 2, 2) + pose[:2]
 
 
-def floor_fans(L: Layout, pose, max_range_m: float = 8.0) -> list:
-    """Polygons (camera first, then boundary samples in azimuth order) of the floor a layout
-    saw, in the room frame; split where no floor was seen (NONE samples)."""
-    ok = np.isfinite(L.range) & (L.kind != SegKind.NONE)
-    r = np.minimum(np.where(ok, L.range, 0.0), max_range_m)
-    pts = r[:, None] * np.column_stack([np.sin(L.azimuth), np.cos(L.azimuth)])
-    out, cur = [], []
-    for k in range(len(pts)):
-        if ok[k]:
-            cur.append(pts[k])
-        elif cur:
-            out.append(cur)
-            cur = []
-    if cur:
-        out.append(cur)
-    fans = []
-    for c in out:
-        if len(c) >= 2:
-            P = np.vstack([np.zeros((1, 2)), np.array(c)])
-            fans.append(register.rot2(np.array([pose[2]]), P)[0] + pose[:2])
-    return fans
-
-
 def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=(),
           spot=None, links=(), matches=None, focal=None, refine: bool = True,
           spread=None) -> Plan:
@@ -250,15 +225,17 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
             np.hypot(kx * pose_sig[:, :2], fx), np.hypot(ky * pose_sig[:, 2], math.radians(fy))]))
         if spread is not None:
             pose_sig = np.hypot(pose_sig, np.asarray(spread, float).reshape(-1, 3))
-    fans = []
-    for L, p in zip(layouts, poses):
+    fans, fan_photo, base = [], [], walls.evidence(layouts, poses)
+    for i, (L, p) in enumerate(zip(layouts, poses)):
         if L is not None and np.isfinite(p[0]):
-            fans += floor_fans(L, p, params.max_range_m)
+            fans += apertures.fans(L, p, params.max_range_m)
+            fan_photo += [i] * (len(fans) - len(fan_photo))
     walls_ = []
     for k in range(len(V)):
         a, b = V[k], V[(k + 1) % len(V)]
         walls_.append(Wall(a, b, float(np.linalg.norm(b - a)), float(sig_len[k]),
-                           bool(out.seen[k]), _apertures(a, b, fans, params) if out.seen[k] else ()))
+                           bool(out.seen[k]), _openings(a, b, fans, fan_photo, base, params)
+                           if out.seen[k] else ()))
     n = len(poses)
     return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, manhattan,
                 tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n,
@@ -299,27 +276,6 @@ def _offset_sigmas(ev: walls.Evidence, wl: walls.WallLines, params: PlanParams) 
     return out
 
 
-def _apertures(a, b, fans, params: PlanParams, beyond_m: float = 0.25, step_m: float = 0.05):
-    """Stretches of the wall a->b where some photo saw floor ``beyond_m`` past it."""
-    L = float(np.linalg.norm(b - a))
-    if L < params.aperture_min_m:
-        return ()
-    u = (b - a) / L
-    n_out = np.array([u[1], -u[0]])   # outward for a counter-clockwise polygon
-    s = np.arange(step_m / 2, L, step_m)
-    pts = a[None] + s[:, None] * u[None] + beyond_m * n_out[None]
-    hit = np.zeros(len(s), bool)
-    for f in fans:
-        c = f.astype(np.float32).reshape(-1, 1, 2)
-        hit |= np.array([cv2.pointPolygonTest(c, (float(x), float(z)), False) > 0
-                         for x, z in pts])
-    out, start = [], None
-    for i, h in enumerate(np.append(hit, False)):
-        if h and start is None:
-            start = i
-        elif not h and start is not None:
-            if (i - start) * step_m >= params.aperture_min_m:
-                out.append((round(float(s[start] - step_m / 2), 3),
-                            round(float(min(L, s[i - 1] + step_m / 2)), 3)))
-            start = None
-    return tuple(out)
+def _openings(a, b, fans, fan_photo, base: walls.Evidence, params: PlanParams) -> tuple:
+    return apertures.stretches(a, b, fans, fan_photo, base.points, base.length, base.photo,
+                               params.aperture_min_m)
