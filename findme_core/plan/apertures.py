@@ -3,8 +3,8 @@ wall, and fewer photos saw the wall's base there.
 
 A photo's floor fan (``fans``: the floor its layout saw, camera first) that reaches past a
 wall says the floor continues there: a door or an opening. One photo's layout can be wrong:
-one that shows almost no floor takes a far line for the wall's base, and its fan runs metres
-past a wall its neighbours saw standing. Another can see a threshold (a change of flooring in
+its top hypothesis can be a far line (a poster's lower edge on the wall ahead), and its fan
+then runs metres past a wall its neighbours saw standing. Another can see a threshold (a change of flooring in
 the opening, which the dataset's rooms draw as the wall) as a wall's base. So each photo has
 one vote at each point of the wall: the floor goes on (its fan reaches past) or the wall
 stands (a wall-base sample of it on the wall's line there); an opening needs the first at
