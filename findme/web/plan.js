@@ -103,26 +103,30 @@ window.FindMePlan = (function () {
     }
   }
 
-  let lastOutline = null;   // the latest plan with an outline: kept on screen when a newer
-                            // one has none (one more photo can leave too little agreement)
+  // the latest plan worth showing: one with an outline, or one whose outline was refused
+  // while its photos stand placed (it says the room is not what an older outline drew); kept
+  // on screen when a newer plan has neither (one more photo can leave too little agreement)
+  let lastShown = null;
   function render(latest, units) {
     const sec = document.getElementById('plan');
     if (!sec) return;
     sec.hidden = false;
     sec.dataset.upTo = latest.up_to_index;
-    if (!latest.reason) lastOutline = latest;
+    const shows = (p) => !p.reason || placed(p).length > 0;
+    if (shows(latest)) lastShown = latest;
+    const plan = shows(latest) || !lastShown ? latest : lastShown;
     // an outline refused (the photos disagree about the room) still places its photos: show
     // where they were taken, not an older outline that they now contradict
-    const refused = !!latest.reason && placed(latest).length > 0;
-    const plan = latest.reason && lastOutline && !refused ? lastOutline : latest;
+    const refused = !!plan.reason && placed(plan).length > 0;
     sec.dataset.shown = plan.up_to_index;
     sec.dataset.refused = String(refused);
     const text = document.getElementById('plan-text');
     const n = plan.poses.length, k = placed(plan).length;
     if (refused) {
       text.textContent = `No floor plan from ${n} photos: they disagree about the room, so its ` +
-        `outline is not drawn (the server says: ${latest.reason}). Where ${k} of them were ` +
-        'taken is shown.';
+        `outline is not drawn (the server says: ${plan.reason}). Where ${k} of them were ` +
+        'taken is shown.' + (plan === latest ? '' : ` With photo ${latest.up_to_index + 1} ` +
+        `nothing is placed (the server says: ${latest.reason}).`);
     } else if (plan !== latest) {
       text.textContent = `With photo ${latest.up_to_index + 1} there is no outline yet (the server says: ` +
         `${latest.reason}); the plan of the first ${plan.photos} photos is shown.`;

@@ -63,10 +63,21 @@ def test_a_refused_outline_shows_where_the_photos_were_not_an_older_outline(brow
     assert "disagree about the room" in text and refused["reason"] in text, text
     assert "Where 3 of them were taken is shown" in text
     shots(page, "plan-4-outline-refused-photos-shown", at="#plan")
-    # nothing placed and no outline yet: the last outline stays on screen, as before
-    page.evaluate(render, to_page("s", samples["plan-reason"]))
+    # then a plan with nothing placed and no outline: the refused plan's photos stay on
+    # screen, not the older outline they contradicted (which came back before)
+    reason = to_page("s", samples["plan-reason"])
+    page.evaluate(render, reason)
+    assert page.get_attribute("#plan", "data-refused") == "true"
+    assert page.get_attribute("#plan", "data-shown") == "2"
+    assert page.locator("#plan-map polygon.floor").count() == 0
+    assert page.locator("#plan-map g.plan-cam").count() == 3
+    text = page.inner_text("#plan-text")
+    assert refused["reason"] in text and reason["reason"] in text, text
+    assert f"With photo {reason['up_to_index'] + 1} nothing is placed" in text, text
+    # an outline again: drawn
+    page.evaluate(render, to_page("s", samples["plan-closed"]))
     assert page.get_attribute("#plan", "data-refused") == "false"
-    assert page.get_attribute("#plan", "data-shown") == "7"
+    assert page.get_attribute("#plan-map", "data-walls") == "4"
     assert not page.js_errors, page.js_errors
     close(page)
 
