@@ -37,12 +37,7 @@ TOL_M = 0.1
 
 def openings(plan, layouts) -> dict:
     """{"now": [(a, b) (2,) ends of each said stretch], "fans only": [...]} of one plan."""
-    fans, who = [], []
-    for i, (L, p) in enumerate(zip(layouts, plan.poses)):
-        if L is not None and np.isfinite(p[0]):
-            f = apertures.fans(L, p)
-            fans += f
-            who += [i] * len(f)
+    fans, who = apertures.session_fans(layouts, plan.poses)
     ev = walls.evidence(layouts, plan.poses)
     out = {"now": [], "fans only": []}
     for w in plan.walls:

@@ -49,6 +49,18 @@ def fans(L: Layout, pose, max_range_m: float = 8.0) -> list:
     return polys
 
 
+def session_fans(layouts, poses, max_range_m: float = 8.0) -> tuple[list, np.ndarray]:
+    """(fans, (F,) photo of each) of N photos' layouts (None: none) at poses (N, 3) (NaN
+    rows: not placed)."""
+    polys, photo = [], []
+    for i, (L, p) in enumerate(zip(layouts, np.asarray(poses, float).reshape(-1, 3))):
+        if L is not None and np.isfinite(p[0]):
+            f = fans(L, p, max_range_m)
+            polys += f
+            photo += [i] * len(f)
+    return polys, np.asarray(photo, int)
+
+
 def base_seen(a, b, s, base, base_length=None, near_m: float = 0.25) -> np.ndarray:
     """(S,) whether a wall-base sample stands at each station ``s`` (S,) (metres from a) of
     the wall a -> b: within ``near_m`` of its line, and along it within half the floor length

@@ -225,11 +225,8 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
             np.hypot(kx * pose_sig[:, :2], fx), np.hypot(ky * pose_sig[:, 2], math.radians(fy))]))
         if spread is not None:
             pose_sig = np.hypot(pose_sig, np.asarray(spread, float).reshape(-1, 3))
-    fans, fan_photo, base = [], [], walls.evidence(layouts, poses)
-    for i, (L, p) in enumerate(zip(layouts, poses)):
-        if L is not None and np.isfinite(p[0]):
-            fans += apertures.fans(L, p, params.max_range_m)
-            fan_photo += [i] * (len(fans) - len(fan_photo))
+    fans, fan_photo = apertures.session_fans(layouts, poses, params.max_range_m)
+    base = walls.evidence(layouts, poses)
     walls_ = []
     for k in range(len(V)):
         a, b = V[k], V[(k + 1) % len(V)]

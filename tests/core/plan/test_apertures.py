@@ -94,3 +94,14 @@ def test_a_far_line_in_one_photo_opens_no_wall_of_a_closed_room():
         return (q - w.a) @ np.array([u[1], -u[0]])
     assert max(past(w, q) for w in plan.walls for f in fan for q in f) > 1.0
     assert all(w.apertures == () for w in plan.walls), [w.apertures for w in plan.walls]
+
+
+def test_session_fans_name_their_photo_and_skip_the_unplaced():
+    lays, _, _, pl = far_line_session()
+    poses = pl.poses.copy()
+    poses[1] = np.nan                                  # photo 1 not placed
+    fans, who = apertures.session_fans([None] + lays[1:], poses)
+    assert len(fans) == len(who) and set(who) == set(range(2, len(lays)))
+    one = apertures.fans(lays[5], poses[5])
+    np.testing.assert_allclose(np.concatenate([fans[k] for k in np.flatnonzero(who == 5)]),
+                               np.concatenate(one))
