@@ -45,7 +45,8 @@ def openings(plan, layouts) -> dict:
             continue
         a, b = np.asarray(w.a, float), np.asarray(w.b, float)
         u = (b - a) / max(float(np.linalg.norm(b - a)), 1e-12)
-        for name, st in (("now", w.apertures), ("fans only", apertures.stretches(a, b, fans, who))):
+        before = apertures.stretches(a, b, fans, who)   # no base: any fan past the wall
+        for name, st in (("now", w.apertures), ("fans only", before)):
             out[name] += [(a + lo * u, a + hi * u) for lo, hi in st]
     return out
 

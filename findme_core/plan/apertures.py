@@ -1,14 +1,14 @@
 """Doors and openings in a wall of the outline: stretches where a photo saw floor beyond the
-wall, and fewer photos saw the wall's base there.
+wall, and no more photos saw the wall's base standing there.
 
 A photo's floor fan (``fans``: the floor its layout saw, camera first) that reaches past a
 wall says the floor continues there: a door or an opening. One photo's layout can be wrong:
 its top hypothesis can be a far line (a poster's lower edge on the wall ahead), and its fan
-then runs metres past a wall its neighbours saw standing. Another can see a threshold (a change of flooring in
-the opening, which the dataset's rooms draw as the wall) as a wall's base. So each photo has
-one vote at each point of the wall: the floor goes on (its fan reaches past) or the wall
-stands (a wall-base sample of it on the wall's line there); an opening needs the first at
-least as many votes as the second.
+then runs metres past a wall its neighbours saw standing. Another can see a threshold (a
+change of flooring in the opening, which the dataset's rooms draw as the wall) as a wall's
+base. So each photo has one vote at each point of the wall: the floor goes on (its fan
+reaches past) or the wall stands (a wall-base sample of it on the wall's line there); an
+opening needs the first at least as many votes as the second.
 
 Frames and units: the room frame (x, z metres); a wall runs a -> b, the polygon is
 counter-clockwise, so its outward normal is (u_z, -u_x) for u = (b - a) / |b - a|; stretches

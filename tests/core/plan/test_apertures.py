@@ -68,7 +68,8 @@ def test_only_a_base_on_the_walls_line_counts():
 def far_line_session():
     """The rendered 5 x 4 m room's session (exact layouts) with photo 3's boundary drawn
     110 px too high, metres past its wall (as a photo whose top hypothesis is a far line,
-    e.g. a poster's lower edge on the wall ahead, gets): (layouts, links, spot labels, placement)."""
+    e.g. a poster's lower edge on the wall ahead, gets): (layouts, links, spot labels,
+    placement)."""
     room = Room.rectangle(5.0, 4.0)
     lays, links, lab, _, _ = _session(room, [(-0.8, -0.5), (1.0, 0.6)])
     pl = fuse.place(lays, links, lab)
