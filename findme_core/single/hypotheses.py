@@ -222,8 +222,9 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
         cands, seed = _search_and_rank(F, valid, ev, coef, stats, verts, ws, params, W, H,
                                        rows_t, params.seed_top)
     if ws[IDX["region"]] != 0 and seed is not None:
-        # the colour model is seeded by the best under the *search* weights, so the candidate
-        # pool does not depend on the re-ranking weights (no feedback when fitting them)
+        # the colour model is seeded by the best under the *search* weights that puts no wall
+        # implausibly far, so the candidate pool does not depend on the re-ranking weights
+        # (no feedback when fitting them)
         best = path_polyline(seed[1], seed[2], ev, coef, W, H)[0]
         fl = FloorLikelihood(lab, column_rows(best, H, np.arange(W, dtype=float)),
                              scale=params.likelihood_scale)
@@ -270,8 +271,13 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, params, W, H, rows_t,
 
     Returns:
         ((paths, rows (K, len(stats.cols)) at ``stats.cols``, features (K, len(FEATURES)))
-         or () without paths; the best path under ``ws``, or None unless ``seed``). A path
-         is (score, start track, event chain).
+         or () without paths; the seed, or None unless ``seed``). A path is (score, start
+         track, event chain). The seed is the best path under ``ws`` among those with no
+         wall implausibly far (``far`` 0), when there is one: the colour model it seeds
+         takes everything under it for floor, so a far seed (a poster's top edge, 40 m away
+         for a camera pitched 28 deg down) makes the wall below it floor and endorses
+         itself: the rendered 5 x 4 m room's photo facing a wall 1 m away ranked a poster's
+         lower edge (score 6.36) over the wall's base (3.42).
     """
     A = rewards(F, valid, ws[:N_ADDITIVE])
     paths = best_paths(A, valid, ev, -ws[IDX["corners"]], -ws[IDX["steps"]], limit=top)
@@ -289,8 +295,12 @@ def _search_and_rank(F, valid, ev, coef, stats, verts, ws, params, W, H, rows_t,
     rows = full_rows[:, stats.cols]
     feats = feature_matrix(path_features(pieces, F, len(paths)), stats.gain(rows),
                            vertical_in_floor(full_rows, verts), rows, W, H)
-    best = paths[ties.argmax(ties.matvec(feats[:found], ws))] if seed else None  # among the
-    return (paths, rows, feats), best                                  # search's own paths
+    best = None
+    if seed:   # among the search's own paths, one that puts no wall implausibly far
+        sc = np.asarray(ties.matvec(feats[:found], ws), float)
+        near = feats[:found, IDX["far"]] <= 0.0
+        best = paths[ties.argmax(np.where(near, sc, np.nan) if near.any() else sc)]
+    return (paths, rows, feats), best
 
 
 def _ranked(cands, w):

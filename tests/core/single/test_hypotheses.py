@@ -127,3 +127,22 @@ def _edge_image(row):
     img = np.full((240, 320, 3), 200, np.uint8)
     img[row:, :] = 90
     return cv2.GaussianBlur(img, (0, 0), 1)
+
+
+def test_a_poster_under_a_far_seed_does_not_pass_for_the_wall_base():
+    """The rendered 5 x 4 m room, the camera 1 m from a wall with a poster on it, pitched
+    28 deg down. The search's best path ran along the poster's top edge (a wall ~40 m away),
+    and the colour model seeded by it took the wall for floor: the poster's lower edge came
+    first (score 6.36) and the wall's base fourth. A seed with a wall implausibly far is
+    passed over: the wall's base comes first."""
+    from findme_core.synth.render import render
+    from findme_core.synth.room import Pose, Room
+    v = render(Room.rectangle(5.0, 4.0), Pose(-0.8, -0.5, 1.4, 180.0, 28.0, 0.0), 640, 480,
+               hfov_deg=70.0, supersample=1)
+    img = cv2.imdecode(cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])[1],
+                       cv2.IMREAD_COLOR)
+    hs = hypothesize(img, v.camera, "findme", 5, camera_height=1.4)
+    assert floor_pixel_error(hs.hypotheses[0].polyline, v.labels) < 0.01
+    top = np.asarray(hs.hypotheses[0].polyline)
+    truth = v.ground_truth_boundary_polyline()
+    assert np.abs(np.interp(top[:, 0], truth[:, 0], truth[:, 1]) - top[:, 1]).max() < 6.0
