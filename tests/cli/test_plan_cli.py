@@ -58,8 +58,8 @@ def test_the_plan_is_the_rendered_room(session_on_disk):
     V = np.array(plan["floor_polygon_m"])
     dist = np.linalg.norm(V[:, None] - room.polygon[None], axis=2)
     assert len(V) == 4 and dist.min(1).max() < 0.15, V.round(3)
-    # a closed room: no opening (photo 3 faces its wall 1 m away and ranks a poster's lower
-    # edge above the wall's base: its floor runs 4 m past the wall its neighbours saw stand)
+    # a closed room: no opening (photo 3 faces its wall 1 m away; when its top hypothesis was
+    # a poster's lower edge, its floor ran 4 m past the wall and opened it)
     assert [w["apertures"] for w in plan["walls"]] == [[]] * 4
     got = np.array([(p["x_m"], p["z_m"], math.radians(p["yaw_deg"]))
                     for p in plan["poses"].values()])
