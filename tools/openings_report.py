@@ -117,32 +117,26 @@ def dataset_rows(dataset: str, gravity: bool) -> list:
 
 
 def rendered_rows() -> list:
-    import cv2
-
     from findme_io.camera_source import with_gravity
     from findme_io.session_photos import final_gravity, session_photos
-    from tests.plan_room import H, rendered_session
-    from tools.rendered_sessions import LAYOUTS, ROOMS
+    from tests.plan_room import H
+    from tools.rendered_sessions import photo_sessions
     rows = []
-    for room, spots in LAYOUTS:
-        for step in (50, 60):
-            s = rendered_session(ROOMS[room], spots, yaws=range(0, 360, step))
-            images, inputs = [], []
-            for v, data in zip(s.views, s.jpegs):
-                img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-                cam, prov = with_gravity(v.camera, img, v.camera.gravity)
-                images.append(img)
-                inputs.append(final_gravity(img, cam, prov, H, True))
-            photos = session_photos(images, inputs)[0]
-            name = f"{room} {len(spots)} spots, turn {step}"
-            try:
-                plan = session.plan(photos, None)[0]
-            except FindmeError as e:
-                print(f"  {name}: no plan ({str(e)[:70]})", flush=True)
-                continue
-            said = openings(plan, [p.layout for p in photos])
-            rows.append((name, {k: score(v, []) for k, v in said.items()}))
-            print(_line(name, rows[-1][1]), flush=True)
+    for room, spots, step, s, images in photo_sessions():
+        inputs = []
+        for v, img in zip(s.views, images):
+            cam, prov = with_gravity(v.camera, img, v.camera.gravity)
+            inputs.append(final_gravity(img, cam, prov, H, True))
+        photos = session_photos(images, inputs)[0]
+        name = f"{room} {len(spots)} spots, turn {step}"
+        try:
+            plan = session.plan(photos, None)[0]
+        except FindmeError as e:
+            print(f"  {name}: no plan ({str(e)[:70]})", flush=True)
+            continue
+        said = openings(plan, [p.layout for p in photos])
+        rows.append((name, {k: score(v, []) for k, v in said.items()}))
+        print(_line(name, rows[-1][1]), flush=True)
     return rows
 
 

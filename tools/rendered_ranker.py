@@ -52,19 +52,13 @@ def photo_errors(view, image, max_n: int) -> tuple[float, float]:
 
 
 def run(turns=(50, 60), max_n: int = 5) -> list[dict]:
-    import cv2
-
-    from tests.plan_room import rendered_session
-    from tools.rendered_sessions import LAYOUTS, ROOMS
+    from tools.rendered_sessions import photo_sessions
     out = []
-    for room, spots in LAYOUTS:
-        for step in turns:
-            s = rendered_session(ROOMS[room], spots, yaws=range(0, 360, step))
-            for n, (v, data) in enumerate(zip(s.views, s.jpegs)):
-                img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-                top, best = photo_errors(v, img, max_n)
-                out.append({"room": room, "spots": len(spots), "turn": step, "photo": n,
-                            "top1": round(top, 4), "best": round(best, 4)})
+    for room, spots, step, s, images in photo_sessions(turns):
+        for n, (v, img) in enumerate(zip(s.views, images)):
+            top, best = photo_errors(v, img, max_n)
+            out.append({"room": room, "spots": len(spots), "turn": step, "photo": n,
+                        "top1": round(top, 4), "best": round(best, 4)})
     return out
 
 

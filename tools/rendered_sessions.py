@@ -46,6 +46,19 @@ LAYOUTS = [("5x4", [(-0.8, -0.5), (1.0, 0.6)]), ("L", [(-1.5, -1.0), (1.2, -1.4)
 TURNS = [tuple(range(0, 360, s))[: 360 // s] for s in (50, 55, 60, 65, 70)] + [(0, 50, 180, 230)]
 
 
+def photo_sessions(turns=(50, 60)):
+    """Each layout turning in steps of each of ``turns`` degrees, as a user's photos: (room,
+    spots, step, the ``RenderedSession``, its JPEGs decoded (BGR)), for the tools that put
+    the rendered photos through real hypotheses."""
+    import cv2
+    import numpy as np
+    for room, spots in LAYOUTS:
+        for step in turns:
+            s = rendered_session(ROOMS[room], spots, yaws=range(0, 360, step))
+            yield room, spots, step, s, [cv2.imdecode(np.frombuffer(d, np.uint8),
+                                                      cv2.IMREAD_COLOR) for d in s.jpegs]
+
+
 def run(room: str, spots, yaws, heading_sigma_deg=None, heading_in="frame",
         heading_bias_deg=0.0) -> dict:
     from services.pipeline.mapper import MapperHandler

@@ -214,7 +214,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
     F, valid = track_tables(table, camera, sp, front=kinds[cand] == LineKind.FRONT,
                             texture=field.band_texture)
     ev = events(coef, rows_t, valid, verts, camera, sp)
-    if params.seed_top <= 1:  # seed = the search's best path (no re-ranking features)
+    if params.seed_top <= 1:  # seed = the search's best path (no features: no `far` test)
         paths = best_paths(rewards(F, valid, ws[:N_ADDITIVE]), valid, ev, -ws[IDX["corners"]],
                            -ws[IDX["steps"]], limit=1)
         cands, seed = None, (paths[0] if paths else None)
