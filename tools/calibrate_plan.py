@@ -12,8 +12,9 @@ photo to its true pose, then fits each term as ``sigma = hypot(k * raw, floor)``
 
 * on all rooms: the values to put in ``PlanParams`` (findme_core/plan/floorplan.py:
   ``pose_sigma_model`` and ``length_sigma_model`` from ``--gravity given``,
-  ``image_gravity_models`` from ``--gravity withheld``, where each photo's gravity comes
-  from its own lines, agreed spot by spot);
+  ``image_gravity_models``: its length model from ``--gravity withheld``, where each
+  photo's gravity comes from its own lines, agreed spot by spot; its pose model, which serves
+  a phone's gravity too, from ``--gravity inexact``: withheld and a phone's pooled);
 * leaving each room out in turn: the coverage the left-out room gets from the values fitted
   on the others (what a room never seen gets), next to the in-sample coverage.
 
@@ -42,18 +43,26 @@ from findme.evaluation.rooms import room_photos, room_spots  # noqa: E402
 from findme_core.errors import FindmeError, OutlineRefused  # noqa: E402
 from findme_core.plan import session  # noqa: E402
 
+#: how each ``--gravity`` reaches the plans (``phone``: the dataset's tilted by a seeded
+#: N(0, 1.5 deg) per axis, declared at 1.5 deg and refined by the photos' lines, as
+#: ``findme eval --gravity-noise 1.5 --gravity-sigma 1.5 --gravity-refine``)
+GRAVITIES = {"given": GravityInput(given=True), "withheld": GravityInput(given=False),
+             "phone": GravityInput(noise_deg=1.5, sigma_deg=1.5, refine=True)}
+#: ``--gravity inexact``: both gravities ``image_gravity_models``' pose model serves, pooled
+INEXACT = ("withheld", "phone")
+
 RAW = dict(pose_sigma_model=(1.0, 0.0, 1.0, 0.0), length_sigma_model=(1.0, 0.0),
            image_gravity_models=((1.0, 0.0, 1.0, 0.0), (1.0, 0.0)))
 
 
 def raw_plan(job) -> tuple[str, dict | None, str | None]:
     """(room id, the plan's dict with raw sigmas, or None and why)."""
-    dataset, rid, given = job
+    dataset, rid, gravity = job
     import cv2
     cv2.setNumThreads(1)
     try:
         views, photos = room_photos(os.path.join(dataset, "rooms"), os.path.join(dataset, "views"),
-                                    rid, GravityInput(given=given))
+                                    rid, GRAVITIES[gravity])
         p = session.SessionParams()
         p = replace(p, plan=replace(p.plan, **RAW))
         try:
@@ -67,17 +76,24 @@ def raw_plan(job) -> tuple[str, dict | None, str | None]:
 
 
 def items(dataset: str, plans: dict) -> dict:
-    """{quantity: [(room, |error|, raw sigma)]} of the plans' seen walls and poses."""
-    preds = {"rooms": {r: d for r, d in plans.items() if d}}
-    return {k: v for k, v in sc.collect(dataset, preds).items()
-            if k.startswith(("plan pose", "wall length (seen)"))}
+    """{quantity: [(room, |error|, raw sigma)]} of the plans' seen walls and poses (plans
+    keyed "gravity/room"; a room's items under every gravity share its group)."""
+    out = {}
+    for g in sorted({k.split("/")[0] for k in plans}):
+        preds = {"rooms": {k.split("/")[1]: d for k, d in plans.items()
+                           if d and k.startswith(g + "/")}}
+        for q, v in sc.collect(dataset, preds).items():
+            if q.startswith(("plan pose", "wall length (seen)")):
+                out.setdefault(q, []).extend(v)
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dataset")
-    ap.add_argument("--gravity", choices=("given", "withheld"), default="given")
+    ap.add_argument("--gravity", choices=(*GRAVITIES, "inexact"), default="given",
+                    help="inexact: withheld and phone pooled, a room's items one group")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--cache", metavar="PLANS.json",
@@ -89,9 +105,10 @@ def main(argv=None) -> int:
     if a.cache and os.path.exists(a.cache):
         plans = json.load(open(a.cache))
     else:
+        gs = INEXACT if a.gravity == "inexact" else (a.gravity,)
+        jobs = [(a.dataset, r, g) for g in gs for r in rooms]
         with ProcessPoolExecutor(a.jobs) as ex:
-            plans = {r: d for r, d, why in ex.map(raw_plan, [(a.dataset, r, a.gravity == "given")
-                                                                for r in rooms])
+            plans = {f"{j[2]}/{r}": d for j, (r, d, why) in zip(jobs, ex.map(raw_plan, jobs))
                      if d is not None or print(f"  {r}: refused: {why}", file=sys.stderr)}
         if a.cache:
             json.dump(plans, open(a.cache, "w"))

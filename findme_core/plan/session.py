@@ -18,7 +18,7 @@ Units: metres, radians. Pure: images in, numbers out; no I/O. ``clock`` is injec
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -278,13 +278,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
         for p, q, b in zip(photos, pl.poses, pl.block)]
     amb = [float(pl.ambiguity[b] / pl.scores[b]) if pl.scores[b] > 0 else float("nan")
            for b in pl.block]
-    plan_params = params.plan
-    kinds = {p.gravity for p, q in zip(photos, pl.poses) if np.isfinite(q[0])}
-    pm, lm = plan_params.image_gravity_models
-    if kinds - {"exact"}:
-        plan_params = replace(plan_params, pose_sigma_model=pm)
-    if "image" in kinds:
-        plan_params = replace(plan_params, length_sigma_model=lm)
+    plan_params = params.plan.for_gravity(
+        p.gravity for p, q in zip(photos, pl.poses) if np.isfinite(q[0]))
     result = floorplan.build(   # poses other poses fit alike: their 1-sigma covers them
         layouts, pl.poses, plan_params, notes, amb, spot=pl.spot, links=links,
         matches=matches, focal=np.array([p.camera.fx for p in photos]),

@@ -201,3 +201,69 @@ def test_a_plans_poses_without_its_outline():
     assert bare["closed"] is False and bare["manhattan"] is False
     assert bare["poses"] == full["poses"] and bare["poses"]["a"]["sigma_xz_m"] == 0.05
     assert bare["notes"] == {"b": "no layout"} and len(full["walls"]) == 1
+
+
+def _tilted_session(room, spots_xz, tilt_deg=1.5, seed=4):
+    """``_session``'s photos with each layout drawn under a gravity off by a seeded random
+    N(0, tilt_deg) in pitch and roll (a phone's sensor): its boundary is the true one, its
+    floor lines turn each photo its own way."""
+    from findme_core.geometry.manhattan import gravity_of, pitch_roll_deg
+    rng = np.random.default_rng(seed)
+    lays, links, lab, truth, poly = _session(room, spots_xz)
+    poses = [Pose(x, z, H, float(y) + 7.0 * s, 25.0, 0.0)
+             for s, (x, z) in enumerate(spots_xz) for y in range(0, 360, 50)]
+    out = []
+    for p in poses:
+        cam = _camera(640, 480, 70.0, None, p.gravity_cam)
+        pb = _boundary_polyline(room, p, cam)
+        pb = pb[np.isfinite(pb[:, 1])]
+        pitch, roll = pitch_roll_deg(cam.gravity)
+        dp, dr = rng.normal(0.0, tilt_deg, 2)
+        out.append(layout.from_hypothesis(cam.with_gravity(gravity_of(pitch + dp, roll + dr)),
+                                          H, pb))
+    return out, links, lab, truth, poly
+
+
+def test_a_phones_gravity_keeps_a_rectangle_manhattan():
+    """Layouts under a phone's gravity (1.5 deg per axis) scatter the rectangle's walls by
+    degrees: with the exact-gravity tolerance (2 deg) the room is not Manhattan (a 5 m wall
+    drawn 4.71 m, its opposite 5.00 m); with the tolerance for inexact gravity
+    (``PlanParams.inexact_snap_deg``) it is, and its walls are the room's within 0.25 m (the
+    tilts also scale each photo's ranges)."""
+    room = Room.rectangle(5.0, 4.0)
+    lays, links, lab, truth, poly = _tilted_session(room, [(-0.8, -0.5), (1.0, 0.6)])
+    pl = fuse.place(lays, links, lab)
+    exact = floorplan.build(lays, pl.poses, floorplan.PlanParams().for_gravity({"exact"}))
+    phone = floorplan.build(lays, pl.poses, floorplan.PlanParams().for_gravity({"sensor"}))
+    assert not exact.manhattan
+    assert phone.manhattan
+    lengths = sorted(w.length_m for w in phone.walls)
+    assert np.allclose(lengths, [4.0, 4.0, 5.0, 5.0], atol=0.25), lengths
+
+
+def test_a_slanted_wall_stays_off_the_axes_under_inexact_gravity():
+    """The tolerance for inexact gravity snaps no wall built 17 deg off the axes. (Its top
+    wall, 3.1 deg off, it does snap, moving a corner 0.23 m: under a phone's gravity a wall
+    that close to the axes cannot be told from one turned by the tilt.)"""
+    room = Room([(-2.5, -2.0), (2.5, -2.0), (1.2, 2.2), (-2.5, 2.0)])
+    lays, links, lab, _, truth = _session(room, [(-1.0, -0.5), (0.8, -0.8)])
+    pl = fuse.place(lays, links, lab)
+    plan = floorplan.build(lays, pl.poses, floorplan.PlanParams().for_gravity({"image"}))
+    assert not plan.manhattan
+    _match_polygon(plan.polygon, truth, 0.25)
+    d = np.diff(np.vstack([plan.polygon, plan.polygon[:1]]), axis=0)
+    a = np.exp(4j * np.arctan2(d[:, 1], d[:, 0]))     # directions modulo 90 deg
+    apart = np.degrees(np.abs(np.angle(a[:, None] / a[None]))) / 4.0 + np.diag([90.0] * len(a))
+    assert np.sum(apart.min(1) > 10.0) == 1, np.round(apart, 1)   # the slanted wall alone
+
+
+def test_plan_params_for_gravity():
+    p = floorplan.PlanParams()
+    (pm, lm), snap = p.image_gravity_models, p.inexact_snap_deg
+    assert p.for_gravity({"exact"}) == p
+    s = p.for_gravity(["exact", "sensor"])
+    assert (s.pose_sigma_model, s.length_sigma_model, s.lines.snap_deg) == (
+        pm, p.length_sigma_model, snap)
+    i = p.for_gravity({"image"})
+    assert (i.pose_sigma_model, i.length_sigma_model, i.lines.snap_deg) == (pm, lm, snap)
+    assert p.lines.snap_deg < snap
