@@ -3,9 +3,9 @@ calls it): leave-one-room-out figures beside the in-sample ones, the coverage of
 sigma, the rooms with gravity withheld, and how each fitted constant was chosen.
 
 ``run(split, tmp)`` runs what it needs (``fit_ranker --loro-out``, ``loro_eval``,
-``calibrate_plan`` with the dataset's and with withheld gravity, ``calibrate_sigma`` on the
-runs ``tmp/ours.json`` and ``tmp/nograv.json``, ``calibrate_motion``, ``choose_ambiguity``,
-``choose_level_prior``, ``choose_alternatives``) and
+``calibrate_plan`` with the dataset's, withheld and inexact gravity, ``choose_snap``,
+``calibrate_sigma`` on the runs ``tmp/ours.json`` and ``tmp/nograv.json``,
+``calibrate_motion``, ``choose_ambiguity``, ``choose_level_prior``, ``choose_alternatives``) and
 returns the markdown lines, given the scored in-sample runs.
 """
 
@@ -102,6 +102,8 @@ def run(split: Path, tmp: Path) -> dict:
         out[name] = tmp / f"{name}.json"
     out["plan_given"] = _tool("calibrate_plan.py", split)
     out["plan_withheld"] = _tool("calibrate_plan.py", split, "--gravity", "withheld")
+    out["plan_inexact"] = _tool("calibrate_plan.py", split, "--gravity", "inexact")
+    out["snap"] = _tool("choose_snap.py", split)
     out["points_gravity"] = _tool("calibrate_sigma.py", split, tmp / "ours.json",
                                   tmp / "nograv.json")
     out["motion"] = _tool("calibrate_motion.py", split)
@@ -175,7 +177,13 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "**The plan's model errors** (`tools/calibrate_plan.py`: sigma = hypot(k * the joint "
         "refinement's, floor), raw coverage, fitted in sample, left out):", "", "```",
         *tools["plan_given"].strip().splitlines(), "", "gravity withheld:",
-        *tools["plan_withheld"].strip().splitlines(), "```", "",
+        *tools["plan_withheld"].strip().splitlines(), "",
+        "gravity withheld and a phone's pooled (the pose model of `image_gravity_models`):",
+        *tools["plan_inexact"].strip().splitlines(), "```", "",
+        "**How far off the axes a wall is snapped when gravity is not exact** "
+        "(`tools/choose_snap.py`: each room planned at each tolerance with gravity withheld "
+        "and with a phone's; kept: the most walls ok plus views localised, leave one room "
+        "out):", "", "```", *tools["snap"].strip().splitlines(), "```", "",
         "**The points' and gravity's model errors** (`tools/calibrate_sigma.py`: the boundary's "
         "1-sigma in pixels of the 640 px working size, on the wall and non-floor points with "
         "the dataset's gravity; the factor on the gravity fit's own covariance, on the pitch "
