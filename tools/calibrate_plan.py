@@ -39,8 +39,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(__file__))
 import sigma_coverage as sc  # noqa: E402
 from findme.evaluation.views import GravityInput  # noqa: E402
-from findme.evaluation.rooms import room_photos, room_spots  # noqa: E402
-from findme_core.errors import FindmeError, OutlineRefused  # noqa: E402
+from findme.evaluation.rooms import room_photos, room_prediction  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.plan import session  # noqa: E402
 
 #: how each ``--gravity`` reaches the plans (``phone``: the dataset's tilted by a seeded
@@ -64,13 +64,9 @@ def raw_plan(job) -> tuple[str, dict | None, str | None]:
         views, photos = room_photos(os.path.join(dataset, "rooms"), os.path.join(dataset, "views"),
                                     rid, GRAVITIES[gravity])
         p = session.SessionParams()
-        p = replace(p, plan=replace(p.plan, **RAW))
-        try:
-            d = session.plan(photos, room_spots(views, "ids"), p)[0].to_dict(views)
-        except OutlineRefused as e:   # its poses are published without the outline
-            d = e.plan.to_dict(views, outline=False)
-        d["poses"] = {k: v for k, v in d["poses"].items() if v is not None}
-        return rid, d, None
+        # a refused outline: its poses, which are published, without the outline
+        return rid, room_prediction(views, photos, "ids",
+                                    replace(p, plan=replace(p.plan, **RAW))), None
     except FindmeError as e:
         return rid, None, str(e)
 

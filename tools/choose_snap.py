@@ -30,15 +30,16 @@ from dataclasses import replace
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-from findme.evaluation.rooms import room_photos, room_spots  # noqa: E402
-from findme.evaluation.views import GravityInput  # noqa: E402
-from findme_core.errors import FindmeError, OutlineRefused  # noqa: E402
+sys.path.insert(0, os.path.dirname(__file__))
+from calibrate_plan import GRAVITIES as ALL_GRAVITIES, INEXACT  # noqa: E402
+from findme.evaluation.rooms import room_ids, room_photos, room_prediction  # noqa: E402
+from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.plan import session  # noqa: E402
 
 #: candidate tolerances, degrees (the first: ``WallParams.snap_deg``, today's for every gravity)
 CANDIDATES = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
-GRAVITIES = {"withheld": GravityInput(given=False),
-             "phone": GravityInput(noise_deg=1.5, sigma_deg=1.5, refine=True)}
+#: the gravities that are not exact, as ``calibrate_plan --gravity inexact`` pools them
+GRAVITIES = {g: ALL_GRAVITIES[g] for g in INEXACT}
 
 
 def _scorer(dataset: str):
@@ -58,20 +59,15 @@ def plan_room(args) -> tuple[str, str, list]:
     out = []
     for c in CANDIDATES:
         params = session.SessionParams()
-        params = replace(params, plan=replace(params.plan, inexact_snap_deg=c))
-        refused, manhattan = False, False
         try:
-            plan = session.plan(photos, room_spots(views, "ids"), params)[0]
-            pred, manhattan = plan.to_dict(views), plan.manhattan
-        except OutlineRefused as e:
-            pred, refused = e.plan.to_dict(views, outline=False), True
-        except FindmeError:
-            pred, refused = {}, True
-        pred["poses"] = {k: p for k, p in (pred.get("poses") or {}).items() if p is not None}
+            pred = room_prediction(views, photos, "ids", replace(
+                params, plan=replace(params.plan, inexact_snap_deg=c)))
+        except FindmeError as e:   # refused whole (a camera outside the outline)
+            pred = {"refused": str(e)}
         s = score.score_room(room, pred)
         out.append({"ok": s["wall_frac_ok"] or 0.0, "loc": s["loc_success_rate"] or 0.0,
-                    "iou": s["iou"], "corner": s["corner_err_m"], "manhattan": manhattan,
-                    "refused": refused})
+                    "iou": s["iou"], "corner": s["corner_err_m"],
+                    "manhattan": bool(pred.get("manhattan")), "refused": "refused" in pred})
     return rid, gname, out
 
 
@@ -101,7 +97,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args(argv)
     idx = json.load(open(os.path.join(a.dataset, "index.json")))
-    rooms = sorted({r for ss in idx["subsets"].values() for r in ss.get("rooms", [])})
+    rooms = room_ids(idx)
     jobs = [(a.dataset, r, g) for r in rooms for g in GRAVITIES]
     with ProcessPoolExecutor(max(1, a.jobs)) as ex:
         res = {(r, g): out for r, g, out in ex.map(plan_room, jobs)}

@@ -1,7 +1,8 @@
-"""The room sets of a findme-eval dataset (rooms/<id>.json: ordered view ids): each room's
-photos analysed from their inputs only (``room_photos``), its spots from the ids or the
-photos (``room_spots``), its plan as the scorer reads it (``room_prediction``), one room in
-a worker (``room_job``) and every room (``predict_rooms``).
+"""The room sets of a findme-eval dataset (rooms/<id>.json: ordered view ids): their ids
+(``room_ids``), each room's photos analysed from their inputs only (``room_photos``), its
+spots from the ids or the photos (``room_spots``), its plan as the scorer reads it
+(``room_prediction``), one room in a worker (``room_job``) and every room
+(``predict_rooms``).
 """
 
 from __future__ import annotations
@@ -52,12 +53,20 @@ def room_spots(views, spots_mode: str):
     return [(_SPOT.search(v).group(1) if _SPOT.search(v) else v) for v in views]
 
 
-def room_prediction(views, photos, spots_mode: str) -> dict:
-    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON. A
-    refused outline (``OutlineRefused``) gives the poses alone, with ``refused``: the reason
-    (the scorer counts the room's outline missing and scores the poses)."""
+def room_ids(index: dict) -> list[str]:
+    """The dataset's room set ids (every subset's ``rooms``), sorted."""
+    return sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
+
+
+def room_prediction(views, photos, spots_mode: str,
+                    params: session.SessionParams | None = None) -> dict:
+    """The scorer's room entry (polygon, poses of the placed photos) plus the plan's JSON
+    (``params``: the session's, default ``SessionParams()``). A refused outline
+    (``OutlineRefused``) gives the poses alone, with ``refused``: the reason (the scorer
+    counts the room's outline missing and scores the poses)."""
     try:
-        d = session.plan(photos, room_spots(views, spots_mode))[0].to_dict(views)
+        d = session.plan(photos, room_spots(views, spots_mode),
+                         params or session.SessionParams())[0].to_dict(views)
     except OutlineRefused as e:
         d = {**e.plan.to_dict(views, outline=False), "refused": str(e)}
     d["poses"] = {k: p for k, p in d["poses"].items() if p is not None}
@@ -85,7 +94,7 @@ def predict_rooms(dataset, index, view_dir, spots: str, jobs: int, gravity=True,
     refused has its photos' poses alone; either reason goes into ``refused`` (room id -> the
     message), when given."""
     room_dir = os.path.join(dataset, index.get("rooms_dir", "rooms"))
-    rooms = sorted({r for ss in index["subsets"].values() for r in ss.get("rooms", [])})
+    rooms = room_ids(index)
     out = {}
     jobs_ = [(room_dir, view_dir, r, spots, gravity) for r in rooms]
     with ProcessPoolExecutor(max(1, jobs), mp_context=mp.get_context("spawn")) as ex:
