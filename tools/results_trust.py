@@ -110,6 +110,8 @@ def run(split: Path, tmp: Path) -> dict:
     out["ambiguity"] = _tool("choose_ambiguity.py", split)
     out["level"] = _tool("choose_level_prior.py", split)
     out["alternatives"] = _tool("choose_alternatives.py", split)
+    out["scale"] = _tool("choose_alternatives.py", split, "--param", "scale_ratio", "--ratios",
+                         "0.1,0.2,0.3,0.5,0.7,0.9,1.1", "--gravity", "given,phone,withheld")
     return out
 
 
@@ -204,7 +206,14 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         *tools["level"].strip().splitlines()[-3:], "```", "",
         "**A motion's alternatives** (`tools/choose_alternatives.py`: refined motions scoring at "
         "least this share of the best widen its 1-sigma; kept at 0.8: lower ratios cover the "
-        "wrong answers by chance, an alternative is the right motion in at most 1 of them, and "
-        "left out room06 takes 0.9):", "", "```",
+        "wrong answers by chance, an alternative is the right motion in at most one more of "
+        "them, and left out room06, where they are, takes 0.9, so the held-out figures are "
+        "0.8's):", "", "```",
         *tools["alternatives"].strip().splitlines(), "```", "",
+        "**A motion at another distance** (`tools/choose_alternatives.py --param scale_ratio "
+        "--gravity given,phone,withheld`: a candidate at the answer's yaw and direction of "
+        "travel whose evidence for its distance, the lifted points' transfer and the layouts, "
+        "is at least this share of the answer's is an alternative; 1.1: none; the three "
+        "gravities pooled, a pair's runs in its room's group):", "", "```",
+        *tools["scale"].strip().splitlines(), "```", "",
     ]

@@ -20,7 +20,7 @@ from findme_core.errors import MotionError
 from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y, wrap
 from findme_core.motion import one_sided, photometric, register
-from findme_core.motion.alternatives import distinct_top, rival, spread_over
+from findme_core.motion.alternatives import along, distinct_top, rival, spread_over
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
@@ -233,6 +233,8 @@ class Registration:
         alts = tuple(o for o, _ in out[:k] + out[k + 1:]
                      if o.score >= self.p.alternative_ratio * best.score)
         alts += self._rival(best, alts, cy, ct, total, which)
+        alts += along(best, alts, cy, ct, self.fit.scale_score, self.p.scale_ratio,
+                      self.p.refine_top, self._same)
         return spread_over(replace(best, alternatives=alts))
 
     def _rival(self, best, alts, cy, ct, total, which) -> tuple:

@@ -167,17 +167,18 @@ class Fit:
         self.p, self.rp, self.dy, self.n = params, rp, P.dy, len(P.a)
         self.floor_first = None   # decided on the first motions scored
 
-    def features(self, yaw, t3):
-        """(C,) MSAC of the epipolar residuals of all matches and the transfer residuals of
-        the lifted points (pixels over their spread, the spread capped at 3): floor points
-        only once some motion has ``min_floor`` of them agreeing (``self.floor_first``: a
-        wall point is right only when its wall is), else wall points too."""
+    def features(self, yaw, t3, epipolar: bool = True):
+        """(C,) MSAC of the epipolar residuals of all matches (unless not ``epipolar``) and
+        the transfer residuals of the lifted points (pixels over their spread, the spread
+        capped at 3): floor points only once some motion has ``min_floor`` of them agreeing
+        (``self.floor_first``: a wall point is right only when its wall is), else wall
+        points too."""
         if self.n == 0:
             return np.zeros(len(yaw))
         thr, P = self.p.thr_px, self.P
         score = np.zeros(len(yaw))
         T = t3 / np.maximum(np.linalg.norm(t3, axis=1, keepdims=True), 1e-12)
-        for y in np.unique(yaw):   # candidates come in groups of one yaw
+        for y in np.unique(yaw) if epipolar else ():   # candidates come in groups of one yaw
             k = yaw == y
             Rb, m, ab, far = self.turned(y)
             score[k] = known_yaw_score(P.a, Rb, m, T[k], P.pix, thr, ab, far)[0]
@@ -224,6 +225,14 @@ class Fit:
             return np.zeros(len(t3))
         ratio = np.hypot(t3[:, 0], t3[:, 2]) / (self.p.baseline_depths * self.depth)
         return -self.p.baseline_weight * np.maximum(0.0, ratio - 1.0)
+
+    def scale_score(self, yaw, t3):
+        """(C,) the part of ``score`` that depends on the baseline's length: the lifted
+        points' transfer, the layouts and the baseline prior (the epipolar residuals and the
+        orientations see only the yaw and the baseline's direction)."""
+        yaw, t3 = np.atleast_1d(np.asarray(yaw, float)), np.atleast_2d(t3)
+        return (self.features(yaw, t3, epipolar=False) + self.layouts(yaw, t3[:, [0, 2]])[0]
+                + self.baseline(t3))
 
     def score(self, yaw, t3):
         """(C,) total score of C motions (yaw (C,), t (C, 3)) and their layout pairs."""

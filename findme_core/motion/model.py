@@ -94,6 +94,14 @@ class MotionParams:
             KITTI unchanged; the tool picks 30 (of equal losses the fewest alternatives).
             Left out, room06 (the wrong answers) takes 180, i.e. none: on the other rooms
             the rule changes nothing.
+        scale_ratio: candidates at the answer's yaw and baseline direction but another
+            distance whose evidence for their distance (``Fit.scale_score``) is at least
+            this fraction of the answer's are alternatives (``alternatives.along``: the
+            scale a wrong boundary gives). ``tools/choose_alternatives.py --param
+            scale_ratio --gravity given,phone,withheld`` (2026-12-01): loss 0.0039 at 0.1,
+            0.2 and 0.3 against 0.0069 without (1.1); picks 0.3, and so does every group
+            left out but room06 (0.5); ZInD level pairs within 3 sigma 0.90 -> 0.92, tilted
+            0.92 -> 0.95, KITTI 0.83 -> 0.86, TUM 0.99 either way.
         duplicate_px: matches within this many pixels of a more distinctive one (their
             distances in A and in B add up to less than twice it) are its copies (one corner
             at several ORB pyramid levels) and count once (``features.distinct``). Dev
@@ -154,6 +162,7 @@ class MotionParams:
     min_layout_samples: int = 8
     alternative_ratio: float = 0.8
     rival_sep_deg: float = 30.0
+    scale_ratio: float = 0.3
     duplicate_px: float = 4.0
     lift_min_elev_deg: float = 3.0
     photometric_weight: float = 0.04

@@ -15,6 +15,7 @@ from findme_core.geometry.planar import kabsch_2d, rot_y, solve_gravity_3pt, sol
 from findme_core.motion import features, lifting
 from findme_core.motion.features import Matches
 from findme_core.motion.lifting import Lifted
+from findme_core.motion.estimator import Registration
 from findme_core.motion.methods import MotionParams, estimate
 from findme_core.single.scene import Scene
 from findme_core.synth.render import Box, Pose, Room, planar_motion, render
@@ -327,3 +328,34 @@ def test_the_length_keeps_the_error_it_shares_with_the_lifted_depths():
         assert r.sigma_z >= share * abs(r.z) / base - 1e-9
         got[s] = math.hypot(r.sigma_x, r.sigma_z)
     assert got[0.05] > got[0.005]
+
+
+def test_the_distance_evidence_is_the_score_less_what_every_distance_shares():
+    """``Fit.scale_score`` (what ``alternatives.along`` weighs) is the score less the epipolar
+    and orientation terms, which see only the yaw and the baseline's direction: along the
+    true direction the two differ by one constant. Photo B's points lifted twice as far (a
+    wall taken 1 m behind the true one) make a second distance, 2x, score alike."""
+    poses = POSES[0]
+    m, (ca, cb), la, lb = exact_pair(*poses)
+    x, z, yaw = planar_motion(*poses)
+    yaw = math.radians(yaw)
+
+    def far(lift):
+        def out(idx):
+            L = lift(idx)
+            return Lifted(L.points * 2.0, L.sigma * 2.0, L.floor)
+        return out
+    for lift_b, peaks in ((lb, (1.0,)), (far(lb), (1.0, 2.0))):
+        reg = Registration(m, ca, cb, 1.4, 1.4, la, lift_b, ([], []), (None, None),
+                           MotionParams())
+        reg.run()
+        s = np.array([0.5, 1.0, 1.5, 2.0, 3.0])
+        t3 = np.column_stack([s * x, np.zeros(len(s)), s * z])
+        total, part = reg.fit.score(np.full(len(s), yaw), t3)[0], reg.fit.scale_score(
+            np.full(len(s), yaw), t3)
+        assert np.ptp(total - part) == pytest.approx(0.0, abs=1e-9)
+        # every match agrees with the direction at any distance: that part is left out
+        assert (total - part)[0] > 0.5 * len(m) and part.max() > 10.0
+        # the distances whose lifted points agree score high, the others about nothing
+        high = {float(v) for v in s[part > 0.5 * part.max()]}
+        assert high == set(peaks)
