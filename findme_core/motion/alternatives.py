@@ -34,11 +34,20 @@ def rival(cy, total, yaw: float, sep: float) -> int | None:
     return int(far[ties.order(np.asarray(total)[far])[0]])
 
 
-def along(best: PlanarMotion, others, cy, ct, evidence, ratio: float, k: int, same) -> tuple:
-    """Up to k motions, none the same as ``best`` or ``others`` (its alternatives so far), at
-    ``best``'s yaw and baseline direction (both within 3 deg) but at another distance, among
-    the candidates (yaw (C,) radians, t (C, 3) metres): the distinct ones whose evidence for
-    their distance is at least ``ratio`` of ``best``'s, the most first.
+def same(y1: float, t1, y2: float, t2) -> bool:
+    """Whether two motions (yaw radians, (x, z) metres) are one: yaws within 3 deg and
+    positions within 0.1 m plus 10 % of the first's baseline."""
+    dt = np.hypot(t1[0] - t2[0], t1[1] - t2[1])
+    return bool(abs(np.angle(np.exp(1j * (y1 - y2)))) < np.radians(3.0)
+                and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
+
+
+def along(best: PlanarMotion, others, cy, ct, evidence, ratio: float, k: int) -> list:
+    """Up to k candidates, none the same as ``best`` or ``others`` (its alternatives so far),
+    at ``best``'s yaw and baseline direction (both within 3 deg) but at another distance,
+    among the candidates (yaw (C,) radians, t (C, 3) metres): [(index, share)] of the
+    distinct ones whose evidence for their distance is at least ``ratio`` of ``best``'s
+    (share: theirs over ``best``'s), the most first.
 
     The metric scale of a motion rests on depths lifted from one photo (floor points, wall
     points, the walls themselves), and a wrong boundary (a counter's front taken for the wall,
@@ -46,31 +55,43 @@ def along(best: PlanarMotion, others, cy, ct, evidence, ratio: float, k: int, sa
     direction, cannot tell the two distances apart. ``evidence(yaw (n,), t (n, 3))`` -> (n,)
     is the part of the score that sees the distance (``Fit.scale_score``: the lifted points'
     transfer, the layouts, the baseline prior), not the epipolar residuals, which every
-    distance along one direction shares. The candidates are kept as scored, not refined (the
-    refinement slides them back to ``best``). Each gets ``best``'s sigmas scaled by its
-    distance ratio and ``best``'s score times its evidence's share of ``best``'s;
-    ``same(yaw1, (x1, z1), yaw2, (x2, z2))`` says whether two motions are one.
+    distance along one direction shares. The candidates are kept as scored (``as_scored``),
+    not refined: the refinement slides them back to ``best``.
     """
-    tol, base = np.radians(3.0), max(float(np.hypot(best.x, best.z)), 1e-9)
+    tol = np.radians(3.0)
     turn = wrap(np.arctan2(ct[:, 0], ct[:, 2]) - np.arctan2(best.x, best.z))
     near = np.flatnonzero((np.abs(wrap(np.asarray(cy) - best.yaw)) < tol) & (np.abs(turn) < tol))
     ref = float(evidence(np.array([best.yaw]), np.array([[best.x, best.dy, best.z]]))[0])
     if len(near) == 0 or not ref > 0.0:   # nothing tells any distance from another
-        return ()
+        return []
     ev = np.asarray(evidence(np.asarray(cy)[near], ct[near]), float)
-    out: list[PlanarMotion] = []
+    out: list[tuple[int, float]] = []
+    seen = [(m.yaw, (m.x, m.z)) for m in (best, *others)]
     for j in ties.order(ev):
-        i, e = near[j], float(ev[j])
+        i, e = int(near[j]), float(ev[j])
         if len(out) == k or e < ratio * ref:
             break
         yaw, t = float(cy[i]), ct[i, [0, 2]]
-        if any(same(yaw, t, m.yaw, (m.x, m.z)) for m in (best, *others, *out)):
+        if any(same(yaw, t, y, q) for y, q in seen):
             continue
-        f = float(np.hypot(*t)) / base
-        out.append(replace(best, x=float(t[0]), z=float(t[1]), yaw=yaw, sigma_x=best.sigma_x * f,
-                           sigma_z=best.sigma_z * f, score=best.score * e / ref,
-                           alternatives=()))
-    return tuple(out)
+        seen.append((yaw, t))
+        out.append((i, e / ref))
+    return out
+
+
+def as_scored(best: PlanarMotion, yaw: float, t3, share: float, inliers, n_scale: int,
+              layout) -> PlanarMotion:
+    """A candidate (yaw radians, t3 (3,) metres) kept as scored, not refined, as an
+    alternative of ``best``: its own evidence (``inliers`` (M,) bool, ``n_scale`` lifted
+    points, the layouts' ``layout`` agreement), ``best``'s sigmas scaled by the distance
+    ratio, and ``best``'s score times ``share`` (its evidence over ``best``'s, ``along``);
+    its appearance not measured."""
+    t3 = np.asarray(t3, float)
+    f = float(np.hypot(t3[0], t3[2])) / max(float(np.hypot(best.x, best.z)), 1e-9)
+    return replace(best, x=float(t3[0]), dy=float(t3[1]), z=float(t3[2]), yaw=float(yaw),
+                   sigma_x=best.sigma_x * f, sigma_z=best.sigma_z * f, inliers=inliers,
+                   n_scale=n_scale, layout=layout, score=best.score * share, alternatives=(),
+                   appearance=(float("nan"), 0))
 
 
 def spread_over(m: PlanarMotion) -> PlanarMotion:

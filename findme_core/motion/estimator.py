@@ -20,7 +20,8 @@ from findme_core.errors import MotionError
 from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y, wrap
 from findme_core.motion import one_sided, photometric, register
-from findme_core.motion.alternatives import along, distinct_top, rival, spread_over
+from findme_core.motion.alternatives import (along, as_scored, distinct_top, rival, same,
+                                              spread_over)
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
@@ -210,14 +211,14 @@ class Registration:
             if len(results) == self.p.refine_top or (
                     results and total[i] < self.p.alternative_ratio * top):
                 break
-            if any(self._same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
+            if any(same(cy[i], ct[i, [0, 2]], r[0][0], r[0][[1, 3]]) for r in results):
                 continue
             results.append(self._refined(cy[i], ct[i], which[i]))
         results = [results[i] for i in ties.order(np.array([r[2] for r in results]))]
         out = []
         for r in results:
             o = self._result(*r)
-            if not any(self._same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
+            if not any(same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
                 out.append((o, r[3]))
         # the best motion the evidence determines: one with too few matches and walls along
         # one direction only is a family of motions, not an answer (the next one may be)
@@ -233,8 +234,10 @@ class Registration:
         alts = tuple(o for o, _ in out[:k] + out[k + 1:]
                      if o.score >= self.p.alternative_ratio * best.score)
         alts += self._rival(best, alts, cy, ct, total, which)
-        alts += along(best, alts, cy, ct, self.fit.scale_score, self.p.scale_ratio,
-                      self.p.refine_top, self._same)
+        for i, share in along(best, alts, cy, ct, self.fit.scale_score, self.p.scale_ratio,
+                              self.p.refine_top):
+            inl, (ta, tb), lay = self._evidence(cy[i], ct[i], which[i])
+            alts += (as_scored(best, cy[i], ct[i], share, inl, int(ta.sum() + tb.sum()), lay),)
         return spread_over(replace(best, alternatives=alts))
 
     def _rival(self, best, alts, cy, ct, total, which) -> tuple:
@@ -253,7 +256,7 @@ class Registration:
         (cb, nb), (co, no) = best.appearance, o.appearance
         # the appearance prefers ``best`` when the two correlations differ by more than
         # their standard error (1 / sqrt(n) each); nothing seen: the layouts decide
-        if not (nb > 0 and no > 0 and cb - co <= np.sqrt(1.0 / nb + 1.0 / no)) or self._same(
+        if not (nb > 0 and no > 0 and cb - co <= np.sqrt(1.0 / nb + 1.0 / no)) or same(
                 o.yaw, (o.x, o.z), best.yaw, (best.x, best.z)):
             return ()
         return (o,)
@@ -286,19 +289,18 @@ class Registration:
                 raise self._refusal(m.n_inliers)
             self._check_layout_only(m, pair)
 
-    def _same(self, y1, t1, y2, t2) -> bool:
-        dt = np.hypot(t1[0] - t2[0], t1[1] - t2[1])
-        return (abs(np.angle(np.exp(1j * (y1 - y2)))) < np.radians(3.0)
-                and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
+    def _evidence(self, yaw, t3, pair):
+        """(matches agreeing with the motion (M,), of them lifted ones (ta, tb), the layouts'
+        ``register.Agreement`` or None) of one motion and its layout pair."""
+        e_in, ta, tb = self.fit.inliers(yaw, t3)
+        i, j = max(pair[0], 0), max(pair[1], 0)
+        return e_in | ta | tb, (ta, tb), (register.agreement(
+            self.la[i], self.lb[j], yaw, t3[[0, 2]], self.rp) if self.la and self.lb else None)
 
     def _result(self, q, cov, score, pair, appearance) -> PlanarMotion:
-        t3 = q[1:4]
-        e_in, ta, tb = self.fit.inliers(q[0], t3)
-        i, j = max(pair[0], 0), max(pair[1], 0)
-        lay = (register.agreement(self.la[i], self.lb[j], q[0], t3[[0, 2]], self.rp)
-               if self.la and self.lb else None)
-        r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])],
-                          e_in | ta | tb, int(ta.sum() + tb.sum()), "findme")
+        inl, (ta, tb), lay = self._evidence(q[0], q[1:4], pair)
+        r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])], inl,
+                          int(ta.sum() + tb.sum()), "findme")
         depth = common_depth_sigma([(L.points[m], L.sigma[m])
                                     for L, m in ((self.P.la, ta), (self.P.lb, tb))])
         return _model_error(replace(r, layout=lay, score=score, appearance=appearance), self.p,

@@ -10,19 +10,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from findme_core.motion.alternatives import along, distinct_top, rival, spread_over
+from findme_core.motion.alternatives import (along, as_scored, distinct_top, rival, same,
+                                              spread_over)
 from findme_core.motion.model import PlanarMotion
 
 BEST = PlanarMotion(x=0.6, z=0.8, yaw=math.radians(20.0), dy=0.0, sigma_x=0.03, sigma_z=0.04,
                     sigma_yaw=math.radians(0.5), inliers=np.ones(10, bool), n_scale=5,
                     method="findme", score=50.0)
 BEST_DIR = math.degrees(math.atan2(0.6, 0.8))   # 36.87 deg from +z; the baseline is 1.0 m
-
-
-def same(y1, t1, y2, t2) -> bool:
-    """As ``Registration._same``: within 3 deg and 0.1 m + 10 % of the baseline."""
-    return (abs(math.remainder(y1 - y2, 2 * math.pi)) < math.radians(3.0)
-            and math.hypot(t1[0] - t2[0], t1[1] - t2[1]) < 0.1 + 0.1 * math.hypot(*t1[:2]))
 
 
 def candidates(*rows):
@@ -32,6 +27,16 @@ def candidates(*rows):
     d = np.radians(r[:, 1])
     return np.radians(r[:, 0]), np.column_stack([r[:, 2] * np.sin(d), np.zeros(len(r)),
                                                  r[:, 2] * np.cos(d)])
+
+
+def kept(cy, ct, found):
+    """The motions ``along`` found, as the estimator keeps them (no matches of their own)."""
+    return tuple(as_scored(BEST, cy[i], ct[i], share, np.zeros(10, bool), 0, None)
+                 for i, share in found)
+
+
+def lengths(found, ct):
+    return [round(math.hypot(ct[i, 0], ct[i, 2]), 2) for i, _ in found]
 
 
 def evidence_of(lengths, values):
@@ -50,13 +55,16 @@ TWO = evidence_of([0.0, 1.0, 1.5, 2.0, 3.0, 9.0], [0.0, 10.0, 2.0, 7.0, 0.0, 0.0
 def test_a_second_distance_along_the_baseline_is_an_alternative():
     cy, ct = candidates((20.0, BEST_DIR, 1.0), (20.5, BEST_DIR + 1.0, 2.0),
                         (20.0, BEST_DIR, 1.02))
-    (o,) = along(BEST, (), cy, ct, TWO, 0.5, 3, same)
+    (o,) = kept(cy, ct, along(BEST, (), cy, ct, TWO, 0.5, 3))
     assert math.hypot(o.x, o.z) == pytest.approx(2.0)
     assert o.yaw == pytest.approx(math.radians(20.5))
     # the answer's relative sigmas at the new distance; its evidence's share of the score
     assert o.sigma_x == pytest.approx(2.0 * BEST.sigma_x)
     assert o.sigma_z == pytest.approx(2.0 * BEST.sigma_z)
     assert o.score == pytest.approx(0.7 * BEST.score) and o.alternatives == ()
+    # its own evidence, not the answer's
+    assert o.n_inliers == 0 and o.n_scale == 0 and o.layout is None
+    assert o.appearance[1] == 0
 
 
 def test_only_candidates_at_the_answers_yaw_and_direction_with_enough_evidence():
@@ -65,42 +73,50 @@ def test_only_candidates_at_the_answers_yaw_and_direction_with_enough_evidence()
                         (24.0, BEST_DIR, 2.0),           # turned 4 deg
                         (20.0, BEST_DIR + 4.0, 2.0),     # another direction
                         (20.0, BEST_DIR + 180.0, 2.0))   # the way back
-    assert along(BEST, (), cy, ct, TWO, 0.5, 3, same) == ()
-    (o,) = along(BEST, (), cy, ct, TWO, 0.2, 3, same)
-    assert math.hypot(o.x, o.z) == pytest.approx(1.5)
+    assert along(BEST, (), cy, ct, TWO, 0.5, 3) == []
+    found = along(BEST, (), cy, ct, TWO, 0.2, 3)
+    assert lengths(found, ct) == [1.5] and found[0][1] == pytest.approx(0.2)
 
 
 def test_distances_alike_count_once_and_at_most_k():
     flat = evidence_of([0.0, 1.0, 4.0], [10.0, 10.0, 7.0])   # every distance alike
     cy, ct = candidates((20.0, BEST_DIR, 1.0), (20.0, BEST_DIR, 1.5), (20.0, BEST_DIR, 1.52),
                         (20.0, BEST_DIR, 2.5), (20.0, BEST_DIR, 0.5), (20.0, BEST_DIR, 3.5))
-    out = along(BEST, (), cy, ct, flat, 0.5, 3, same)
-    assert [round(math.hypot(o.x, o.z), 2) for o in out] == [0.5, 1.5, 2.5]
+    out = along(BEST, (), cy, ct, flat, 0.5, 3)
+    assert lengths(out, ct) == [0.5, 1.5, 2.5]
     # one already among the answer's alternatives is not added again
-    again = along(BEST, out[:1], cy, ct, flat, 0.5, 3, same)
-    assert [round(math.hypot(o.x, o.z), 2) for o in again] == [1.5, 2.5, 3.5]
+    again = along(BEST, kept(cy, ct, out[:1]), cy, ct, flat, 0.5, 3)
+    assert lengths(again, ct) == [1.5, 2.5, 3.5]
 
 
 def test_without_evidence_of_the_distance_nothing_is_added():
     cy, ct = candidates((20.0, BEST_DIR, 1.0), (20.0, BEST_DIR, 2.0))
     none = evidence_of([0.0, 9.0], [0.0, 0.0])   # the matches alone: every distance scores 0
-    assert along(BEST, (), cy, ct, none, 0.3, 3, same) == ()
+    assert along(BEST, (), cy, ct, none, 0.3, 3) == []
     # nothing near: the answer keeps its sigmas
     far, _ = candidates((60.0, BEST_DIR, 2.0))
-    assert along(BEST, (), far, ct[1:], TWO, 0.3, 3, same) == ()
+    assert along(BEST, (), far, ct[1:], TWO, 0.3, 3) == []
     assert spread_over(BEST) is BEST
 
 
 def test_the_spread_over_another_distance_lies_along_the_baseline():
     even = evidence_of([0.0, 1.0, 1.5, 2.0, 3.0], [0.0, 10.0, 0.0, 10.0, 0.0])
     cy, ct = candidates((20.0, BEST_DIR, 1.0), (20.0, BEST_DIR, 2.0))
-    m = spread_over(replace(BEST, alternatives=along(BEST, (), cy, ct, even, 0.3, 3, same)))
+    alts = kept(cy, ct, along(BEST, (), cy, ct, even, 0.3, 3))
+    m = spread_over(replace(BEST, alternatives=alts))
     # two distances with equal evidence: half the weight 1 m further along (0.6, 0.8)
     assert m.sigma_x == pytest.approx(math.sqrt(0.03 ** 2 + 0.5 * 0.6 ** 2))
     assert m.sigma_z == pytest.approx(math.sqrt(0.04 ** 2 + 0.5 * 0.8 ** 2))
     assert m.sigma_yaw == pytest.approx(BEST.sigma_yaw)
     # the truth twice as far lies within 2 sigma on both axes
     assert abs(1.2 - m.x) / m.sigma_x < 2.0 and abs(1.6 - m.z) / m.sigma_z < 2.0
+
+
+def test_same_motion():
+    assert same(0.0, (0.0, 1.0), np.radians(2.9), (0.0, 1.19))
+    assert not same(0.0, (0.0, 1.0), np.radians(3.1), (0.0, 1.0))
+    assert not same(0.0, (0.0, 1.0), 0.0, (0.0, 1.21))        # 0.1 m + 10 % of 1 m
+    assert same(np.radians(179.0), (0.0, 0.0), np.radians(-179.0), (0.05, 0.0))
 
 
 def test_rival_and_distinct_top():
