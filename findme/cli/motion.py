@@ -54,7 +54,8 @@ def motion_json(r: PairResult, metric: bool) -> dict:
     which walls (A's index, B's index) and corners matched, the rms residual; ``appearance``:
     the correlation of the photos' normalised images over the samples each sees of the
     other's floor and walls) and the
-    ``alternatives`` the evidence allows nearly as well (a symmetric room), best first;
+    ``alternatives`` the evidence allows too (a symmetric room; another distance along the
+    way, when a photo's depths may be wrong), best first;
     ``gravity``, when a photo's gravity came from its lines: whether the two photos agreed
     on it through their matches (``motion.pair_gravity``)."""
     m = r.motion
@@ -91,9 +92,10 @@ MOTION_HELP = """\
 Where photo B was taken relative to photo A, on the floor: x (to the right) and
 z (forward) of photo A's level view, and the turn (yaw, > 0: B turned right),
 each with its 1-sigma. It registers the two photos' floor-wall boundaries with
-their feature matches; when the room allows other motions nearly as well (a
-symmetric room), they are listed. Without --camera-height lengths are in camera
-heights.
+their feature matches; when the evidence allows other motions too (a symmetric
+room; another distance along the way, when a photo's depths may be wrong), they
+are listed and the 1-sigma covers them. Without --camera-height lengths are in
+camera heights.
 
 Example:  findme motion a.jpg b.jpg --camera-height 1.45"""
 
@@ -171,8 +173,9 @@ def cmd_motion(args) -> int:
         print(f"  appearance: the photos correlate {app['correlation']:+.3f} over "
               f"{app['samples']} samples each sees of the other's floor and walls")
     for k, alt in enumerate(out["alternatives"], 2):
-        print(f"  candidate {k} (the evidence allows it nearly as well): x {alt['x_m']:+.3f}, "
-              f"z {alt['z_m']:+.3f} {unit}, yaw {alt['yaw_deg']:+.2f} deg")
+        print(f"  candidate {k} (the evidence allows it too): x {alt['x_m']:+.3f}, "
+              f"z {alt['z_m']:+.3f} {unit} ({math.hypot(alt['x_m'], alt['z_m']):.3f} {unit} "
+              f"apart), yaw {alt['yaw_deg']:+.2f} deg")
     for which, s in zip("AB", sources):
         g = s["gravity"]
         if res.gravity is not None and res.gravity.status == "agreed":
