@@ -79,14 +79,14 @@ def along(best: PlanarMotion, others, cy, ct, evidence, ratio: float, k: int) ->
     return out
 
 
-def as_scored(best: PlanarMotion, yaw: float, t3, share: float, inliers, n_scale: int,
+def as_scored(best: PlanarMotion, yaw: float, t3, share: float, inliers, lifted_a, lifted_b,
               layout) -> PlanarMotion:
     """A candidate (yaw radians, t3 (3,) metres) kept as scored, not refined, as an
-    alternative of ``best``: its own evidence (``inliers`` (M,) bool, ``n_scale`` lifted
-    points, the layouts' ``layout`` agreement), ``best``'s sigmas scaled by the distance
-    ratio, and ``best``'s score times ``share`` (its evidence over ``best``'s, ``along``);
-    its appearance not measured."""
-    t3 = np.asarray(t3, float)
+    alternative of ``best``: its own evidence (``inliers`` (M,) bool, of them those lifted in
+    photo A and in B (M,) bool, the layouts' ``layout`` agreement), ``best``'s sigmas scaled
+    by the distance ratio, and ``best``'s score times ``share`` (its evidence over
+    ``best``'s, ``along``); its appearance not measured."""
+    t3, n_scale = np.asarray(t3, float), int(np.sum(lifted_a) + np.sum(lifted_b))
     f = float(np.hypot(t3[0], t3[2])) / max(float(np.hypot(best.x, best.z)), 1e-9)
     return replace(best, x=float(t3[0]), dy=float(t3[1]), z=float(t3[2]), yaw=float(yaw),
                    sigma_x=best.sigma_x * f, sigma_z=best.sigma_z * f, inliers=inliers,

@@ -193,11 +193,9 @@ class Registration:
                               "consistently with the motion in either photo, and no wall is "
                               "known in both, so the distance between the photos cannot be "
                               "measured")
-        if len(cy) == 0:
-            raise self._refusal(0)
         ok = np.isfinite(ct).all(1) & (np.hypot(ct[:, 0], ct[:, 2]) < self.p.max_baseline_m)
         cy, ct = cy[ok], ct[ok]
-        if len(cy) == 0:
+        if len(cy) == 0:   # no candidate, or none nearer than ``max_baseline_m``
             raise self._refusal(0)
         total, which = self.fit.score(cy, ct)
         # the photos' appearance where each sees the other's surfaces: the best candidates
@@ -234,10 +232,9 @@ class Registration:
         alts = tuple(o for o, _ in out[:k] + out[k + 1:]
                      if o.score >= self.p.alternative_ratio * best.score)
         alts += self._rival(best, alts, cy, ct, total, which)
-        for i, share in along(best, alts, cy, ct, self.fit.scale_score, self.p.scale_ratio,
-                              self.p.refine_top):
-            inl, (ta, tb), lay = self._evidence(cy[i], ct[i], which[i])
-            alts += (as_scored(best, cy[i], ct[i], share, inl, int(ta.sum() + tb.sum()), lay),)
+        alts += tuple(as_scored(best, cy[i], ct[i], s, *self._evidence(cy[i], ct[i], which[i]))
+                      for i, s in along(best, alts, cy, ct, self.fit.scale_score,
+                                        self.p.scale_ratio, self.p.refine_top))
         return spread_over(replace(best, alternatives=alts))
 
     def _rival(self, best, alts, cy, ct, total, which) -> tuple:
@@ -290,15 +287,14 @@ class Registration:
             self._check_layout_only(m, pair)
 
     def _evidence(self, yaw, t3, pair):
-        """(matches agreeing with the motion (M,), of them lifted ones (ta, tb), the layouts'
-        ``register.Agreement`` or None) of one motion and its layout pair."""
+        """(agreeing matches (M,), of them lifted in A, in B, the layouts' Agreement | None)."""
         e_in, ta, tb = self.fit.inliers(yaw, t3)
         i, j = max(pair[0], 0), max(pair[1], 0)
-        return e_in | ta | tb, (ta, tb), (register.agreement(
+        return e_in | ta | tb, ta, tb, (register.agreement(
             self.la[i], self.lb[j], yaw, t3[[0, 2]], self.rp) if self.la and self.lb else None)
 
     def _result(self, q, cov, score, pair, appearance) -> PlanarMotion:
-        inl, (ta, tb), lay = self._evidence(q[0], q[1:4], pair)
+        inl, ta, tb, lay = self._evidence(q[0], q[1:4], pair)
         r = motion_result(q[[0, 1, 3]], q[2], cov[np.ix_([0, 1, 3], [0, 1, 3])], inl,
                           int(ta.sum() + tb.sum()), "findme")
         depth = common_depth_sigma([(L.points[m], L.sigma[m])

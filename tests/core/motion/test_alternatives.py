@@ -31,7 +31,8 @@ def candidates(*rows):
 
 def kept(cy, ct, found):
     """The motions ``along`` found, as the estimator keeps them (no matches of their own)."""
-    return tuple(as_scored(BEST, cy[i], ct[i], share, np.zeros(10, bool), 0, None)
+    none = np.zeros(10, bool)
+    return tuple(as_scored(BEST, cy[i], ct[i], share, none, none, none, None)
                  for i, share in found)
 
 

@@ -5,6 +5,7 @@ room through the whole pipeline, and every degenerate case."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -359,3 +360,29 @@ def test_the_distance_evidence_is_the_score_less_what_every_distance_shares():
         # the distances whose lifted points agree score high, the others about nothing
         high = {float(v) for v in s[part > 0.5 * part.max()]}
         assert high == set(peaks)
+
+
+def test_a_second_distance_the_lifted_points_support_is_an_alternative():
+    """Photo B's points lifted twice as far: they put B twice as far along the same way as
+    photo A's points do. With only the best candidate refined, the other distance comes from
+    ``alternatives.along`` with its own lifted points and the 1-sigma spans both; without it
+    (scale_ratio above 1) the answer is stated to centimetres."""
+    poses = POSES[0]
+    m, (ca, cb), la, lb = exact_pair(*poses)
+    x, z, _ = planar_motion(*poses)
+
+    def far(lift):
+        def out(idx):
+            L = lift(idx)
+            return Lifted(L.points * 2.0, L.sigma * 2.0, L.floor)
+        return out
+    one = replace(MotionParams(), refine_top=1)
+    r = estimate(m, ca, cb, 1.4, 1.4, la, far(lb), "findme", one)
+    assert math.hypot(r.x, r.z) == pytest.approx(math.hypot(x, z), rel=1e-6)
+    (alt,) = r.alternatives
+    assert math.hypot(alt.x, alt.z) == pytest.approx(2.0 * math.hypot(x, z), rel=0.02)
+    assert alt.n_scale > 0 and alt.score > 0.5 * r.score
+    # the other distance lies within 2 sigma of the answer on each axis
+    assert abs(alt.x - r.x) < 2.0 * r.sigma_x and abs(alt.z - r.z) < 2.0 * r.sigma_z
+    tight = estimate(m, ca, cb, 1.4, 1.4, la, far(lb), "findme", replace(one, scale_ratio=1.1))
+    assert tight.alternatives == () and math.hypot(tight.sigma_x, tight.sigma_z) < 0.1
