@@ -50,12 +50,25 @@ export function renderMotion() {
         `${m.z_m >= 0 ? 'ahead' : 'behind'} of photo ${m.a + 1}, turned ` +
         `${Math.abs(yaw).toFixed(1)}° ${yaw >= 0 ? 'right' : 'left'}` +
         (why.length ? ` (${why.join('; ')}).` : '.');
-      const na = (m.alternatives || []).length;
-      if (na) {   // a symmetric room: say so rather than look sure
+      // the other motions the evidence allows: at another distance along the same way (the
+      // same turn and direction of travel, within 3°: a wall or floor line one photo misread)
+      // or at another place (a symmetric room); say so rather than look sure
+      const alts = m.alternatives || [];
+      const same = (a, b) => Math.abs(Math.atan2(Math.sin(a - b), Math.cos(a - b))) < 3 / DEG;
+      const along = alts.filter((a) => same(a.yaw_rad, m.yaw_rad) &&
+        same(Math.atan2(a.x_m, a.z_m), Math.atan2(m.x_m, m.z_m)));
+      const na = alts.length - along.length;
+      if (along.length) {
+        line.textContent += ` The distance is uncertain: the photos also allow ` +
+          `${along.map((a) => fmtLen(Math.hypot(a.x_m, a.z_m), 2)).join(' or ')} apart ` +
+          `instead of ${fmtLen(Math.hypot(m.x_m, m.z_m), 2)}; a photo that shows where the ` +
+          `floor meets the walls decides.`;
+      }
+      if (na) {
         line.textContent += ` Ambiguous: the room looks alike from ${na} other ` +
           `place${na > 1 ? 's' : ''}; a photo that shows a door or a corner decides.`;
-        line.classList.add('warn');
       }
+      if (alts.length) line.classList.add('warn');
     }
     text.append(line);
   }
