@@ -311,14 +311,24 @@ def set_motion_estimate(msg, mo, max_alternatives: int = schemas.MAX_ALTERNATIVE
 def motion_text(msg, unit: str = "m") -> str:
     """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
     this edge; lengths in ``unit``: "m", or "h" when the scenes are in camera heights), its
-    evidence, and 'ambiguous' when the evidence allows other motions."""
+    evidence, the other distances along the same way the evidence allows (the same turn and
+    direction of travel within 3 deg) and 'ambiguous' when it allows other motions."""
     if msg.error:
         return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
     why = [f"{msg.inliers}/{msg.matches} inliers"]
     nw = len(msg.layout.walls) if msg.HasField("layout") else 0
     if nw:
         why.append(f"{nw} wall{'s line' if nw > 1 else ' lines'} up")
-    na = len(msg.alternatives)
+
+    def alike(a: float, b: float) -> bool:
+        return abs(math.remainder(a - b, 2.0 * math.pi)) < math.radians(3.0)
+    way = math.atan2(msg.x_m, msg.z_m)
+    along = [a for a in msg.alternatives
+             if alike(a.yaw_rad, msg.yaw_rad) and alike(math.atan2(a.x_m, a.z_m), way)]
+    if along:
+        why.append("the distance may also be " + " or ".join(
+            f"{math.hypot(a.x_m, a.z_m):.3f} {unit}" for a in along))
+    na = len(msg.alternatives) - len(along)
     if na:
         why.append(f"ambiguous: {na} other motion{'s fit' if na > 1 else ' fits'} almost as well")
     return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} {unit}, "
