@@ -17,7 +17,8 @@ import zenoh
 import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
-from findme_io.convert import gravity_caveat, motion_gravity_text, motion_text, msg_room_view
+from findme_io.convert import gravity_caveat, msg_room_view
+from findme_io.motion_msg import motion_gravity_text, motion_text
 from services.runtime import bus
 
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 import schemas
-from .convert import motion_text
+from .motion_msg import motion_text
 
 PIXEL_TO_RERUN = 0.5
 #: Walls are drawn this many camera heights tall above the floor (a 2.5 m room seen from

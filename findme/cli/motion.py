@@ -21,7 +21,7 @@ from findme_core.motion.pair import PairResult, motion_photos, photo_of
 from findme_core.single.methods import METHODS as HYPOTHESIS_METHODS
 
 from findme_io.camera_source import camera_json, hypothesize_photo
-from findme_io.convert import motion_gravity_text, set_motion_gravity
+from findme_io.motion_msg import motion_gravity_text, set_motion_gravity
 from schemas import Motion
 from findme_io.imageio import read_photo
 from .options import add_camera_args, camera_height, finite_float, photo_camera_from

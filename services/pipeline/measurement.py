@@ -47,8 +47,9 @@ from findme_core.errors import FindmeError, HypothesisError
 from findme_core.geometry.provenance import Provenance
 
 from ..runtime import bus
-from findme_io.convert import (camera_msg, measure_reply_msg, msg_agreed_gravities, msg_camera,
-                               msg_hypotheses, msg_lines, msg_provenance)
+from findme_io.convert import (camera_msg, measure_reply_msg, msg_camera, msg_hypotheses,
+                               msg_lines, msg_provenance)
+from findme_io.motion_msg import msg_agreed_gravities
 from findme_io.frame_photo import frame_camera
 from ..runtime.handler import Handler, Input, Output, UnknownSession
 from ..runtime.sessions import SessionTable

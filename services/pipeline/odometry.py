@@ -41,8 +41,8 @@ import schemas
 from findme_core.errors import FindmeError, HypothesisError
 from findme_core.motion.pair import motion_photos, prepare
 from findme_core.motion.trajectory import PlanarPose, compose
-from findme_io.convert import (msg_gravity_estimate, msg_provenance, set_motion_estimate,
-                               set_motion_gravity)
+from findme_io.convert import msg_gravity_estimate, msg_provenance
+from findme_io.motion_msg import set_motion_estimate, set_motion_gravity
 
 from ..runtime import bus
 from ..runtime.handler import Handler, Input, Output

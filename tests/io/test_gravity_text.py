@@ -13,7 +13,8 @@ import pytest
 import schemas
 from findme_core.errors import SchemaError
 from findme_core.motion.pair_gravity import PairGravity
-from findme_io.convert import gravity_caveat, motion_gravity_text, set_motion_gravity
+from findme_io.convert import gravity_caveat
+from findme_io.motion_msg import motion_gravity_text, set_motion_gravity
 
 DEG = math.radians(1.0)
 

@@ -21,7 +21,8 @@ from findme_core.single import gravity_alternatives as alt
 from findme_core.synth.raycast import FLOOR
 from findme_core.synth.render import render
 from findme_core.synth.room import Pose, Room
-from findme_io.convert import make_frame, msg_agreed_gravities
+from findme_io.convert import make_frame
+from findme_io.motion_msg import msg_agreed_gravities
 from services.pipeline.hypotheses import HypothesesHandler
 from services.pipeline.measurement import MeasurementHandler
 from services.pipeline.odometry import OdometryHandler

@@ -9,7 +9,7 @@ import schemas
 from findme_core.single.search import SegKind
 from findme_core.synth.render import Pose, Room, planar_motion, render
 from services.pipeline.hypotheses import HypothesesHandler
-from findme_io.convert import motion_text, set_motion_estimate
+from findme_io.motion_msg import motion_text, set_motion_estimate
 from services.pipeline.odometry import OdometryHandler
 from services.web.page_output import to_page
 from tests.services.conftest import frame_of
