@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 import schemas
+from findme_core.motion.alternatives import on_the_way
 from findme_core.motion.pair_gravity import UNSURE_GRAVITY_DEG
 
 from .convert import gravity_caveat, rests_on
@@ -85,19 +86,18 @@ def motion_text(msg, unit: str = "m") -> str:
     """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
     this edge; lengths in ``unit``: "m", or "h" when the scenes are in camera heights), its
     evidence, the other distances along the same way the evidence allows (the same turn and
-    direction of travel within 3 deg) and 'ambiguous' when it allows other motions."""
+    direction of travel, ``alternatives.on_the_way``) and 'ambiguous' when it allows other
+    motions."""
     if msg.error:
         return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
     why = [f"{msg.inliers}/{msg.matches} inliers"]
     nw = len(msg.layout.walls) if msg.HasField("layout") else 0
     if nw:
         why.append(f"{nw} wall{'s line' if nw > 1 else ' lines'} up")
-
-    def alike(a: float, b: float) -> bool:
-        return abs(math.remainder(a - b, 2.0 * math.pi)) < math.radians(3.0)
-    way = math.atan2(msg.x_m, msg.z_m)
-    along = [a for a in msg.alternatives
-             if alike(a.yaw_rad, msg.yaw_rad) and alike(math.atan2(a.x_m, a.z_m), way)]
+    alts = list(msg.alternatives)
+    way = on_the_way(msg.yaw_rad, msg.x_m, msg.z_m, [a.yaw_rad for a in alts],
+                     [a.x_m for a in alts], [a.z_m for a in alts])
+    along = [a for a, w in zip(alts, way) if w]
     if along:
         why.append("the distance may also be " + " or ".join(
             f"{math.hypot(a.x_m, a.z_m):.3f} {unit}" for a in along))

@@ -42,9 +42,18 @@ def same(y1: float, t1, y2: float, t2) -> bool:
                 and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
 
 
+def on_the_way(yaw: float, x: float, z: float, yaws, xs, zs) -> np.ndarray:
+    """(n,) whether each of n motions (yaws radians, B at (xs, zs) metres) has the turn and
+    the direction of travel of the motion (yaw, x, z), both within 3 deg: the same way at
+    another distance (or the same motion)."""
+    tol = np.radians(3.0)
+    turn = wrap(np.arctan2(np.asarray(xs, float), np.asarray(zs, float)) - np.arctan2(x, z))
+    return (np.abs(wrap(np.asarray(yaws, float) - yaw)) < tol) & (np.abs(turn) < tol)
+
+
 def along(best: PlanarMotion, others, cy, ct, evidence, ratio: float, k: int) -> list:
     """Up to k candidates, none the same as ``best`` or ``others`` (its alternatives so far),
-    at ``best``'s yaw and baseline direction (both within 3 deg) but at another distance,
+    at ``best``'s yaw and baseline direction (``on_the_way``) but at another distance,
     among the candidates (yaw (C,) radians, t (C, 3) metres): [(index, share)] of the
     distinct ones whose evidence for their distance is at least ``ratio`` of ``best``'s
     (share: theirs over ``best``'s), the most first.
@@ -58,9 +67,7 @@ def along(best: PlanarMotion, others, cy, ct, evidence, ratio: float, k: int) ->
     distance along one direction shares. The candidates are kept as scored (``as_scored``),
     not refined: the refinement slides them back to ``best``.
     """
-    tol = np.radians(3.0)
-    turn = wrap(np.arctan2(ct[:, 0], ct[:, 2]) - np.arctan2(best.x, best.z))
-    near = np.flatnonzero((np.abs(wrap(np.asarray(cy) - best.yaw)) < tol) & (np.abs(turn) < tol))
+    near = np.flatnonzero(on_the_way(best.yaw, best.x, best.z, cy, ct[:, 0], ct[:, 2]))
     ref = float(evidence(np.array([best.yaw]), np.array([[best.x, best.dy, best.z]]))[0])
     if len(near) == 0 or not ref > 0.0:   # nothing tells any distance from another
         return []
