@@ -26,7 +26,8 @@ from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
                                     scene_depth)
-from findme_core.motion.model import MotionInputs, MotionParams, PlanarMotion, motion_result
+from findme_core.motion.model import (MotionInputs, MotionParams, PlanarMotion, motion_result,
+                                     position_known, unknown_distance)
 
 
 class Registration:
@@ -284,7 +285,9 @@ class Registration:
         if m.n_inliers < self.p.min_inliers:
             if m.layout is None or m.layout.samples < self.p.min_layout_samples:
                 raise self._refusal(m.n_inliers)
-            self._check_layout_only(m, pair)
+            m.layout.check_fixes_translation(self.la[max(pair[0], 0)])
+        if not position_known(m, self.h[0]):
+            raise unknown_distance(m, self.h[0])
 
     def _evidence(self, yaw, t3, pair):
         """(agreeing matches (M,), of them lifted in A, in B, the layouts' Agreement | None)."""
@@ -313,17 +316,3 @@ class Registration:
                                f"{walls}: they show too little in common")
         return MotionError(f"the photos have no common view: only {k} of {self.n} distinct "
                            f"feature matches agree on one camera motion and {walls}")
-
-    def _check_layout_only(self, m: PlanarMotion, pair) -> None:
-        """Without matches, the walls must fix both directions of the translation."""
-        lay = m.layout
-        if lay.corners:
-            return
-        la = self.la[max(pair[0], 0)]
-        n = la.normals[[i for i, _ in lay.walls]] if lay.walls else np.zeros((0, 2))
-        cross = n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0]
-        if len(n) and np.abs(cross).max() > np.sin(np.radians(30)):
-            return
-        what = "one wall" if len({i for i, _ in lay.walls}) <= 1 else "only parallel walls"
-        raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
-                          "along the wall cannot be measured")

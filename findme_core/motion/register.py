@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from findme_core.errors import MotionError
 from findme_core.geometry import ties
 from findme_core.single.layout import KIND_WALL, KIND_OPEN, Layout
 
@@ -75,6 +76,20 @@ class Agreement:
     walls: tuple
     corners: tuple
     score: float
+
+    def check_fixes_translation(self, la: Layout) -> None:
+        """Without feature matches, the walls must fix both directions of the translation:
+        a corner in common, or walls of A (``la``, the layout it was scored with) at least
+        30 deg apart. Raises MotionError naming what the photos share otherwise."""
+        if self.corners:
+            return
+        n = la.normals[[i for i, _ in self.walls]] if self.walls else np.zeros((0, 2))
+        cross = n[:, None, 0] * n[None, :, 1] - n[:, None, 1] * n[None, :, 0]
+        if len(n) and np.abs(cross).max() > np.sin(np.radians(30)):
+            return
+        what = "one wall" if len({i for i, _ in self.walls}) <= 1 else "only parallel walls"
+        raise MotionError(f"the photos share {what} and no feature match agrees: the motion "
+                          "along the wall cannot be measured")
 
 
 def rot2(yaw, p) -> np.ndarray:

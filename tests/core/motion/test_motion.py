@@ -146,6 +146,24 @@ def test_findme_is_exact_for_pure_rotation():
     _check(r, pa, pb, 1e-6, 1e-5)
 
 
+def test_a_distance_the_depths_do_not_fix_is_refused():
+    """Lifted depths known to 200 % (a far wall under an uncertain gravity): the 1-sigma of
+    B's position exceeds the distance and the camera height, so no distance is stated (the
+    same photos with depths known to 5 % are answered). A turn on the spot keeps its answer
+    with such depths: its position is known to within the camera height."""
+    m, (ca, cb), la, lb = exact_pair(*POSES[0])
+    r = estimate(m, ca, cb, 1.4, 1.4, _with_rel(la, 0.05), _with_rel(lb, 0.05))
+    _check(r, *POSES[0], 0.01, 0.1)
+    with pytest.raises(MotionError, match="do not fix how far apart") as e:
+        estimate(m, ca, cb, 1.4, 1.4, _with_rel(la, 2.0), _with_rel(lb, 2.0))
+    assert "the camera height (1.4, same unit)" in str(e.value)
+    pa, pb = Pose(0.0, -1.5, 1.4, 0.0, 15.0), Pose(0.02, -1.5, 1.4, 25.0, 15.0)
+    m, (ca, cb), la, lb = exact_pair(pa, pb)
+    r = estimate(m, ca, cb, 1.4, 1.4, _with_rel(la, 2.0), _with_rel(lb, 2.0))
+    assert math.hypot(r.sigma_x, r.sigma_z) > math.hypot(r.x, r.z)
+    _check(r, pa, pb, 0.05, 0.1)
+
+
 def test_paper_estimator_is_exact_only_without_translation():
     """Eq. 5 averages bearing differences, which equal the yaw only for a pure rotation;
     with a translation the bearings also differ by the parallax (why it is not the default)."""
@@ -307,6 +325,14 @@ def test_results_are_reproducible():
     assert (r1.x, r1.z, r1.yaw) == (r2.x, r2.z, r2.yaw)
 
 
+def _with_rel(lift, s):
+    """``lift`` with every lifted point's 1-sigma ``s`` times its distance."""
+    def out(idx):
+        L = lift(idx)
+        return Lifted(L.points, s * np.linalg.norm(L.points, axis=1), L.floor)
+    return out
+
+
 def test_the_length_keeps_the_error_it_shares_with_the_lifted_depths():
     """Points lifted with a relative sigma s: however many, the baseline's length is not
     known better than the depths' common error (s / sqrt 2 with both photos' points): it is
@@ -314,15 +340,9 @@ def test_the_length_keeps_the_error_it_shares_with_the_lifted_depths():
     poses = POSES[0]
     m, (ca, cb), la, lb = exact_pair(*poses)
     assert len(m) > 30
-
-    def with_rel(lift, s):
-        def out(idx):
-            L = lift(idx)
-            return Lifted(L.points, s * np.linalg.norm(L.points, axis=1), L.floor)
-        return out
     got = {}
     for s in (0.05, 0.005):
-        r = estimate(m, ca, cb, 1.4, 1.4, with_rel(la, s), with_rel(lb, s), params=FIT_ONLY)
+        r = estimate(m, ca, cb, 1.4, 1.4, _with_rel(la, s), _with_rel(lb, s), params=FIT_ONLY)
         base = math.hypot(r.x, r.z)
         share = s / math.sqrt(2) * base
         assert r.sigma_x >= share * abs(r.x) / base - 1e-9
