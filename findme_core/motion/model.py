@@ -263,7 +263,7 @@ def unknown_distance(m: PlanarMotion, h: float) -> MotionError:
     return MotionError(f"the photos do not fix how far apart they were taken: the best "
                        f"motion puts them {np.hypot(m.x, m.z):.2f} apart at +-"
                        f"{np.hypot(m.sigma_x, m.sigma_z):.2f} (1-sigma), more than that "
-                       f"distance and the camera height ({h:g}, same unit); take the second "
+                       f"distance and the camera height ({h:.2f}, same unit); take the second "
                        "photo where the floor and the base of a wall show in both")
 
 

@@ -156,7 +156,7 @@ def test_a_distance_the_depths_do_not_fix_is_refused():
     _check(r, *POSES[0], 0.01, 0.1)
     with pytest.raises(MotionError, match="do not fix how far apart") as e:
         estimate(m, ca, cb, 1.4, 1.4, _with_rel(la, 2.0), _with_rel(lb, 2.0))
-    assert "the camera height (1.4, same unit)" in str(e.value)
+    assert "the camera height (1.40, same unit)" in str(e.value)
     pa, pb = Pose(0.0, -1.5, 1.4, 0.0, 15.0), Pose(0.02, -1.5, 1.4, 25.0, 15.0)
     m, (ca, cb), la, lb = exact_pair(pa, pb)
     r = estimate(m, ca, cb, 1.4, 1.4, _with_rel(la, 2.0), _with_rel(lb, 2.0))
