@@ -18,7 +18,7 @@ import schemas
 from findme_core.errors import BusError, InputError
 from services.pipeline.capture import Lens, publish_frames, sources
 from findme_io.convert import gravity_caveat, msg_room_view
-from findme_io.motion_msg import motion_gravity_text, motion_text
+from findme_io.motion_msg import motion_gravity_text, motion_text, sigma_text
 from services.runtime import bus
 
 
@@ -146,9 +146,10 @@ class Printer:
                         self.agreed[n] = min(self.agreed.get(n, math.inf), getattr(g, f))
             return text
         if name == "Pose":
-            u = self.unit(m.index)
+            u, sig = self.unit(m.index), sigma_text(m, self.unit(m.index))
             return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "
-                    f"{math.degrees(m.yaw_rad):+.1f} deg from photo 0")
+                    f"{math.degrees(m.yaw_rad):+.1f} deg from photo 0"
+                    + (f" ({sig})" if sig and m.index else ""))
         if name == "Plan":
             if m.reason:
                 return f"floor plan: none yet ({m.reason})"

@@ -82,15 +82,25 @@ def msg_agreed_gravities(msg) -> tuple:
             out.append((which, vec / np.linalg.norm(vec), float(getattr(g, s))))
     return tuple(out)
 
+def sigma_text(msg, unit: str = "m") -> str | None:
+    """The 1-sigmas of a ``schemas.Motion`` or ``schemas.Pose`` (x, z in ``unit``, yaw in
+    degrees) as "± 0.012 m, ± 0.015 m, ± 0.75 deg", or None when it states none."""
+    if not all(msg.HasField(f) for f in ("sigma_x_m", "sigma_z_m", "sigma_yaw_rad")):
+        return None
+    return (f"± {msg.sigma_x_m:.3f} {unit}, ± {msg.sigma_z_m:.3f} {unit}, "
+            f"± {math.degrees(msg.sigma_yaw_rad):.2f} deg")
+
+
 def motion_text(msg, unit: str = "m") -> str:
     """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
     this edge; lengths in ``unit``: "m", or "h" when the scenes are in camera heights), its
-    evidence, the other distances along the same way the evidence allows (the same turn and
+    1-sigmas (``sigma_text``), its evidence, the other distances along the same way the evidence allows (the same turn and
     direction of travel, ``alternatives.on_the_way``) and 'ambiguous' when it allows other
     motions."""
     if msg.error:
         return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
-    why = [f"{msg.inliers}/{msg.matches} inliers"]
+    sig = sigma_text(msg, unit)
+    why = ([sig] if sig else []) + [f"{msg.inliers}/{msg.matches} inliers"]
     nw = len(msg.layout.walls) if msg.HasField("layout") else 0
     if nw:
         why.append(f"{nw} wall{'s line' if nw > 1 else ' lines'} up")

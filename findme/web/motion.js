@@ -3,7 +3,7 @@
  * map of the photos' positions with each photo's walls, in photo 1's level frame (x to the
  * right, forward up; the odometry's poses and trajectory, else the motions chained).
  */
-import {$, DEG, clearBusy, el, fmtLen, notify, photoAt, setBusy, state} from './common.js';
+import {$, DEG, clearBusy, el, fmtLen, fmtSigma, notify, photoAt, setBusy, state} from './common.js';
 
 export function posesKnown() {
   const out = new Map([[0, {index: 0, x_m: 0, z_m: 0, yaw_rad: 0}]]);
@@ -45,10 +45,13 @@ export function renderMotion() {
       if (m.matches) why.push(`${m.inliers} of ${m.matches} matches agree`);
       const nw = m.layout ? m.layout.walls : 0;
       if (nw) why.push(`${nw} wall${nw > 1 ? 's' : ''} of the two photos line up`);
-      line.textContent = `Photo ${m.b + 1} was taken ${fmtLen(Math.abs(m.x_m), 2)} ` +
-        `${m.x_m >= 0 ? 'right' : 'left'} and ${fmtLen(Math.abs(m.z_m), 2)} ` +
+      // each number with its 1-sigma, as the points and distances are said
+      const sy = m.sigma_yaw_rad == null ? '' : ` ± ${(m.sigma_yaw_rad * DEG).toFixed(1)}°`;
+      line.textContent = `Photo ${m.b + 1} was taken ${fmtLen(Math.abs(m.x_m), 2)}` +
+        `${fmtSigma(m.sigma_x_m)} ${m.x_m >= 0 ? 'right' : 'left'} and ` +
+        `${fmtLen(Math.abs(m.z_m), 2)}${fmtSigma(m.sigma_z_m)} ` +
         `${m.z_m >= 0 ? 'ahead' : 'behind'} of photo ${m.a + 1}, turned ` +
-        `${Math.abs(yaw).toFixed(1)}° ${yaw >= 0 ? 'right' : 'left'}` +
+        `${Math.abs(yaw).toFixed(1)}°${sy} ${yaw >= 0 ? 'right' : 'left'}` +
         (why.length ? ` (${why.join('; ')}).` : '.');
       // the other motions the evidence allows: at another distance along the same way (the
       // same turn and direction of travel, within 3°: a wall or floor line one photo misread)

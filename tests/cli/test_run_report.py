@@ -30,7 +30,11 @@ def test_example_pair_positions_and_increasing_trajectory_times(tmp_path):
     out = run_findme("run", "--out", tmp_path, "--session", "times").stdout
     assert "photo 0: at x +0.000 m, z +0.000 m" in out
     assert "gravity" not in out       # given with the photos (their sidecars): nothing to say
-    assert re.search(r"^photo 1: at x \+0\.3\d\d m, z \+0\.5\d\d m", out, re.M), out
+    # photo 1's position with its 1-sigmas (chained from the motion); photo 0 is the origin
+    assert re.search(r"^photo 1: at x \+0\.3\d\d m, z \+0\.5\d\d m, heading -18\.0 deg from "
+                     r"photo 0 \(± 0\.0\d\d m, ± 0\.0\d\d m, ± \d\.\d\d deg\)$", out, re.M), out
+    assert re.search(r"^photo 0: at x \+0\.000 m, z \+0\.000 m, heading \+0\.0 deg from photo 0$",
+                     out, re.M), out
     run_findme("export", tmp_path / "times.mcap", "--tum", tmp_path / "t.txt")
     stamps, poses = from_tum((tmp_path / "t.txt").read_text())
     assert len(stamps) == 2 and stamps[0] < stamps[1], stamps

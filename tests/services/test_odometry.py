@@ -221,6 +221,19 @@ def test_the_console_line_says_another_distance_along_the_way():
     assert "ambiguous: 1 other motion fits almost as well" in text, text
 
 
+def test_the_console_line_states_the_1_sigmas():
+    """Each number of a motion with its 1-sigma, in the session's unit, as points and
+    distances are said; a motion that states none (a bare message) says none."""
+    m = schemas.Motion(session="od", index_a=0, index_b=1, x_m=0.3, z_m=0.4, yaw_rad=0.2,
+                       sigma_x_m=0.032, sigma_z_m=0.027, sigma_yaw_rad=math.radians(0.71),
+                       inliers=30, matches=50)
+    assert ("x +0.300 m, z +0.400 m, yaw +11.46 deg (± 0.032 m, ± 0.027 m, ± 0.71 deg; "
+            "30/50 inliers)") in motion_text(m), motion_text(m)
+    assert "(± 0.032 h, ± 0.027 h, ± 0.71 deg; 30/50 inliers)" in motion_text(m, "h")
+    m.ClearField("sigma_yaw_rad")
+    assert "yaw +11.46 deg (30/50 inliers)" in motion_text(m), motion_text(m)
+
+
 def test_it_takes_no_frames_and_fetches_each_posed_photos_once(photos):
     """Frames reach odometry only when it asks: once per photo, when its hypotheses come,
     and not held after its photo is prepared (a refused photo costs it nothing)."""

@@ -261,6 +261,7 @@ def test_motion_messages_are_drawn(browser, app, shots):
         alts = [schemas.MotionAlternative(x_m=0.77, z_m=1.186, yaw_rad=yaw, score=30.0),
                 schemas.MotionAlternative(x_m=-0.4, z_m=2.0, yaw_rad=yaw + math.pi, score=30.0)]
         m = schemas.Motion(session=sid, index_a=0, index_b=1, x_m=0.385, z_m=0.593, yaw_rad=yaw,
+                           sigma_x_m=0.032, sigma_z_m=0.027, sigma_yaw_rad=math.radians(0.71),
                            inliers=40, matches=52, method="test", alternatives=alts)
         t = schemas.Trajectory(session=sid, poses=[schemas.Pose(index=0),
                                                    schemas.Pose(index=1, x_m=0.385, z_m=0.593,
@@ -272,7 +273,9 @@ def test_motion_messages_are_drawn(browser, app, shots):
     finally:
         zs.close()
     text = line.inner_text()
-    assert "0.39 m right" in text and "0.59 m ahead" in text and "18.0° left" in text, text
+    # each number with its 1-sigma
+    assert "0.39 m ± 0.032 m right" in text and "0.59 m ± 0.027 m ahead" in text, text
+    assert "turned 18.0° ± 0.7° left" in text, text
     assert "the photos also allow 1.41 m apart instead of 0.71 m" in text, text
     assert "looks alike from 1 other place" in text, text
     assert "warn" in line.get_attribute("class")
