@@ -156,7 +156,8 @@ class Printer:
             placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
             unit, area = ("m", "m²") if m.metric else ("h", "h²")
             return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
-                f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING else "")
+                f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING
+                                       else f" ± {w.sigma_m:.2f}")
                 for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f} {area}, "
                 f"{placed} of {len(m.poses)} photos placed")
         if name == "Error":

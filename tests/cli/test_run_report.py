@@ -157,7 +157,9 @@ def test_a_turn_of_plain_photos_is_posed_and_planned_through_the_services(tmp_pa
     last = re.search(r"^photo 7: at x ([-+.\d]+) m, z ([-+.\d]+) m, heading ([-+.\d]+) deg", out,
                      re.M)
     assert last and abs(float(last.group(3)) + 45.0) < 2.0, out
-    plan = re.search(r"^floor plan: 4 walls \(([.\d]+), ([.\d]+), ([.\d]+), ([.\d]+) m", out,
-                     re.M)
-    assert plan and sorted(float(w) for w in plan.groups()) == pytest.approx([4, 4, 5, 5],
-                                                                              abs=0.1), out
+    # every wall seen, each length with its 1-sigma
+    w = r"([.\d]+) ± ([.\d]+)"
+    plan = re.search(rf"^floor plan: 4 walls \({w}, {w}, {w}, {w} m", out, re.M)
+    assert plan and sorted(float(w) for w in plan.groups()[::2]) == pytest.approx([4, 4, 5, 5],
+                                                                                   abs=0.1), out
+    assert all(0 < float(s) < 0.5 for s in plan.groups()[1::2]), out
