@@ -154,12 +154,14 @@ class Printer:
             if m.reason:
                 return f"floor plan: none yet ({m.reason})"
             placed = sum(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in m.poses)
+            missing = sum(w.kind == schemas.WALL_KIND_MISSING for w in m.walls)
             unit, area = ("m", "m²") if m.metric else ("h", "h²")
             return (f"floor plan: {len(m.walls)} walls (" + ", ".join(
                 f"{w.length_m:.2f}" + ("?" if w.kind == schemas.WALL_KIND_MISSING
                                        else f" ± {w.sigma_m:.2f}")
-                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f} {area}, "
-                f"{placed} of {len(m.poses)} photos placed")
+                for w in m.walls) + f" {unit}; ? = not seen), area {m.area_m2:.2f} {area}"
+                + (f" (closed by {missing} wall{'s' if missing > 1 else ''} not seen)"
+                   if missing else "") + f", {placed} of {len(m.poses)} photos placed")
         if name == "Error":
             return f"error on {m.key}: {m.message}"
         return None

@@ -35,6 +35,9 @@ def test_example_pair_positions_and_increasing_trajectory_times(tmp_path):
                      r"photo 0 \(± 0\.0\d\d m, ± 0\.0\d\d m, ± \d\.\d\d deg\)$", out, re.M), out
     assert re.search(r"^photo 0: at x \+0\.000 m, z \+0\.000 m, heading \+0\.0 deg from photo 0$",
                      out, re.M), out
+    # two photos see one wall of the room: the others close the outline, and the area says so
+    assert re.search(r"^floor plan: .*\? = not seen\), area [.\d]+ m² \(closed by \d walls? not "
+                     r"seen\), 2 of 2 photos placed$", out, re.M), out
     run_findme("export", tmp_path / "times.mcap", "--tum", tmp_path / "t.txt")
     stamps, poses = from_tum((tmp_path / "t.txt").read_text())
     assert len(stamps) == 2 and stamps[0] < stamps[1], stamps
@@ -163,3 +166,4 @@ def test_a_turn_of_plain_photos_is_posed_and_planned_through_the_services(tmp_pa
     assert plan and sorted(float(w) for w in plan.groups()[::2]) == pytest.approx([4, 4, 5, 5],
                                                                                    abs=0.1), out
     assert all(0 < float(s) < 0.5 for s in plan.groups()[1::2]), out
+    assert "closed by" not in out, out
