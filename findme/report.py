@@ -146,7 +146,8 @@ class Printer:
                         self.agreed[n] = min(self.agreed.get(n, math.inf), getattr(g, f))
             return text
         if name == "Pose":
-            u, sig = self.unit(m.index), sigma_text(m, self.unit(m.index))
+            u = self.unit(m.index)
+            sig = sigma_text(m, u)
             return (f"photo {m.index}: at x {m.x_m:+.3f} {u}, z {m.z_m:+.3f} {u}, heading "
                     f"{math.degrees(m.yaw_rad):+.1f} deg from photo 0"
                     + (f" ({sig})" if sig and m.index else ""))

@@ -52,6 +52,7 @@ def set_motion_estimate(msg, mo, max_alternatives: int = schemas.MAX_ALTERNATIVE
             alt.score = float(a.score)
     return msg
 
+
 def set_motion_gravity(msg, pg) -> None:
     """Fill ``msg.gravity`` (a ``schemas.Motion``, in place like ``set_motion_estimate``)
     with a ``motion.pair_gravity.PairGravity``; nothing for None (the sensors gave both)."""
@@ -68,6 +69,7 @@ def set_motion_gravity(msg, pg) -> None:
         g.gravity_a.CopyFrom(schemas.vec3_to_msg(pg.gravity_a))
         g.gravity_b.CopyFrom(schemas.vec3_to_msg(pg.gravity_b))
 
+
 def msg_agreed_gravities(msg) -> tuple:
     """Of a ``schemas.Motion`` whose photos agreed on gravity: ((which photo, (3,) unit
     gravity in its camera frame, 1-sigma radians), ...) for A and B where both are given;
@@ -82,6 +84,7 @@ def msg_agreed_gravities(msg) -> tuple:
             out.append((which, vec / np.linalg.norm(vec), float(getattr(g, s))))
     return tuple(out)
 
+
 def sigma_text(msg, unit: str = "m") -> str | None:
     """The 1-sigmas of a ``schemas.Motion`` or ``schemas.Pose`` (x, z in ``unit``, yaw in
     degrees) as "± 0.012 m, ± 0.015 m, ± 0.75 deg", or None when it states none."""
@@ -94,9 +97,9 @@ def sigma_text(msg, unit: str = "m") -> str | None:
 def motion_text(msg, unit: str = "m") -> str:
     """One line about a ``schemas.Motion`` for logs and consoles: the motion (degrees at
     this edge; lengths in ``unit``: "m", or "h" when the scenes are in camera heights), its
-    1-sigmas (``sigma_text``), its evidence, the other distances along the same way the evidence allows (the same turn and
-    direction of travel, ``alternatives.on_the_way``) and 'ambiguous' when it allows other
-    motions."""
+    1-sigmas (``sigma_text``), its evidence, the other distances along the same way the
+    evidence allows (the same turn and direction of travel, ``alternatives.on_the_way``) and
+    'ambiguous' when it allows other motions."""
     if msg.error:
         return f"motion {msg.index_a} -> {msg.index_b}: no estimate: {msg.error}"
     sig = sigma_text(msg, unit)
@@ -117,6 +120,7 @@ def motion_text(msg, unit: str = "m") -> str:
     return (f"motion {msg.index_a} -> {msg.index_b}: x {msg.x_m:+.3f} {unit}, "
             f"z {msg.z_m:+.3f} {unit}, yaw {math.degrees(msg.yaw_rad):+.2f} deg "
             f"({'; '.join(why)})")
+
 
 def motion_gravity_text(msg, photo_a: str, photo_b: str, own_a, own_b) -> str:
     """The clauses a successful motion's line ends with about the gravities it rests on:

@@ -26,8 +26,8 @@ from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
                                     scene_depth)
-from findme_core.motion.model import (MotionInputs, MotionParams, PlanarMotion, motion_result,
-                                     position_known, unknown_distance)
+from findme_core.motion.model import (MotionInputs, MotionParams, PlanarMotion, check_position,
+                                     motion_result)
 
 
 class Registration:
@@ -286,8 +286,7 @@ class Registration:
             if m.layout is None or m.layout.samples < self.p.min_layout_samples:
                 raise self._refusal(m.n_inliers)
             m.layout.check_fixes_translation(self.la[max(pair[0], 0)])
-        if not position_known(m, self.h[0]):
-            raise unknown_distance(m, self.h[0])
+        check_position(m, self.h[0])
 
     def _evidence(self, yaw, t3, pair):
         """(agreeing matches (M,), of them lifted in A, in B, the layouts' Agreement | None)."""

@@ -247,24 +247,20 @@ def no_common_view(k: int, n: int) -> MotionError:
                        "one camera motion")
 
 
-def position_known(m: PlanarMotion, h: float) -> bool:
-    """Whether the evidence fixes where B was taken: the 1-sigma of its position,
-    hypot(sigma_x, sigma_z), is at most the larger of its distance and the camera height
-    ``h`` (metres, or camera heights when the scale is unknown). Beyond both the position
-    is not a measurement but a direction with any distance (the scale rests on a far wall
-    seen along one direction or on nothing both photos share). Dev pairs (2026-12-01):
-    such answers' 1-sigmas were 1.8-650 times their distance (a 2.2 m motion +- 1,400 m);
-    every other answer's at most 0.82 times it."""
-    return bool(np.hypot(m.sigma_x, m.sigma_z) <= max(np.hypot(m.x, m.z), h))
-
-
-def unknown_distance(m: PlanarMotion, h: float) -> MotionError:
-    """The error for an answer that is not ``position_known``."""
-    return MotionError(f"the photos do not fix how far apart they were taken: the best "
-                       f"motion puts them {np.hypot(m.x, m.z):.2f} apart at +-"
-                       f"{np.hypot(m.sigma_x, m.sigma_z):.2f} (1-sigma), more than that "
-                       f"distance and the camera height ({h:.2f}, same unit); take the second "
-                       "photo where the floor and the base of a wall show in both")
+def check_position(m: PlanarMotion, h: float) -> None:
+    """Raise MotionError unless the evidence fixes where B was taken: the 1-sigma of its
+    position, hypot(sigma_x, sigma_z), must be at most the larger of its distance and the
+    camera height ``h`` (metres, or camera heights when the scale is unknown). Beyond both
+    the position is not a measurement but a direction with any distance (the scale rests on
+    a far wall seen along one direction or on nothing both photos share). Dev pairs
+    (2026-12-01): such answers' 1-sigmas were 1.8-650 times their distance (a 2.2 m motion
+    +- 1,400 m); every other answer's at most 0.82 times it."""
+    d, s = np.hypot(m.x, m.z), np.hypot(m.sigma_x, m.sigma_z)
+    if s > max(d, h):
+        raise MotionError(f"the photos do not fix how far apart they were taken: the best "
+                          f"motion puts them {d:.2f} apart at +-{s:.2f} (1-sigma), more than "
+                          f"that distance and the camera height ({h:.2f}, same unit); take the "
+                          "second photo where the floor and the base of a wall show in both")
 
 
 def motion_result(p, dy, cov, inliers, n_scale, method) -> PlanarMotion:
