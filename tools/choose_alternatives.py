@@ -48,6 +48,13 @@ value ties), so its held-out figures are those without the rule. The phone's gra
 (findme eval, 1.5 deg noise, refined): all five answers off by 48-180 deg get their rival
 and lie within 2.1 sigma in yaw; two right answers are widened (to 40-44 deg).
 
+Again 2026-12-01, ``--gravity given,phone,withheld``, with the matches' counts compared within
+their standard error (``alternatives.more_agree``; before: the rival needed at least as many):
+loss 0.0107 (180), 0.0034 (45), 0.0036 (30, 20, 10) against 0.0107 / 0.0041 / 0.0044 before;
+at 45 zind-pairs-level 0.59 / 0.84 / 0.94 within 1 / 2 / 3 sigma (0.58 / 0.82 / 0.92 before),
+zind-pairs-tilted 0.71 / 0.95 / 0.97 (0.69 / 0.92 / 0.95), TUM 0.78 / 0.95 / 0.99 (0.77 / 0.95
+/ 0.99); answers with alternatives 157 against 150. Chosen: 45; left out, room06 takes 180.
+
 ``--param scale_ratio`` chooses how much of the answer's evidence for its distance a motion
 at the same yaw and direction but another distance needs to be an alternative
 (``MotionParams.scale_ratio``, ``motion/alternatives.along``); 1.1: never. ``--gravity

@@ -34,6 +34,22 @@ def rival(cy, total, yaw: float, sep: float) -> int | None:
     return int(far[ties.order(np.asarray(total)[far])[0]])
 
 
+def more_agree(n_best: int, n_other: int) -> bool:
+    """Whether more of the photos' matches agree with one motion than with another: the
+    counts of agreeing matches differ by more than their standard error, sqrt(n_best +
+    n_other) (chance agreements are counts: Poisson). Integers: the same on every machine."""
+    return bool(n_best - n_other > np.sqrt(n_best + n_other))
+
+
+def looks_more_alike(app_best: tuple, app_other: tuple) -> bool:
+    """Whether the photos' appearance prefers one motion to another: (correlation, samples)
+    of ``photometric.agreement`` each, the correlations differing by more than their
+    standard error (1 / sqrt(samples) each). With nothing seen by either (0 samples) it
+    cannot tell, and the layouts that scored the motions decide: True."""
+    (cb, nb), (co, no) = app_best, app_other
+    return not (nb > 0 and no > 0 and bool(cb - co <= np.sqrt(1.0 / nb + 1.0 / no)))
+
+
 def same(y1: float, t1, y2: float, t2) -> bool:
     """Whether two motions (yaw radians, (x, z) metres) are one: yaws within 3 deg and
     positions within 0.1 m plus 10 % of the first's baseline."""

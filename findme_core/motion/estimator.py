@@ -20,8 +20,8 @@ from findme_core.errors import MotionError
 from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y, wrap
 from findme_core.motion import one_sided, photometric, register
-from findme_core.motion.alternatives import (along, as_scored, distinct_top, rival, same,
-                                              spread_over)
+from findme_core.motion.alternatives import (along, as_scored, distinct_top, looks_more_alike,
+                                              more_agree, rival, same, spread_over)
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
@@ -240,21 +240,23 @@ class Registration:
 
     def _rival(self, best, alts, cy, ct, total, which) -> tuple:
         """The best candidate turned more than ``rival_sep_deg`` from ``best``, refined, when
-        the photos do not prefer ``best`` to it (as many matches agree, the appearance
-        correlates about as well): () or (it,). Only the layouts and room orientations chose
-        ``best`` then, and they look alike turned a quarter or half turn in a symmetric
-        room. Dev pairs (2026-11-30): all 5 answers off by over 20 deg had one."""
+        the photos do not prefer ``best`` to it: () or (it,). They do not when the counts of
+        agreeing matches differ by at most their standard error (sqrt of their sum: counts
+        of chance agreements scatter as Poisson's) and the appearance correlations by at
+        most theirs. Only the layouts and room orientations chose ``best`` then, and they
+        look alike turned a quarter or half turn in a symmetric room. Dev pairs
+        (2026-11-30): all 5 answers off by over 20 deg had one; the counts compared as
+        "at least as many" (until 2026-12-01) left out zpl_r06_p10_p11_t1's, 8 matches
+        against the answer's 11, its answer 90 deg off at +-0.8 deg."""
         sep = np.radians(self.p.rival_sep_deg)
         i = rival(cy, total, best.yaw, sep)
         if i is None or any(abs(wrap(a.yaw - cy[i])) <= sep for a in alts):
             return ()
-        if self._support(cy[i], ct[i]) < self._support(best.yaw, (best.x, best.dy, best.z)):
+        n_i, n_b = self._support(cy[i], ct[i]), self._support(best.yaw, (best.x, best.dy, best.z))
+        if more_agree(n_b, n_i):
             return ()
         o = self._result(*self._refined(cy[i], ct[i], which[i]))
-        (cb, nb), (co, no) = best.appearance, o.appearance
-        # the appearance prefers ``best`` when the two correlations differ by more than
-        # their standard error (1 / sqrt(n) each); nothing seen: the layouts decide
-        if not (nb > 0 and no > 0 and cb - co <= np.sqrt(1.0 / nb + 1.0 / no)) or same(
+        if looks_more_alike(best.appearance, o.appearance) or same(
                 o.yaw, (o.x, o.z), best.yaw, (best.x, best.z)):
             return ()
         return (o,)

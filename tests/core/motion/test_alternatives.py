@@ -1,5 +1,5 @@
 """Tests of findme_core.motion.alternatives: the distinct best candidates, the rival turned
-away, the motions at another distance along the answer's baseline (``along``) and the
+away and whether the photos prefer the answer to it, the motions at another distance along the answer's baseline (``along``) and the
 mixture's spread over them (``spread_over``), on candidate sets whose answer is known."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from findme_core.motion.alternatives import (along, as_scored, distinct_top, rival, same,
-                                              spread_over)
+from findme_core.motion.alternatives import (along, as_scored, distinct_top, looks_more_alike,
+                                              more_agree, rival, same, spread_over)
 from findme_core.motion.model import PlanarMotion
 
 BEST = PlanarMotion(x=0.6, z=0.8, yaw=math.radians(20.0), dy=0.0, sigma_x=0.03, sigma_z=0.04,
@@ -128,3 +128,32 @@ def test_rival_and_distinct_top():
     assert rival(cy[:2], total[:2], 0.0, math.radians(30.0)) is None
     dup = np.vstack([ct, ct[:1]])
     assert list(distinct_top(np.r_[cy, cy[0]], dup, np.r_[total, 10.0], 3)) == [0, 1, 2]
+
+
+@pytest.mark.parametrize("n_best,n_other,preferred", [
+    (11, 8, False),    # zpl_r06_p10_p11_t1: 3 apart, the standard error 4.4
+    (19, 18, False),   # one match apart decides nothing
+    (8, 8, False), (0, 0, False),
+    (30, 12, True),    # 18 apart > sqrt(42) = 6.5
+    (100, 60, True),
+    (8, 11, False),    # the other has more
+])
+def test_counts_within_their_standard_error_do_not_prefer_a_motion(n_best, n_other, preferred):
+    assert more_agree(n_best, n_other) is preferred
+
+
+def test_counts_exactly_one_standard_error_apart_are_not_more():
+    """10 against 6: 4 apart, sqrt(16) = 4, exactly (integers and one square root: the same
+    on every machine); 10 against 5 are more."""
+    assert not more_agree(10, 6) and more_agree(10, 5)
+
+
+@pytest.mark.parametrize("best,other,preferred", [
+    ((0.05, 533), (0.03, 1582), False),   # 0.02 apart, standard error 0.05
+    ((0.40, 4000), (0.02, 4000), True),   # 0.38 apart, standard error 0.022
+    ((0.02, 4000), (0.40, 4000), False),  # the other looks more alike
+    ((0.10, 0), (0.00, 900), True),       # nothing seen by the answer: the layouts decide
+    ((0.10, 900), (0.00, 0), True),
+])
+def test_the_appearance_prefers_a_motion_beyond_its_standard_error(best, other, preferred):
+    assert looks_more_alike(best, other) is preferred
