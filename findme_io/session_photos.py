@@ -23,6 +23,7 @@ class PhotoGravity(NamedTuple):
     metric: bool
     estimate: object       # ``GravityEstimate`` when gravity came from the photo alone, else None
     kind: str              # ``Provenance.gravity_kind``: exact, sensor or image
+    sigma: float = 0.0     # ``Provenance.gravity_sigma``: its tilt's 1-sigma per axis, radians
 
 
 def final_gravity(img, cam, prov, height: float, metric: bool) -> PhotoGravity:
@@ -36,7 +37,7 @@ def final_gravity(img, cam, prov, height: float, metric: bool) -> PhotoGravity:
                                          camera_height=height if metric else None)
         if prov.gravity in ("image", "level"):
             est = prov.estimate
-    return PhotoGravity(cam, height, metric, est, prov.gravity_kind)
+    return PhotoGravity(cam, height, metric, est, prov.gravity_kind, prov.gravity_sigma)
 
 
 def session_photos(images, inputs: list[PhotoGravity], headings=None) -> tuple[list, dict]:
@@ -46,7 +47,8 @@ def session_photos(images, inputs: list[PhotoGravity], headings=None) -> tuple[l
     because their gravity could not be told (``shared_gravity``)."""
     photos, sg = shared_gravity.analyse_plain(
         images, [i.camera for i in inputs], [i.height for i in inputs],
-        [i.estimate for i in inputs], kinds=[i.kind for i in inputs])
+        [i.estimate for i in inputs], kinds=[i.kind for i in inputs],
+        sigmas=[i.sigma for i in inputs])
     if headings is not None:
         photos = [replace(p, heading=h) for p, h in zip(photos, headings, strict=True)]
     return photos, ({} if sg is None else {i: p.reason for i, p in enumerate(photos)

@@ -29,6 +29,14 @@ def rot_y(yaw) -> np.ndarray:
                      np.stack([-s, z, c], -1)], -2)
 
 
+def rot_tilt(pitch: float, roll: float) -> np.ndarray:
+    """(3, 3) rotation of level-frame vectors by gravity tilted ``pitch`` about x and
+    ``roll`` about z (radians): R_x(pitch) R_z(roll)."""
+    cp, sp, cr, sr = np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    return np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]]) @ np.array(
+        [[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+
+
 def _rotate(yaw, v, inverse: bool = False) -> np.ndarray:
     """R_y(yaw) v (or R_y^T v) for C yaws (C,) and vectors (N, 3) or (C, N, 3): (C, N, 3)."""
     c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None] * (-1.0 if inverse else 1.0)

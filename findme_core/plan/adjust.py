@@ -56,7 +56,8 @@ class Refined:
 
 
 def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), matches=None,
-           focal=None, params: RefineParams = RefineParams(), prior=None) -> Refined:
+           focal=None, params: RefineParams = RefineParams(), prior=None,
+           tilt=None) -> Refined:
     """Poses and outline lines refined together (see the module docstring).
 
     Args:
@@ -70,13 +71,16 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
         focal: (N,) focal lengths in pixels (for ``match_px``), or None (500).
         prior: (N, 3) poses the spot positions are held near (``prior_m``); default
             ``poses``.
+        tilt: (N,) 1-sigma of each photo's gravity tilt per axis, radians (0 or None:
+            exact): marginalised in its matches' bearings (``problem.Problem._tilts``).
 
     Raises:
         GeometryError: nothing to refine (no placed photo sees an outline wall).
     """
     poses = np.asarray(poses, float).reshape(-1, 3)
     snapped = np.zeros(len(outline.lines.normals), bool) if snapped is None else snapped
-    pr = Problem(layouts, poses, spot, outline, axis, snapped, links, matches, focal, params)
+    pr = Problem(layouts, poses, spot, outline, axis, snapped, links, matches, focal, params,
+                 tilt)
     if prior is not None:
         pr.prior0 = np.concatenate([np.asarray(prior, float)[(pr.spot == s) & pr.placed][0, :2]
                                     for s in pr.spot_ix]) if pr.spot_ix else pr.prior0

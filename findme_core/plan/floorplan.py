@@ -59,7 +59,11 @@ class PlanParams:
             a phone's); the length model one with an "image" photo (``--gravity withheld``).
             Refitted 2026-12-01 with ``inexact_snap_deg``: yaw k 6.05 -> 5.20, length k
             6.36 -> 0.95 (Manhattan walls come out right where they had come out degrees
-            off); leave-one-room-out figures in docs/RESULTS.md.
+            off); and again once the refinement marginalised each photo's tilt in its
+            matches (``problem.Problem._tilts``): yaw k 5.20 -> 2.85 (raw within 1 / 2 / 3
+            sigma 0.18 / 0.31 / 0.44 -> 0.31 / 0.58 / 0.70; left out 0.64 / 0.84 / 0.97 ->
+            0.71 / 0.90 / 0.98), length k 0.95 -> 0.64; leave-one-room-out figures in
+            docs/RESULTS.md.
         inexact_snap_deg: ``lines.snap_deg`` for a session with a photo whose gravity is not
             exact: a tilt error turns each photo's floor lines its own way (0.5 deg of tilt
             turned dev room zr_r10's layout walls by 0.2-0.9 deg, zr_r01's by 0.5-1.7 deg), so
@@ -87,7 +91,7 @@ class PlanParams:
     # 1 / 2 / 3 sigma in docs/RESULTS.md)
     pose_sigma_model: tuple = (2.22, 0.0, 3.32, 0.0)
     length_sigma_model: tuple = (0.39, 0.066)
-    image_gravity_models: tuple = ((3.15, 0.0, 5.20, 0.0), (0.95, 0.0))
+    image_gravity_models: tuple = ((3.15, 0.0, 2.85, 0.0), (0.64, 0.0))
     inexact_snap_deg: float = 8.0
 
     def for_gravity(self, kinds) -> PlanParams:
@@ -216,13 +220,14 @@ def world_walls(L: Layout, pose) -> np.ndarray:
 
 def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity=(),
           spot=None, links=(), matches=None, focal=None, refine: bool = True,
-          spread=None) -> Plan:
+          spread=None, tilt=None) -> Plan:
     """The plan from N photos' layouts (None for a photo without one) and poses (N, 3) (NaN
     rows for photos not placed); with ``refine``, poses and walls are then refined together
     (``adjust.refine``: ``spot`` labels (N,) (default: one per photo), turns ``links`` and
     feature ``matches`` as ``fuse.place`` takes them, ``focal`` (N,) pixels) and the wall
     lengths' 1-sigma come from its covariance. ``spread`` (N, 3): 1-sigma each pose gains
-    from other poses its evidence fits nearly as well (``pose.spread``), added in quadrature.
+    from other poses its evidence fits nearly as well (``pose.spread``), added in quadrature;
+    ``tilt`` (N,): each photo's gravity tilt 1-sigma, radians (``adjust.refine``).
 
     Raises:
         GeometryError: no placed photo saw any floor.
@@ -234,10 +239,10 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
     if refine:   # refine, redraw the outline at the refined poses, refine once more
         try:
             r = adjust.refine(layouts, poses, spot, out, wl.manhattan, snapped, links, matches,
-                              focal, params.adjust)
+                              focal, params.adjust, tilt=tilt)
             ev, wl, out, snapped = seen_past.outline(layouts, r.poses, params, spot)
             r = adjust.refine(layouts, r.poses, spot, out, wl.manhattan, snapped, links,
-                              matches, focal, params.adjust, prior=poses)
+                              matches, focal, params.adjust, prior=poses, tilt=tilt)
             poses, V, sig_len, pose_sig = r.poses, r.vertices, r.sigma_length, r.sigma_pose
         except GeometryError:
             pass

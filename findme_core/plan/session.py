@@ -17,6 +17,7 @@ Units: metres, radians. Pure: images in, numbers out; no I/O. ``clock`` is injec
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -60,7 +61,10 @@ class Photo:
     """One photo's per-photo results: its layout (None without a usable hypothesis, with
     the reason), scene and features; what its gravity's error is like
     (``Provenance.gravity_kind``: "exact", "sensor" or "image"), which the plan's sigmas
-    must show (``PlanParams.image_gravity_models``); the phone's heading when it was taken
+    must show (``PlanParams.image_gravity_models``), and its tilt's 1-sigma per axis
+    (radians, ``Provenance.gravity_sigma``), which the plan's refinement marginalises in
+    the photo's matches unless the gravity is "exact" (its pose model was fitted with
+    gravity taken as it is); the phone's heading when it was taken
     ((radians, 1-sigma[, reference]), ``heading``; None: unknown)."""
 
     camera: Camera
@@ -71,8 +75,12 @@ class Photo:
     reason: str | None = None
     gravity: str = "exact"
     heading: tuple | None = None
+    gravity_sigma: float = 0.0
 
     def __post_init__(self):
+        if not (math.isfinite(self.gravity_sigma) and self.gravity_sigma >= 0):
+            raise CameraError(f"a photo's gravity 1-sigma must be >= 0 radians, got "
+                              f"{self.gravity_sigma!r}")
         if self.gravity not in GRAVITY_KINDS:
             raise CameraError(f"a photo's gravity kind must be one of {GRAVITY_KINDS}, got "
                               f"{self.gravity!r}")
@@ -80,10 +88,11 @@ class Photo:
 
 
 def analyse(image, camera: Camera, height: float, params: SessionParams = SessionParams(),
-            feats: features.Features | None = None, gravity: str = "exact") -> Photo:
+            feats: features.Features | None = None, gravity: str = "exact",
+            gravity_sigma: float = 0.0) -> Photo:
     """Per-photo stage: hypotheses, rank-1 layout and scene, features (``feats`` when
-    already detected with ``params.features``); ``gravity``: the kind of the camera's
-    gravity (``Photo.gravity``)."""
+    already detected with ``params.features``); ``gravity``, ``gravity_sigma``: the kind
+    of the camera's gravity and its tilt's 1-sigma (``Photo``)."""
     hs = hypothesize(image, camera, params.method, 1, camera_height=height)
     L, sc, why = None, None, hs.reason
     if hs.hypotheses:
@@ -95,7 +104,7 @@ def analyse(image, camera: Camera, height: float, params: SessionParams = Sessio
             L, sc, why = None, None, str(e)
     return Photo(camera, float(height), L, sc,
                  feats if feats is not None else features.detect(image, params.features), why,
-                 gravity=gravity)
+                 gravity=gravity, gravity_sigma=float(gravity_sigma))
 
 
 class Relations(NamedTuple):
@@ -283,7 +292,8 @@ def plan(photos, spots=None, params: SessionParams = SessionParams(), clock=time
     result = floorplan.build(   # poses other poses fit alike: their 1-sigma covers them
         layouts, pl.poses, plan_params, notes, amb, spot=pl.spot, links=links,
         matches=matches, focal=np.array([p.camera.fx for p in photos]),
-        spread=np.array([spread(pl.alternatives[b]) for b in pl.block]))
+        spread=np.array([spread(pl.alternatives[b]) for b in pl.block]),
+        tilt=np.array([0.0 if p.gravity == "exact" else p.gravity_sigma for p in photos]))
     why = consistency.cameras_outside(result, params.consistency)
     if why:        # placed wrongly as often as walls wrong: nothing of it stands
         raise GeometryError(why)

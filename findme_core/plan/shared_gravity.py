@@ -232,30 +232,37 @@ def verdicts(estimates, sg: SharedGravity) -> list:
 
 
 def analyse_plain(images, cameras, heights, estimates, params=None,
-                  shared: SharedGravityParams = SharedGravityParams(), kinds=None):
+                  shared: SharedGravityParams = SharedGravityParams(), kinds=None, sigmas=None):
     """A session's photos (``session.analyse``) where some photos' gravity came from their
     own lines (``estimates[i]`` not None, ``session.Photo.gravity`` "image"; None: given,
-    kept as it is, of the kind ``kinds[i]`` says, "exact" by default): those agree on it
-    spot by spot first (``agree``), then get their hypotheses under it. Photos whose spot
-    cannot decide, and lone photos whose own gravity is ambiguous (it has alternatives),
-    are left out (no layout) with the reason: a plan without them beats a wrong room.
+    kept as it is, of the kind ``kinds[i]`` says, "exact" by default, its tilt's 1-sigma
+    ``sigmas[i]`` radians, 0 by default): those agree on it spot by spot first (``agree``:
+    the agreed gravity's 1-sigma with it), then get their hypotheses under it. Photos whose
+    spot cannot decide, and lone photos whose own gravity is ambiguous (it has
+    alternatives), are left out (no layout) with the reason: a plan without them beats a
+    wrong room.
 
     Returns:
         (photos, ``SharedGravity`` or None when no photo's gravity came from its lines).
     """
     params = params or session.SessionParams()
     kinds = kinds or ["exact"] * len(images)
+    sigmas = [0.0] * len(images) if sigmas is None else sigmas
     feats = [features.detect(im, params.features) for im in images]
     if all(e is None for e in estimates):
-        return [session.analyse(im, c, h, params, f, gravity=k)
-                for im, c, h, f, k in zip(images, cameras, heights, feats, kinds)], None
+        return [session.analyse(im, c, h, params, f, gravity=k, gravity_sigma=s)
+                for im, c, h, f, k, s in zip(images, cameras, heights, feats, kinds, sigmas)
+                ], None
     sg = agree(cameras, estimates, feats, shared)
     photos = []
-    for im, c, h, f, v, k in zip(images, cameras, heights, feats, verdicts(estimates, sg), kinds):
+    for i, (im, c, h, f, v) in enumerate(zip(images, cameras, heights, feats,
+                                             verdicts(estimates, sg))):
         if v is None:
-            photos.append(session.analyse(im, c, h, params, f, gravity=k))
+            photos.append(session.analyse(im, c, h, params, f, gravity=kinds[i],
+                                          gravity_sigma=sigmas[i]))
         elif isinstance(v, str):
             photos.append(session.Photo(c, float(h), None, None, f, v, gravity="image"))
         else:
-            photos.append(session.analyse(im, c.with_gravity(v), h, params, f, gravity="image"))
+            photos.append(session.analyse(im, c.with_gravity(v), h, params, f, gravity="image",
+                                          gravity_sigma=float(sg.sigmas[i])))
     return photos, sg

@@ -208,8 +208,9 @@ class MapperHandler(Handler):
                 why = None
             except FindmeError as e:
                 why = str(e).splitlines()[0][:200]
+        kind, sigma = mapper_gravity.gravity_of(ph.hset)
         ph.photo = plan_session.Photo(cam, h, L, sc, ph.features, why, heading=ph.heading,
-                                      gravity=mapper_gravity.gravity_kind(ph.hset))
+                                      gravity=kind, gravity_sigma=sigma)
         ph.key = (rank, height)
         for pk in [pk for pk in st.pairs if pk[0] == "motion" and n in pk[1:]]:
             del st.pairs[pk]   # motions lift with the scene; matches and turns stay

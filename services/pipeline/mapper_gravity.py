@@ -56,12 +56,12 @@ def estimate_of(ph):
     return msg_gravity_estimate(hs.camera) if hs is not None and hs.HasField("camera") else None
 
 
-def gravity_kind(hset) -> str:
-    """``Provenance.gravity_kind`` of the gravity a hypothesis set's camera was built with
-    (the frame's refined by the image: "sensor"; the image's own: "image"); "exact" when the
-    set says nothing of it."""
+def gravity_of(hset) -> tuple[str, float]:
+    """(``Provenance.gravity_kind``, ``Provenance.gravity_sigma`` radians) of the gravity a
+    hypothesis set's camera was built with (the frame's refined by the image: "sensor"; the
+    image's own: "image"); ("exact", 0) when the set says nothing of it."""
     prov = msg_provenance(hset.camera) if hset is not None and hset.HasField("camera") else None
-    return "exact" if prov is None else prov.gravity_kind
+    return ("exact", 0.0) if prov is None else (prov.gravity_kind, prov.gravity_sigma)
 
 
 def agreed(st, order: list, params: plan_session.SessionParams,
@@ -90,8 +90,9 @@ def agreed(st, order: list, params: plan_session.SessionParams,
                 rot[(i, j)] = st.pairs[key]
     sg = shared_gravity.agree(cams, ests, [p.features for p in photos], shared, rotations=rot)
     out = []
-    for n, p, e, v, status in zip(order, photos, ests, shared_gravity.verdicts(ests, sg),
-                                  sg.status):
+    for n, p, e, v, status, sigma in zip(order, photos, ests,
+                                         shared_gravity.verdicts(ests, sg), sg.status,
+                                         sg.sigmas):
         ph = st.photos[n]
         if status == "agreed" and not isinstance(v, str):
             v = None     # its own gravity is its spot's (within ``agree_deg``): as it is
@@ -105,12 +106,13 @@ def agreed(st, order: list, params: plan_session.SessionParams,
                 del st.pairs[k]
             ph.plain.gravity_used = used
         if v is None:
-            out.append(p if e is None else replace(p, gravity="image"))
+            out.append(p if e is None else replace(p, gravity="image",
+                                                   gravity_sigma=float(sigma)))
         elif isinstance(v, str):
             out.append(plan_session.Photo(p.camera, p.height, None, None, p.features, v,
                                           gravity="image", heading=p.heading))
         else:
-            out.append(_relifted(ph, p, v, params))
+            out.append(replace(_relifted(ph, p, v, params), gravity_sigma=float(sigma)))
     return out
 
 

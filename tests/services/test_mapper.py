@@ -101,12 +101,14 @@ def test_the_layouts_lift_with_the_camera_the_hypotheses_were_built_with(room):
 
 def test_a_phone_gravity_refined_by_the_photos_widens_the_plans_pose_sigmas(room, mapped):
     """The phone page's gravity (1-sigma 1.5 deg), refined by each photo's lines in the
-    hypotheses service: its hypothesis sets say so (source input+image, a "sensor" gravity).
-    The same room, the same outline and poses, but the poses' sigmas carry gravity's error:
-    the pose model fitted with gravity from the photos (``PlanParams.image_gravity_models``),
-    not an exact gravity's (``mapped``'s frames give theirs and their hypothesis sets say
-    nothing of it); the walls keep the exact gravity's length model (a sensor's gravity does
-    not fail whole rooms as the image's alone can)."""
+    hypotheses service: its hypothesis sets say so (source input+image, a "sensor" gravity,
+    here 0.4 deg). The same room, but the plan's refinement weighs each photo's tilt by that
+    1-sigma in its feature matches (``problem.Problem._tilts``) and its poses take the pose
+    model fitted with gravity from the photos (``PlanParams.image_gravity_models``), not an
+    exact gravity's (``mapped``'s frames give theirs and their hypothesis sets say nothing of
+    it): no pose is stated surer than with the exact gravity, the outline is the same room
+    within a centimetre, and the walls keep the exact gravity's length model (a sensor's
+    gravity does not fail whole rooms as the image's alone can)."""
     m = MapperHandler()
     plans = []
     for key, msg in room.messages():
@@ -117,17 +119,13 @@ def test_a_phone_gravity_refined_by_the_photos_widens_the_plans_pose_sigmas(room
                 "input", "input+image", tilt_cov(math.radians(0.4)))))
         plans += [o.msg for o in m.on_message(key, msg)]
     exact, phone = mapped[1][-1], plans[-1]
-    np.testing.assert_allclose(_vertices(phone), _vertices(exact), atol=1e-9)
-    pp = floorplan.PlanParams()
-    (kx, fx, ky, fy), _ = pp.image_gravity_models
-    gx, _, gy, _ = pp.pose_sigma_model
-    assert (fx, fy) == (0.0, 0.0) and kx > gx and ky > gy
-    assert [q.sigma_x_m for q in phone.poses] == pytest.approx(
-        [q.sigma_x_m * kx / gx for q in exact.poses], rel=1e-6)
-    assert [q.sigma_yaw_rad for q in phone.poses] == pytest.approx(
-        [q.sigma_yaw_rad * ky / gy for q in exact.poses], rel=1e-6)
+    np.testing.assert_allclose(_vertices(phone), _vertices(exact), atol=0.01)
+    for q, e in zip(phone.poses[1:], exact.poses[1:]):
+        assert q.sigma_yaw_rad >= e.sigma_yaw_rad and q.sigma_x_m >= e.sigma_x_m
+    yaw_err = np.abs(fuse.wrap(np.array([q.yaw_rad for q in phone.poses]) - room.poses[:, 2]))
+    assert np.all(yaw_err <= 3 * np.array([q.sigma_yaw_rad for q in phone.poses]) + 1e-9)
     assert [w.sigma_m for w in phone.walls] == pytest.approx([w.sigma_m for w in exact.walls],
-                                                             rel=1e-9)
+                                                             rel=0.05)
 
 
 def test_the_plan_grows_photo_by_photo(mapped):

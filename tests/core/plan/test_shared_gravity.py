@@ -113,3 +113,28 @@ def test_a_photo_of_an_unknown_gravity_kind_is_named(kind):
         session.Photo(cam, H, None, None, None, gravity=kind)
     for ok in ("exact", "sensor", "image"):
         assert session.Photo(cam, H, None, None, None, gravity=ok).gravity == ok
+
+
+@pytest.mark.parametrize("sigma", [-0.01, float("nan"), float("inf")])
+def test_a_photo_of_a_negative_or_unknown_gravity_sigma_is_named(sigma):
+    """``session.Photo.gravity_sigma`` weighs the photo's tilt in the plan's refinement."""
+    from findme_core.errors import CameraError
+    cam = Camera(500.0, 500.0, 319.5, 239.5, 640, 480)
+    with pytest.raises(CameraError, match=f"got {sigma!r}"):
+        session.Photo(cam, H, None, None, None, gravity="sensor", gravity_sigma=sigma)
+    assert session.Photo(cam, H, None, None, None, gravity_sigma=0.02).gravity_sigma == 0.02
+
+
+def test_plain_photos_carry_their_agreed_gravitys_sigma(turn):
+    """Photos whose gravity came from their own lines take their spot's agreed gravity with
+    its 1-sigma (``SharedGravity.sigmas``), which the plan's refinement weighs their tilt
+    with; a given gravity keeps the sigma it came with."""
+    images, cams, _, ests = turn
+    photos, sg = shared_gravity.analyse_plain(images, cams, [H] * len(images), ests)
+    for p, s in zip(photos, sg.sigmas):
+        if p.layout is not None:
+            assert p.gravity == "image" and p.gravity_sigma == pytest.approx(float(s))
+            assert p.gravity_sigma > 0
+    given, _ = shared_gravity.analyse_plain(images[:1], cams[:1], [H], [None], kinds=["sensor"],
+                                            sigmas=[0.03])
+    assert given[0].gravity == "sensor" and given[0].gravity_sigma == 0.03
