@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import lil_matrix
+from scipy.sparse import coo_matrix
 
 from findme_core.geometry import planar
 from findme_core.motion import register
@@ -173,9 +173,11 @@ class Problem:
             cols += [c for k in (i, j) if k in self.tilt_ix for c in self.tilt_ix[k]]
             rows += [cols] * len(a)
         rows += [[c] for k in self.tilt_ix for c in self.tilt_ix[k]]
-        S = lil_matrix((len(rows), len(self.x0)), dtype=np.int8)
-        for r, cols in enumerate(rows):
-            S[r, cols] = 1
+        r = np.repeat(np.arange(len(rows)), [len(c) for c in rows])
+        c = np.fromiter((k for cols in rows for k in cols), int, len(r))
+        S = coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(len(rows), len(self.x0)))
+        S = S.tocsr()
+        S.data[:] = 1          # a column named twice in a row (a corner's two lines) is one
         return S
 
     # ------------------------------------------------------------------ unpacking
