@@ -277,11 +277,10 @@ class Problem:
         self.tilt_ix = {k: (n + 2 * q, n + 2 * q + 1) for q, k in enumerate(who)}
         self.x0 = np.concatenate([self.x0, np.zeros(2 * len(who))])
 
-    def _tilted(self, x, k, v):
-        """(M, 3) level bearings ``v`` of photo k under its tilt unknowns in ``x``."""
-        if k not in self.tilt_ix:
-            return v
-        return v @ planar.rot_tilt(*x[list(self.tilt_ix[k])]).T
+    def _tilts_of(self, x) -> dict:
+        """{photo: (3, 3) the transposed rotation its tilt unknowns in ``x`` give its level
+        bearings}, each made once per evaluation (a photo takes part in several pairs)."""
+        return {k: planar.rot_tilt(*x[list(c)]).T for k, c in self.tilt_ix.items()}
 
     @staticmethod
     def _epi(pi, pj, a, b):
@@ -316,10 +315,11 @@ class Problem:
             out.append(np.atleast_1d(np.angle(np.exp(1j * (yj - yi - yaw))) / sig))
         if len(self.prior0):
             out.append((x[:len(self.prior0)] - self.prior0) / self.p.prior_m)
+        tilt = self._tilts_of(x)
         for i, j, a, b, sig, base in self.mt:   # the turn only: the baseline as placed
             yi, yj = self.pose(x, i)[1], self.pose(x, j)[1]
-            out.append(self._epi((0.0, 0.0, yi), (base[0], base[1], yj),
-                                 self._tilted(x, i, a), self._tilted(x, j, b)) / sig)
+            a, b = (a @ tilt[i] if i in tilt else a), (b @ tilt[j] if j in tilt else b)
+            out.append(self._epi((0.0, 0.0, yi), (base[0], base[1], yj), a, b) / sig)
         for k, c in self.tilt_ix.items():
             out.append(x[list(c)] / self.tilt_sig[k])
         return np.concatenate(out) if out else np.zeros(0)
