@@ -11,15 +11,27 @@ the camera height). A WALL segment B of the boundary is a counter's front edge w
 1. cabinet doors stand below it: at least ``min_doors`` 3D-vertical image lines whose top
    lies on B's vertical plane between ``door_top_m`` below the counter height and just
    above it (a floor line has floor below it, not door edges hanging from it);
-2. the counter top lies above it: the first horizontal image line above B that is parallel
-   to it in 3D and, lifted on the counter plane y = h - H (H = ``height_m``, 0.9 m: the
-   standard 36 in), lies more than ``nosing_m`` behind B (the edge band of the counter
-   itself) lies ``depth_m`` behind it (0.45-0.80 m: a 24 in cabinet with its overhang).
+2. the counter top lies above it: a horizontal image line above B that is parallel to it
+   in 3D and, lifted on the counter plane y = h - H (H = ``height_m``, 0.9 m: the standard
+   36 in), lies ``depth_m`` behind it (0.45-0.80 m: a 24 in cabinet with its overhang); the
+   first such line. Nearer lines lie on the top itself: the nosing's back line, a sink's
+   rim, an appliance (dev kitchen zr_r06: a sink's rim 0.16 m behind the front edge).
 
 That line is the counter's back edge, on the wall; the wall's base is the vertical plane
 through it at the floor. ``behind`` replaces B by the base's image (below the cabinets, as
 a floor plan and the annotated room shape have it), joined to its neighbours by STEP
-segments. Pure numpy; no I/O.
+segments.
+
+B is a *run* (``runs``): consecutive WALL segments that are one straight line at the
+counter's height (their vertices within ``collinear_m`` of it). A front edge is one line,
+but the boundary search breaks it where the face below changes: a dishwasher or an oven
+has no door edges, a sink's cabinet no back edge above it within reach of the lines. Each
+part alone fails a test the whole counter passes (dev kitchen zr_r06, spot p12: the part
+in front of the dishwasher has the back edge above it but no door edge, the part beside it
+three door edges but no back edge in its columns), so the tests pool the run's columns.
+A run that fails whole has each of its parts tested alone: its chord, from vertices up to
+``collinear_m`` off the edge, can move the back edge's depth past a counter's.
+Pure numpy; no I/O.
 """
 
 from __future__ import annotations
@@ -41,7 +53,6 @@ class CounterParams:
 
     height_m: float = 0.9              # counter top above the floor
     depth_m: tuple = (0.45, 0.80)      # front edge to the wall
-    nosing_m: float = 0.15             # lines closer behind the front edge are its own band
     door_top_m: float = 0.35           # door edges start at most this far below the top
     door_len_m: float = 0.10           # ... and run at least this far down the cabinet face
     toe_px: float = 8.0                # the cabinets' foot: a parallel line this close to it
@@ -50,6 +61,7 @@ class CounterParams:
     vertical_deg: float = 1.5          # a line through the vertical vanishing point within this
     min_line_px: float = 20.0          # lines shorter than this are not used
     min_segment_px: float = 30.0       # boundary segments narrower than this are not tested
+    collinear_m: float = 0.05          # a run's vertices lie this near its line (counter height)
 
 
 @dataclass(frozen=True)
@@ -57,11 +69,12 @@ class Counter:
     """A boundary segment found to be a counter's front edge.
 
     Attributes:
-        segment: index of the WALL segment of the hypothesis.
+        segment: index of the run's first WALL segment in the hypothesis.
         normal: (2,) unit (x, z) normal of the wall, pointing away from the camera.
         wall_m: the wall's distance from the camera along ``normal``, metres.
         depth_m: front edge to wall, metres.
         doors: number of door edges found below the front edge.
+        last: index of the run's last segment (``segment`` for a run of one).
     """
 
     segment: int
@@ -69,6 +82,47 @@ class Counter:
     wall_m: float
     depth_m: float
     doors: int
+    last: int = -1
+
+    def __post_init__(self) -> None:
+        if self.last < 0:
+            object.__setattr__(self, "last", self.segment)
+
+
+def runs(camera: Camera, height: float, hyp: Hypothesis,
+         params: CounterParams = CounterParams()) -> list[tuple[int, int]]:
+    """(first, last) segment indices of each run of ``hyp``: consecutive WALL segments whose
+    vertices, lifted to the counter's height, all lie within ``collinear_m`` of the line
+    through the run's end vertices (one straight edge; metres). Segments whose vertices do
+    not lift (at or above the counter top's horizon) are runs of their own."""
+    poly = np.asarray(hyp.polyline, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        _, q = floor_xz(camera, height - params.height_m, poly)
+    out, s, n = [], 0, len(hyp.kinds)
+    while s < n:
+        if hyp.kinds[s] != SegKind.WALL:
+            s += 1
+            continue
+        last = s
+        while (last + 1 < n and hyp.kinds[last + 1] == SegKind.WALL
+               and _straight(q[s:last + 3], params.collinear_m)):
+            last += 1
+        out.append((s, last))
+        s = last + 1
+    return out
+
+
+def _straight(q: np.ndarray, tol: float) -> bool:
+    """Whether the (K, 2) points (x, z) all lie within ``tol`` metres of the line through
+    the first and the last (False when any is not finite or the two coincide)."""
+    if not np.isfinite(q).all():
+        return False
+    d = q[-1] - q[0]
+    L = float(np.hypot(*d))
+    if L < 1e-9:
+        return False
+    off = (q - q[0]) @ np.array([d[1], -d[0]]) / L
+    return bool(np.all(np.abs(off) <= tol))
 
 
 def _row(ends: np.ndarray, u):
@@ -80,7 +134,8 @@ def _row(ends: np.ndarray, u):
 
 def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
          params: CounterParams = CounterParams()) -> list[Counter]:
-    """The WALL segments of ``hyp`` that are counters' front edges (module docstring).
+    """The runs of WALL segments of ``hyp`` (``runs``) that are counters' front edges
+    (module docstring).
 
     Args:
         camera: intrinsics and gravity of the photo.
@@ -88,7 +143,7 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
         hyp: a boundary hypothesis of the photo.
         lines: (N, 4) the photo's straight lines [u1, v1, u2, v2], pixels.
     Returns:
-        The counters found, by segment; none when the camera is not above the counter top.
+        The counters found, by run; none when the camera is not above the counter top.
     """
     p = params
     H = p.height_m
@@ -106,25 +161,25 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
     r_top = camera.rays_level(np.where(upper, ends[:, :2], ends[:, 2:]))
     r_bot = camera.rays_level(np.where(upper, ends[:, 2:], ends[:, :2]))
     u_top = np.where(upper[:, 0], ends[:, 0], ends[:, 2])
-    found = []
     poly = np.asarray(hyp.polyline, float)
-    for s, kind in enumerate(hyp.kinds):
-        b1, b2 = poly[s], poly[s + 1]
-        if kind != SegKind.WALL or b2[0] - b1[0] < p.min_segment_px:
-            continue
+
+    def test(s: int, last: int) -> Counter | None:   # segments s..last as one front edge
+        b1, b2 = poly[s], poly[last + 1]
+        if b2[0] - b1[0] < p.min_segment_px:
+            return None
         _, pb = floor_xz(camera, height - H, np.array([b1, b2]))   # B at the counter's height
         if not np.isfinite(pb).all():
-            continue
+            return None
         d = pb[1] - pb[0]
         if np.linalg.norm(d) < 1e-6:
-            continue
+            return None
         d /= np.linalg.norm(d)
         o = np.array([d[1], -d[0]])
         if o @ pb[0] < 0:
             o = -o
         front = float(o @ pb[0])
         if front <= 0:
-            continue
+            return None
         par = long & (np.abs(n @ np.array([d[0], 0.0, d[1]]))
                       < math.sin(math.radians(p.parallel_deg)))
         inside = (u_mid > b1[0]) & (u_mid < b2[0])
@@ -141,7 +196,7 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
                            & (kb > 1e-9) & (drop > -0.05) & (drop < p.door_top_m)
                            & (run >= p.door_len_m)))
         if doors < p.min_doors:
-            continue
+            return None
         # 2. the cabinets' foot (B's plane at the floor): where the photo shows it, a line
         # parallel to B lies there (below a floor line there is floor, not a foot)
         foot, ahead = camera.project_level(np.column_stack([pb[:, 0], np.full(2, height),
@@ -149,25 +204,35 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
         if (ahead.all() and abs(foot[1, 0] - foot[0, 0]) > 1e-6
                 and _row(foot, 0.5 * (b1[0] + b2[0])) < camera.height - p.toe_px
                 and not np.any(par & inside & (np.abs(v_mid - _row(foot, u_mid)) < p.toe_px))):
-            continue
-        # 3. the counter's back edge: the first parallel line above B, past its nosing
+            return None
+        # 3. the counter's back edge: the first parallel line above B at a counter's depth
+        # (nearer ones lie on the top: its nosing's back line, a sink's rim, an appliance)
         above = np.flatnonzero(par & inside & (v_mid < v_b - 3.0))
         if not len(above):
-            continue
+            return None
         q1, q2 = (floor_xz(camera, height - H, ends[above, c:c + 2])[1] for c in (0, 2))
         behind = 0.5 * (q1 @ o + q2 @ o) - front
-        behind = np.where(np.isfinite(behind) & (behind >= p.nosing_m), behind, np.inf)
+        behind = np.where(np.isfinite(behind) & (behind >= p.depth_m[0]), behind, np.inf)
         j = int(np.argmin(behind))
-        if p.depth_m[0] <= behind[j] <= p.depth_m[1]:
-            found.append(Counter(s, o, front + float(behind[j]), float(behind[j]), doors))
+        if not behind[j] <= p.depth_m[1]:
+            return None
+        return Counter(s, o, front + float(behind[j]), float(behind[j]), doors, last)
+
+    found = []
+    for s, last in runs(camera, height, hyp, p):
+        c = test(s, last)
+        if c is None and last > s:   # the run as a whole fails: each part alone may not
+            found += [c for c in map(test, range(s, last + 1), range(s, last + 1)) if c]
+        elif c is not None:
+            found.append(c)
     return found
 
 
 def behind(camera: Camera, height: float, hyp: Hypothesis, counters: list[Counter]) -> Hypothesis:
-    """``hyp`` with each counter's front edge replaced by the image of the wall's base
-    behind it (the vertical plane at ``wall_m`` along ``normal``, at the floor), joined to
-    the neighbouring segments by STEP segments (u stays non-decreasing; v may lie below
-    the image, where the base is hidden under it).
+    """``hyp`` with each counter's front edge (its run of segments) replaced by the image of
+    the wall's base behind it (the vertical plane at ``wall_m`` along ``normal``, at the
+    floor), joined to the neighbouring segments by STEP segments (u stays non-decreasing; v
+    may lie below the image, where the base is hidden under it).
 
     Args:
         camera, height: as ``find``.
@@ -178,16 +243,19 @@ def behind(camera: Camera, height: float, hyp: Hypothesis, counters: list[Counte
         return hyp
     by = {c.segment: c for c in counters}
     poly = np.asarray(hyp.polyline, float)
-    verts, kinds = [poly[0]], []
-    for s, kind in enumerate(hyp.kinds):
-        b1, b2 = poly[s], poly[s + 1]
-        base = _base(camera, height, by[s], b1, b2) if s in by else None
+    verts, kinds, s = [poly[0]], [], 0
+    while s < len(hyp.kinds):
+        c = by.get(s)
+        b1, b2 = poly[s], poly[s + 1 if c is None else c.last + 1]
+        base = None if c is None else _base(camera, height, c, b1, b2)
         if base is None:
-            verts.append(b2)
-            kinds.append(int(kind))
+            verts.append(poly[s + 1])
+            kinds.append(int(hyp.kinds[s]))
+            s += 1
             continue
         verts += [np.array([b1[0], _row(base, b1[0])]), np.array([b2[0], _row(base, b2[0])]), b2]
         kinds += [int(SegKind.STEP), int(SegKind.WALL), int(SegKind.STEP)]
+        s = c.last + 1
     return Hypothesis(np.array(verts), np.array(kinds), hyp.score, hyp.support)
 
 

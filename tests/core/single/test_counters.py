@@ -157,3 +157,94 @@ def test_segments_that_cannot_be_a_counter_are_not_tested():
     assert cam.rays_level(sky.polyline)[:, 1].max() < 0          # above the horizon
     assert counters.find(cam, H_CAM, sky, lines) == []
     assert counters.behind(cam, H_CAM, hyp, []) is hyp
+
+
+def _split(cam, hyp, x_break=0.0, dv=0.0):
+    """``hyp``'s front edge as two WALL segments meeting where x = ``x_break`` on it (the
+    boundary search breaks a front edge where the face below changes), the meeting vertex
+    moved ``dv`` pixels down."""
+    u, v = cam.project_level(np.array([[x_break, H_CAM - TOP, FRONT_Z]]))[0][0]
+    (u0, v0), (u1, v1) = hyp.polyline
+    return Hypothesis(np.array([[u0, v0], [u, v + dv], [u1, v1]]),
+                      np.array([SegKind.WALL, SegKind.WALL]), 1.0, 1.0)
+
+
+def _dishwasher_kitchen(cam):
+    """A counter whose left half stands on a dishwasher (no door edges) under the only
+    stretch of back edge the photo's lines show, and whose right half has cabinet doors
+    and no back edge line: (hypothesis broken at x = 0, lines)."""
+    lines = [_hline(cam, FRONT_Z, TOP), _hline(cam, WALL_Z, TOP, xs=(-1.5, -0.1)),
+             _hline(cam, FRONT_Z, 0.0)]
+    for x in (0.3, 0.8, 1.3):
+        lines.append(seg(cam, (x, H_CAM - TOP + 0.05, FRONT_Z), (x, H_CAM - 0.15, FRONT_Z)))
+    return _split(cam, _polyline(cam, lines[0])), np.array(lines)
+
+
+def test_a_front_edge_broken_in_two_is_tested_whole():
+    """Neither half passes alone (one has no doors, the other no back edge above it); the
+    two are one straight edge at the counter's height, and that passes: one counter over
+    both segments, the wall behind it where it is, drawn as one base segment."""
+    cam = camera()
+    hyp, lines = _dishwasher_kitchen(cam)
+    assert counters.runs(cam, H_CAM, hyp) == [(0, 1)]
+    for k in (0, 1):
+        one = Hypothesis(hyp.polyline[k:k + 2], hyp.kinds[k:k + 1], 1.0, 1.0)
+        assert counters.find(cam, H_CAM, one, lines) == []
+    found = counters.find(cam, H_CAM, hyp, lines)
+    assert len(found) == 1
+    c = found[0]
+    assert (c.segment, c.last, c.doors) == (0, 1, 3)
+    assert c.wall_m == pytest.approx(WALL_Z, abs=0.01)
+    new = counters.behind(cam, H_CAM, hyp, found)
+    assert list(new.kinds) == [SegKind.STEP, SegKind.WALL, SegKind.STEP]
+    base = _hline(cam, WALL_Z, 0.0)
+    at = lambda u: base[1] + (u - base[0]) * (base[3] - base[1]) / (base[2] - base[0])  # noqa: E731
+    for u, v in new.polyline[1:3]:
+        assert v == pytest.approx(at(u), abs=0.05)
+
+
+def test_segments_off_one_line_are_not_one_run():
+    """A kink of 20 px at the meeting vertex puts it ~0.1 m off the line at the counter's
+    height (more than ``collinear_m``): two runs, each tested alone, and this counter
+    (which needs both halves) is not found."""
+    cam = camera()
+    hyp, lines = _dishwasher_kitchen(cam)
+    kinked = _split(cam, _polyline(cam, lines[0]), dv=20.0)
+    assert counters.runs(cam, H_CAM, kinked) == [(0, 0), (1, 1)]
+    assert counters.find(cam, H_CAM, kinked, lines) == []
+    steps = Hypothesis(hyp.polyline, np.array([SegKind.WALL, SegKind.STEP]), 1.0, 1.0)
+    assert counters.runs(cam, H_CAM, steps) == [(0, 0)]
+
+
+def test_a_run_that_fails_whole_keeps_a_part_that_passes():
+    """The boundary's left end lies 0.08 m in front of the edge (its middle vertex 0.04 m
+    off the chord, within ``collinear_m``: one run), and the back edge shows above the
+    right half only, 0.79 m behind. Measured from the run's chord it lies 0.81 m behind,
+    past a counter's depth, and the whole run fails; the right half alone, on the edge
+    itself, is the counter it is."""
+    cam = camera()
+    y = H_CAM - TOP
+    ends = cam.project_level(np.array([[-1.5, y, FRONT_Z - 0.08], [0.0, y, FRONT_Z],
+                                       [1.5, y, FRONT_Z]]))[0]
+    hyp = Hypothesis(ends, np.array([SegKind.WALL, SegKind.WALL]), 1.0, 1.0)
+    lines = [_hline(cam, FRONT_Z, TOP), _hline(cam, FRONT_Z + 0.79, TOP, xs=(0.1, 1.5)),
+             _hline(cam, FRONT_Z, 0.0, xs=(-1.5, -0.1)), _hline(cam, FRONT_Z, 0.0, xs=(0.1, 1.5))]
+    for x in (0.3, 0.8, 1.3):
+        lines.append(seg(cam, (x, y + 0.05, FRONT_Z), (x, H_CAM - 0.15, FRONT_Z)))
+    lines = np.array(lines)
+    assert counters.runs(cam, H_CAM, hyp) == [(0, 1)]
+    whole = Hypothesis(ends[[0, 2]], np.array([SegKind.WALL]), 1.0, 1.0)
+    assert counters.find(cam, H_CAM, whole, lines) == []
+    found = counters.find(cam, H_CAM, hyp, lines)
+    assert [(c.segment, c.last) for c in found] == [(1, 1)]
+    assert found[0].depth_m == pytest.approx(0.79, abs=0.01)
+
+
+def test_lines_on_the_top_nearer_than_a_counter_is_deep_are_passed_over():
+    """A sink's rim 0.16 m behind the front edge lies between it and the back edge: the
+    back edge, the first line at a counter's depth, is still found."""
+    cam = camera()
+    hyp, lines = _kitchen(cam)
+    rim = _hline(cam, FRONT_Z + 0.16, TOP, xs=(-0.8, 0.2))
+    found = counters.find(cam, H_CAM, hyp, np.vstack([lines, rim]))
+    assert len(found) == 1 and found[0].depth_m == pytest.approx(DEPTH, abs=0.01)
