@@ -58,6 +58,37 @@ def same(y1: float, t1, y2: float, t2) -> bool:
                 and dt < 0.1 + 0.1 * np.hypot(*t1[:2]))
 
 
+def distinct(motions, whys) -> tuple[list[int], int]:
+    """The distinct motions of refined candidates, best first, and the best one the evidence
+    determines.
+
+    Args:
+        motions: ``PlanarMotion`` (n,), best first.
+        whys: (n,) why the evidence does not determine each (an exception), None when it
+            does.
+    Returns:
+        (indices of the distinct motions (``same``: the first of each, unless a later one
+        the evidence determines is the same motion as an undetermined one, which it then
+        replaces: two refinements of one motion from different starts, one of which weighed
+        too few lifted points; dev pair zpl_r06_p11_p12_t1, its scale at +-13 m), the
+        position among them of the first determined one).
+    Raises:
+        The first motion's ``why`` when none is determined.
+    """
+    out: list[int] = []
+    for i, m in enumerate(motions):
+        twin = next((j for j, o in enumerate(out) if same(m.yaw, (m.x, m.z), motions[o].yaw,
+                                                           (motions[o].x, motions[o].z))), None)
+        if twin is None:
+            out.append(i)
+        elif whys[i] is None and whys[out[twin]] is not None:
+            out[twin] = i
+    k = next((j for j, i in enumerate(out) if whys[i] is None), None)
+    if k is None:
+        raise whys[out[0]]
+    return out, k
+
+
 def on_the_way(yaw: float, x: float, z: float, yaws, xs, zs) -> np.ndarray:
     """(n,) whether each of n motions (yaws radians, B at (xs, zs) metres) has the turn and
     the direction of travel of the motion (yaw, x, z), both within 3 deg: the same way at

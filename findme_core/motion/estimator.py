@@ -20,8 +20,9 @@ from findme_core.errors import MotionError
 from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y, wrap
 from findme_core.motion import one_sided, photometric, register
-from findme_core.motion.alternatives import (along, as_scored, distinct_top, looks_more_alike,
-                                              more_agree, rival, same, spread_over)
+from findme_core.motion.alternatives import (along, as_scored, distinct, distinct_top,
+                                              looks_more_alike, more_agree, rival, same,
+                                              spread_over)
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
@@ -214,22 +215,13 @@ class Registration:
                 continue
             results.append(self._refined(cy[i], ct[i], which[i]))
         results = [results[i] for i in ties.order(np.array([r[2] for r in results]))]
-        out = []
-        for r in results:
-            o = self._result(*r)
-            if not any(same(o.yaw, (o.x, o.z), p.yaw, (p.x, p.z)) for p, _ in out):
-                out.append((o, r[3]))
-        # the best motion the evidence determines: one with too few matches and walls along
-        # one direction only is a family of motions, not an answer (the next one may be)
-        first = None
-        for k, (best, pair) in enumerate(out):
-            try:
-                self._check_determined(best, pair)
-                break
-            except MotionError as e:
-                first = first or e
-        else:
-            raise first
+        # the best motion the evidence determines (one with too few matches and walls along
+        # one direction only is a family of motions, not an answer: the next one may be)
+        motions = [self._result(*r) for r in results]
+        out, k = distinct(motions, [self._undetermined(o, r[3])
+                                    for o, r in zip(motions, results)])
+        out = [(motions[i], results[i][3]) for i in out]
+        best = out[k][0]
         alts = tuple(o for o, _ in out[:k] + out[k + 1:]
                      if o.score >= self.p.alternative_ratio * best.score)
         alts += self._rival(best, alts, cy, ct, total, which)
@@ -283,12 +275,17 @@ class Registration:
         corr, n = photometric.agreement(*self.surfaces, yaw, t3)
         return self.p.photometric_weight * corr * n, corr, n
 
-    def _check_determined(self, m: PlanarMotion, pair) -> None:
-        if m.n_inliers < self.p.min_inliers:
-            if m.layout is None or m.layout.samples < self.p.min_layout_samples:
-                raise self._refusal(m.n_inliers)
-            m.layout.check_fixes_translation(self.la[max(pair[0], 0)])
-        check_position(m, self.h[0])
+    def _undetermined(self, m: PlanarMotion, pair) -> MotionError | None:
+        """Why the evidence does not fix the motion ``m`` (its layout pair ``pair``), or None."""
+        try:
+            if m.n_inliers < self.p.min_inliers:
+                if m.layout is None or m.layout.samples < self.p.min_layout_samples:
+                    raise self._refusal(m.n_inliers)
+                m.layout.check_fixes_translation(self.la[max(pair[0], 0)])
+            check_position(m, self.h[0])
+        except MotionError as e:
+            return e
+        return None
 
     def _evidence(self, yaw, t3, pair):
         """(agreeing matches (M,), of them lifted in A, in B, the layouts' Agreement | None)."""

@@ -10,8 +10,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from findme_core.motion.alternatives import (along, as_scored, distinct_top, looks_more_alike,
-                                              more_agree, rival, same, spread_over)
+from findme_core.errors import MotionError
+from findme_core.motion.alternatives import (along, as_scored, distinct, distinct_top,
+                                              looks_more_alike, more_agree, rival, same,
+                                              spread_over)
 from findme_core.motion.model import PlanarMotion
 
 BEST = PlanarMotion(x=0.6, z=0.8, yaw=math.radians(20.0), dy=0.0, sigma_x=0.03, sigma_z=0.04,
@@ -157,3 +159,31 @@ def test_counts_exactly_one_standard_error_apart_are_not_more():
 ])
 def test_the_appearance_prefers_a_motion_beyond_its_standard_error(best, other, preferred):
     assert looks_more_alike(best, other) is preferred
+
+
+def test_distinct_keeps_the_first_of_each_motion_and_answers_the_first_determined():
+    twin = replace(BEST, x=0.62, sigma_x=5.6, score=49.0)            # the same motion
+    turned = replace(BEST, yaw=BEST.yaw + math.pi / 2, score=40.0)   # another one
+    assert distinct([BEST, twin, turned], [None, None, None]) == ([0, 2], 0)
+    why = MotionError("not fixed")
+    assert distinct([BEST, turned], [why, None]) == ([0, 1], 1)     # the next one answers
+
+
+def test_a_determined_refinement_replaces_its_undetermined_twin():
+    """Two refinements of one motion: the first (best scored) weighed one lifted point and
+    states its scale at +-13 m, which the evidence does not fix; the second, the same
+    motion at +-0.03 m, answers, and the motion is not lost to the next distinct one."""
+    loose = replace(BEST, sigma_x=5.6, sigma_z=13.1, score=108.9)
+    tight = replace(BEST, x=0.61, score=108.7)
+    turned = replace(BEST, yaw=BEST.yaw + math.pi, score=60.0)
+    why = MotionError("the best motion puts them 1.00 apart at +-14.21")
+    assert distinct([loose, tight, turned], [why, None, None]) == ([1, 2], 0)
+    # an undetermined twin never replaces a determined one
+    assert distinct([tight, loose, turned], [None, why, None]) == ([0, 2], 0)
+
+
+def test_distinct_refuses_with_the_best_motions_reason():
+    first, second = MotionError("first"), MotionError("second")
+    turned = replace(BEST, yaw=BEST.yaw + math.pi / 2)
+    with pytest.raises(MotionError, match="first"):
+        distinct([BEST, turned], [first, second])
