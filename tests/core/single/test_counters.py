@@ -28,6 +28,11 @@ def _hline(cam, z, height, xs=XS):
     return hline(cam, H_CAM, z, height, xs)
 
 
+def _row_at(line, u):
+    """Row at column ``u`` of the image line through the segment ``line`` (4,)."""
+    return line[1] + (u - line[0]) * (line[3] - line[1]) / (line[2] - line[0])
+
+
 def _polyline(cam, seg):
     """A one-segment WALL hypothesis on the image line of ``seg``, across the image."""
     (u1, v1, u2, v2) = seg
@@ -65,9 +70,8 @@ def test_the_wall_behind_a_counter_is_found(pitch, roll):
     new = counters.behind(cam, H_CAM, hyp, found)
     assert list(new.kinds) == [SegKind.STEP, SegKind.WALL, SegKind.STEP]
     base = _hline(cam, WALL_Z, 0.0)
-    at = lambda u: base[1] + (u - base[0]) * (base[3] - base[1]) / (base[2] - base[0])  # noqa: E731
     for u, v in new.polyline[1:3]:
-        assert v == pytest.approx(at(u), abs=0.05)
+        assert v == pytest.approx(_row_at(base, u), abs=0.05)
     # a point on the wall above the counter (the backsplash) lands on the wall, not ~3x too far
     px = cam.project_level(np.array([[0.4, H_CAM - 0.95, WALL_Z]]))[0]
     before = Scene(cam, H_CAM, hyp.polyline, hyp.kinds).locate_level(px)[0][0]
@@ -198,9 +202,8 @@ def test_a_front_edge_broken_in_two_is_tested_whole():
     new = counters.behind(cam, H_CAM, hyp, found)
     assert list(new.kinds) == [SegKind.STEP, SegKind.WALL, SegKind.STEP]
     base = _hline(cam, WALL_Z, 0.0)
-    at = lambda u: base[1] + (u - base[0]) * (base[3] - base[1]) / (base[2] - base[0])  # noqa: E731
     for u, v in new.polyline[1:3]:
-        assert v == pytest.approx(at(u), abs=0.05)
+        assert v == pytest.approx(_row_at(base, u), abs=0.05)
 
 
 def test_segments_off_one_line_are_not_one_run():
