@@ -82,11 +82,7 @@ class Counter:
     wall_m: float
     depth_m: float
     doors: int
-    last: int = -1
-
-    def __post_init__(self) -> None:
-        if self.last < 0:
-            object.__setattr__(self, "last", self.segment)
+    last: int
 
 
 def runs(camera: Camera, height: float, hyp: Hypothesis,
@@ -222,7 +218,7 @@ def find(camera: Camera, height: float, hyp: Hypothesis, lines: np.ndarray,
     for s, last in runs(camera, height, hyp, p):
         c = test(s, last)
         if c is None and last > s:   # the run as a whole fails: each part alone may not
-            found += [c for c in map(test, range(s, last + 1), range(s, last + 1)) if c]
+            found += [c for c in (test(k, k) for k in range(s, last + 1)) if c is not None]
         elif c is not None:
             found.append(c)
     return found
