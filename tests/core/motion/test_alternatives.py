@@ -13,7 +13,7 @@ import pytest
 from findme_core.errors import MotionError
 from findme_core.motion.alternatives import (along, as_scored, distinct, distinct_top,
                                               looks_more_alike, more_agree, rival, same,
-                                              spread_over)
+                                              spread_over, turned)
 from findme_core.motion.model import PlanarMotion
 
 BEST = PlanarMotion(x=0.6, z=0.8, yaw=math.radians(20.0), dy=0.0, sigma_x=0.03, sigma_z=0.04,
@@ -113,6 +113,33 @@ def test_the_spread_over_another_distance_lies_along_the_baseline():
     assert m.sigma_yaw == pytest.approx(BEST.sigma_yaw)
     # the truth twice as far lies within 2 sigma on both axes
     assert abs(1.2 - m.x) / m.sigma_x < 2.0 and abs(1.6 - m.z) / m.sigma_z < 2.0
+
+
+def test_an_alternative_turned_a_quarter_turn_widens_the_direction_of_travel():
+    # a symmetric room: the same walls fit photo B turned 90 deg, B at the same place; the
+    # truth (B 1.0 m away at 0 deg, turned 20 deg) is the answer's position turned by 36.87 deg
+    other = replace(BEST, yaw=BEST.yaw + math.pi / 2, score=45.0)
+    m = spread_over(replace(BEST, alternatives=(other,)))
+    s = math.sqrt(45.0 / 95.0) * math.pi / 2          # the alternatives' spread in yaw
+    assert m.sigma_yaw == pytest.approx(math.hypot(BEST.sigma_yaw, s))
+    sx, sz = turned(0.6, 0.8, s)
+    assert m.sigma_x == pytest.approx(math.hypot(0.03, sx))
+    assert m.sigma_z == pytest.approx(math.hypot(0.04, sz))
+    # without the turn's share the truth is 20 and 5 sigma off on x and z; with it, within 1
+    assert abs(0.0 - m.x) / m.sigma_x < 1.0 and abs(1.0 - m.z) / m.sigma_z < 1.0
+    assert abs(0.0 - m.x) / math.hypot(0.03, 0.0) > 10.0
+
+
+def test_turned_spread_of_a_position():
+    # nothing turned, or nothing to turn: no spread
+    assert turned(0.6, 0.8, 0.0) == (0.0, 0.0)
+    assert turned(0.0, 0.0, 1.0) == (0.0, 0.0)
+    # forward 2 m turned +-90 deg: +-2 m sideways, 2 m back; a half turn counts as a quarter
+    assert turned(0.0, 2.0, math.pi / 2) == pytest.approx((2.0, 2.0))
+    assert turned(0.0, 2.0, math.pi) == pytest.approx((2.0, 2.0))
+    # small turns: sideways s * z, along (s^2 / 2) * z; either sign alike
+    assert turned(0.0, 2.0, 0.01) == pytest.approx((0.02, 1e-4), rel=1e-3)
+    assert turned(0.0, 2.0, -0.01) == turned(0.0, 2.0, 0.01)
 
 
 def test_same_motion():
