@@ -33,6 +33,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+from findme_core.geometry import ties  # noqa: E402
 from findme_core.single import hypotheses as H  # noqa: E402
 from findme_core.single.ranking import FEATURES  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
@@ -85,6 +86,27 @@ def candidates(job):
     return vid, feats, errs
 
 
+def exp(x: np.ndarray) -> np.ndarray:
+    """e**x of float64 ``x`` by IEEE arithmetic alone (+, -, *, /, rint, ldexp: the same bits
+    on every CPU, where numpy's own exp has an AVX-512 version that differs in the last bit):
+    x = k ln 2 + r, |r| <= ln 2 / 2, e**r by its Taylor series to r**17 / 17! (relative error
+    below 1e-15 where e**x is a normal number), times 2**k. Below -745 it is 0."""
+    x = np.asarray(x, float)
+    under = x < -745.0
+    x = np.where(under, 0.0, x)
+    k = np.rint(x / _LN2_HI)
+    r = (x - k * _LN2_HI) - k * _LN2_LO
+    term, total = np.ones_like(r), np.ones_like(r)
+    for n in range(1, 18):
+        term = term * r / n
+        total = total + term
+    return np.where(under, 0.0, np.ldexp(total, k.astype(int)))
+
+
+#: ln 2 split so that k * _LN2_HI is exact for |k| < 2**11 (Cody and Waite's reduction)
+_LN2_HI, _LN2_LO = 0.693145751953125, 1.42860682030941723212e-06
+
+
 def fit(data, w0, free, temp=0.01, l2=0.02, iters=800, lr=0.05, cap=0.15):
     """Minimise mean expected top-1 error, sum_c softmax(w . f / temp)_c e_c, by Adam
     (weights not in ``free`` stay at w0); features are standardised for the optimiser."""
@@ -102,10 +124,14 @@ def fit(data, w0, free, temp=0.01, l2=0.02, iters=800, lr=0.05, cap=0.15):
     for it in range(1, iters + 1):
         g = np.zeros_like(z)
         for f, e in fs:
-            s = f @ z / temp
-            p = np.exp(s - s.max())
+            # products without BLAS (``ties``): the fit is chaotic (a softmax at temp 0.01
+            # over 800 Adam steps), and BLAS kernels differ in the last bits between CPUs:
+            # Haswell and SkylakeX kernels gave far -16 and -32 and rooms IoU 0.95 and 0.84
+            # (2026-12-01) from the same candidates
+            s = ties.matvec(f, z) / temp
+            p = exp(s - s.max())
             p /= p.sum()
-            g += f.T @ (p * (e - p @ e)) / temp
+            g += ties.dot(f, (p * (e - ties.dot(p, e)))[:, None], axis=0) / temp
         g = g / len(fs) + l2 * (z - z0)
         g[~free] = 0
         m = 0.9 * m + 0.1 * g
@@ -115,7 +141,7 @@ def fit(data, w0, free, temp=0.01, l2=0.02, iters=800, lr=0.05, cap=0.15):
 
 
 def top1(data, w):
-    return np.array([e[np.argmax(f @ w)] if len(e) else 1.0 for f, e in data])
+    return np.array([e[ties.argmax(ties.matvec(f, w))] if len(e) else 1.0 for f, e in data])
 
 
 def grid_choice(data, w0, name, values, cap=0.15):
