@@ -121,7 +121,9 @@ def fit(data, w0, free, temp=0.01, l2=0.02, iters=800, lr=0.05, cap=0.15):
     # errors above `cap` count as `cap`: hopeless views (no candidate near the truth) must not
     # dominate the fit
     fs = [((f - mu) / sd, np.minimum(e, cap)) for f, e in data if len(e) > 1]
-    for it in range(1, iters + 1):
+    b1 = b2 = 1.0      # 0.9 ** it and 0.999 ** it by products: no libm pow
+    for _ in range(iters):
+        b1, b2 = b1 * 0.9, b2 * 0.999
         g = np.zeros_like(z)
         for f, e in fs:
             # products without BLAS (``ties``): the fit is chaotic (a softmax at temp 0.01
@@ -136,7 +138,7 @@ def fit(data, w0, free, temp=0.01, l2=0.02, iters=800, lr=0.05, cap=0.15):
         g[~free] = 0
         m = 0.9 * m + 0.1 * g
         v = 0.999 * v + 0.001 * g * g
-        z = z - lr * (m / (1 - 0.9 ** it)) / (np.sqrt(v / (1 - 0.999 ** it)) + 1e-8)
+        z = z - lr * (m / (1 - b1)) / (np.sqrt(v / (1 - b2)) + 1e-8)
     return z / sd
 
 
