@@ -45,7 +45,8 @@ import schemas  # noqa: E402
 from findme.evaluation.views import view_inputs  # noqa: E402
 from findme_core.motion import photometric as motion_photometric  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
-from findme_core.motion.pair import photo_lines, prepare  # noqa: E402
+from findme_core.motion.pair import prepare  # noqa: E402
+from findme_core.motion.photo_lines import photo_lines  # noqa: E402
 from findme_io.convert import make_frame  # noqa: E402
 from findme_io.imageio import decode_image  # noqa: E402
 from services.pipeline.hypotheses import HypothesesHandler  # noqa: E402

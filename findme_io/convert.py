@@ -154,7 +154,7 @@ def hypothesis_set_msg(session: str, index: int, hs: HypothesisSet, method: str,
                        camera: Camera | None = None, provenance: Provenance | None = None,
                        lines=None):
     """The bus message of a photo's hypotheses; ``lines``: (N, 4) the photo's lines in its
-    pixels (``pair.photo_lines``), sent so that odometry need not detect them again."""
+    pixels (``photo_lines.photo_lines``), sent so that odometry need not detect them again."""
     m = schemas.HypothesisSet(session=session, index=index, width=hs.width, height=hs.height,
                               reason=hs.reason or "", method=method,
                               timing_ms={k: float(v) for k, v in hs.timing_ms.items()})

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from findme_core.errors import HypothesisError, InputError
-from findme_core.motion.pair import photo_lines
+from findme_core.motion.photo_lines import photo_lines
 from findme_core.single.methods import METHODS
 from findme_io.camera_source import hypothesize_photo
 from findme_io.overlay import draw_hypotheses

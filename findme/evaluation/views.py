@@ -19,7 +19,7 @@ from findme_core.geometry.camera import Camera
 from findme_core.errors import FindmeError, InputError
 from findme_core.geometry.manhattan import gravity_of, pitch_roll_deg
 from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG, Provenance
-from findme_core.motion.pair import photo_lines
+from findme_core.motion.photo_lines import photo_lines
 from findme_core.single.scene import Scene, boundary_sigma_px, distances
 
 from findme_io.camera_source import hypothesize_photo, with_gravity

@@ -16,7 +16,6 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from findme_core.errors import FindmeError, HypothesisError, MotionError
@@ -26,9 +25,8 @@ from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
 from findme_core.motion import features, lifting, pair_gravity, photometric
 from findme_core.motion.methods import MotionParams, PlanarMotion, estimate
 from findme_core.single import layout
-from findme_core.single.hypotheses import HypothesisParams
-from findme_core.single.lines import detect_segments, merge_collinear
-from findme_core.single.methods import WORK_SIZE, hypothesize
+from findme_core.motion.photo_lines import line_segments, photo_lines
+from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
 
 
@@ -146,42 +144,6 @@ def _lifted(photo: Photo, grey=None, surf=None) -> Photo:
     sf = (photometric.surface(grey, camera, top) if surf is None
           else photometric.replaced(surf, camera, top))
     return replace(photo, scene=scene, layouts=lays, orientation=o, surface=sf)
-
-
-def _work_scale(image) -> float:
-    """The scale ``methods.hypothesize`` works at for this image (1: full size)."""
-    s = min(1.0, WORK_SIZE / max(image.shape[:2]))
-    return s if s < 0.95 else 1.0
-
-
-def _full_size(ends, s: float):
-    """Segments (N, 4) found at working scale ``s`` back in the photo's pixels."""
-    return ends if s == 1.0 else (np.asarray(ends, float) + 0.5) / s - 0.5
-
-
-def photo_lines(hs, image) -> np.ndarray:
-    """(N, 4) the lines ``methods.hypothesize`` found in ``image`` (its ``HypothesisSet``
-    ``hs``, at the working size) in the photo's pixels: what ``line_segments`` detects."""
-    return _full_size(np.asarray(hs.lines.ends, float).reshape(-1, 4), _work_scale(image))
-
-
-def segment_lines(segments, image) -> np.ndarray:
-    """(N, 4) the merged lines of a whole-frame detection (``segments.photo_segments``, as a
-    gravity estimate carries it) in the photo's pixels: what ``line_segments`` detects,
-    without detecting again."""
-    return _full_size(merge_collinear(segments.segs).ends, _work_scale(image))
-
-
-def line_segments(image) -> np.ndarray:
-    """(N, 4) the photo's merged straight lines [u1, v1, u2, v2] in its pixels, as
-    ``methods.hypothesize`` finds them (same working size, detector and settings), for a
-    photo whose hypotheses came without their lines (e.g. over the bus)."""
-    s, p = _work_scale(image), HypothesisParams()
-    if s < 1.0:
-        H, W = image.shape[:2]
-        image = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
-    segs = detect_segments(image, p.segment_method, p.min_segment_px, lsd_scale=p.lsd_scale)
-    return _full_size(merge_collinear(segs).ends, s)
 
 
 def photo_of(image, camera: Camera, height: float, rank: int = 1,

@@ -15,7 +15,7 @@ import time
 
 import schemas
 from ..runtime import authority, bus
-from findme_core.motion.pair import photo_lines, segment_lines
+from findme_core.motion.photo_lines import photo_lines, segment_lines
 from findme_core.single.methods import to_photo
 from findme_io.camera_source import hypothesize_photo
 from findme_io.convert import hypothesis_set_msg

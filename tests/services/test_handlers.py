@@ -10,7 +10,7 @@ from findme_io.camera_source import hypothesize_photo, with_gravity
 from findme_io.convert import msg_camera
 from findme_io.imageio import decode_image
 from findme_core.errors import HypothesisError, ImageError, InputError
-from findme_core.motion.pair import photo_lines
+from findme_core.motion.photo_lines import photo_lines
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
 from findme.regression.replay import measure_request
@@ -83,7 +83,7 @@ def test_hypotheses_handler_sends_the_photos_lines_once(pipeline, tilted_view):
     odometry need not detect them again: with the phone's gravity (refined by them) and with
     gravity estimated from them, the gravity estimate's own detection (the hypotheses then
     took only the part below the horizon)."""
-    from findme_core.motion.pair import line_segments
+    from findme_core.motion.photo_lines import line_segments
     from findme_io.convert import msg_lines
     view, frame, hset, _ = pipeline
     sent = msg_lines(hset)

@@ -14,6 +14,7 @@ from findme_core.errors import MotionError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.manhattan import gravity_of
 from findme_core.motion import pair, pair_gravity
+from findme_core.motion.photo_lines import photo_lines
 from findme_core.motion.features import Matches
 from findme_core.single import gravity_alternatives as alt
 from findme_core.single.photo import hypothesize_without_gravity
@@ -45,7 +46,7 @@ def _photos(turn, sigmas=None):
     for k, (image, cam, _, est, hs) in enumerate(turn):
         s = est.sigma if sigmas is None else sigmas[k]
         photos.append(pair.prepare(image, cam.with_gravity(est.vector), H, hs.hypotheses, 1,
-                                   pair.photo_lines(hs, image), gravity_sigma=s))
+                                   photo_lines(hs, image), gravity_sigma=s))
     return photos
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from findme_core.motion.pair import photo_lines
+from findme_core.motion.photo_lines import photo_lines
 from findme_core.errors import GeometryError
 from findme_core.single import hypotheses, tops
 from findme_core.single.answers import REASONS, Reason
