@@ -131,11 +131,18 @@ def gravity_caveat(photo: str, source: str, sigma_rad: float) -> str | None:
 
 
 def rests_on(caveats) -> str:
-    """The clause a motion's line ends with when it rests on ``caveats`` (``gravity_caveat``
-    texts, None skipped), else ""."""
-    notes = [c for c in caveats if c]
-    return ("; it rests on " + " and ".join(notes) + ", which its figures do not allow for"
-            if notes else "")
+    """The clause a motion's line ends with when it rests on ``caveats`` ((gravity source,
+    ``gravity_caveat`` text or None) per photo, None skipped), else "". A gravity from a
+    photo's lines is tilted by its 1-sigma in the motion (``motion.gravity_spread``); one
+    assumed level is not."""
+    said = [(src, c) for src, c in caveats if c]
+    if not said:
+        return ""
+    level = any(src == "level" for src, _ in said)
+    how = ("which its figures do not allow for" if level and len(said) == 1 else
+           "which its figures allow for only as far as a tilt by that 1-sigma moves the motion"
+           + (" (not at all where level is assumed)" if level else ""))
+    return "; it rests on " + " and ".join(c for _, c in said) + ", " + how
 
 
 def provenance_text(msg) -> str:

@@ -139,5 +139,5 @@ def motion_gravity_text(msg, photo_a: str, photo_b: str, own_a, own_b) -> str:
                       f"(their own were {math.degrees(g.angle_rad):.0f} deg apart)")
     elif g is not None and g.status == "disagree":
         clause = f"; {photo_a} and {photo_b} DISAGREE on which way is down ({g.reason})"
-    return clause + rests_on(gravity_caveat(name, src, s)
+    return clause + rests_on((src, gravity_caveat(name, src, s))
                              for name, (src, s) in zip((photo_a, photo_b), own))

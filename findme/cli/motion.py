@@ -16,6 +16,7 @@ import sys
 import time
 
 from findme_core.geometry.manhattan import pitch_roll_deg
+from findme_core.motion import gravity_spread
 from findme_core.motion.methods import METHODS
 from findme_core.motion.pair import PairResult, motion_photos, photo_of
 from findme_core.single.methods import METHODS as HYPOTHESIS_METHODS
@@ -57,7 +58,10 @@ def motion_json(r: PairResult, metric: bool) -> dict:
     ``alternatives`` the evidence allows too (a symmetric room; another distance along the
     way, when a photo's depths may be wrong), best first;
     ``gravity``, when a photo's gravity came from its lines: whether the two photos agreed
-    on it through their matches (``motion.pair_gravity``)."""
+    on it through their matches (``motion.pair_gravity``); ``gravity_tilts``, then too: the
+    motion estimated again with each such photo's gravity tilted by its 1-sigma
+    (``motion.gravity_spread``; ``another``: a different motion, which the sigmas cover;
+    ``motion`` null: none found)."""
     m = r.motion
     out = _estimate_json(m)
     out.update({"matches": r.matches, "keypoints": list(r.keypoints), "method": m.method,
@@ -69,6 +73,13 @@ def motion_json(r: PairResult, metric: bool) -> dict:
                                                             if math.isfinite(g.angle) else None),
                           "sigma_a_deg": round(math.degrees(g.sigma_a), 3),
                           "sigma_b_deg": round(math.degrees(g.sigma_b), 3), "reason": g.reason}
+    if r.gravity_spread is not None:
+        others = r.gravity_spread.others(m)
+        out["gravity_tilts"] = [
+            {"photo": "AB"[t.photo], "axis": gravity_spread.AXES[t.axis],
+             "tilt_deg": round(math.degrees(t.angle), 3), "another": t in others,
+             "motion": None if t.motion is None else _estimate_json(t.motion)}
+            for t in r.gravity_spread.tilts]
     return out
 
 
@@ -94,8 +105,9 @@ z (forward) of photo A's level view, and the turn (yaw, > 0: B turned right),
 each with its 1-sigma. It registers the two photos' floor-wall boundaries with
 their feature matches; when the evidence allows other motions too (a symmetric
 room; another distance along the way, when a photo's depths may be wrong), they
-are listed and the 1-sigma covers them. Without --camera-height lengths are in
-camera heights.
+are listed and the 1-sigma covers them; so are the motions the photos give when
+a gravity found in their lines (none given) is tilted by its 1-sigma. Without
+--camera-height lengths are in camera heights.
 
 Example:  findme motion a.jpg b.jpg --camera-height 1.45"""
 
@@ -176,6 +188,12 @@ def cmd_motion(args) -> int:
         print(f"  candidate {k} (the evidence allows it too): x {alt['x_m']:+.3f}, "
               f"z {alt['z_m']:+.3f} {unit} ({math.hypot(alt['x_m'], alt['z_m']):.3f} {unit} "
               f"apart), yaw {alt['yaw_deg']:+.2f} deg")
+    for t in out.get("gravity_tilts", ()):
+        if t["another"]:
+            mo = t["motion"]
+            print(f"  photo {t['photo']}'s gravity tilted {t['tilt_deg']:+.1f} deg ({t['axis']}, "
+                  f"its 1-sigma) gives another motion: x {mo['x_m']:+.3f}, z {mo['z_m']:+.3f} "
+                  f"{unit}, yaw {mo['yaw_deg']:+.2f} deg; the 1-sigma covers it")
     for which, s in zip("AB", sources):
         g = s["gravity"]
         if res.gravity is not None and res.gravity.status == "agreed":

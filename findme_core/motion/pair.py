@@ -22,10 +22,10 @@ from findme_core.errors import FindmeError, HypothesisError, MotionError
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.orientation import Orientation, orientation as room_orientation
 from findme_core.geometry.provenance import INPUT_GRAVITY_SIGMA_DEG
-from findme_core.motion import features, lifting, pair_gravity, photometric
+from findme_core.motion import features, gravity_spread, lifting, pair_gravity, photometric
 from findme_core.motion.methods import MotionParams, PlanarMotion, estimate
-from findme_core.single import layout
 from findme_core.motion.photo_lines import line_segments, photo_lines
+from findme_core.single import layout
 from findme_core.single.methods import hypothesize
 from findme_core.single.scene import Scene
 
@@ -34,7 +34,9 @@ from findme_core.single.scene import Scene
 class PairResult:
     """A motion with what produced it (counts, milliseconds per stage; ``gravity``: how the
     photos' gravities were checked against each other, None when the sensors gave both;
-    ``photos``: (A, B) as the motion used them, an unsure one under the agreed gravity)."""
+    ``photos``: (A, B) as the motion used them, an unsure one under the agreed gravity;
+    ``gravity_spread``: how far the motion moved under the gravity errors of photos whose
+    gravity came from their lines, already in its sigmas; None when none did)."""
 
     motion: PlanarMotion
     matches: int
@@ -42,6 +44,7 @@ class PairResult:
     timing_ms: dict
     gravity: pair_gravity.PairGravity | None = None
     photos: tuple = ()
+    gravity_spread: gravity_spread.Spread | None = None
 
 
 @dataclass
@@ -203,35 +206,65 @@ def motion_photos(pa: Photo, pb: Photo, methods=("findme",),
     out = {}
     for method in methods:
         spent = [0.0]
-
-        def lifter(scene, px):
-            if scene is None:
-                return None
-
-            def lift(idx):
-                s = clock()
-                res = lifting.lift(scene, px, idx)
-                spent[0] += clock() - s
-                return res
-            return lift
-
         s = clock()
         try:
-            mo = estimate(m, pa.camera, pb.camera, pa.height, pb.height,
-                          lifter(pa.scene, m.ua), lifter(pb.scene, m.ub), method, params,
-                          layouts=(pa.layouts, pb.layouts),
-                          orientations=(pa.orientation, pb.orientation),
-                          surfaces=(pa.surface, pb.surface))
+            mo = _estimate(m, pa, pb, method, params, clock, spent)
         except FindmeError as e:
             out[method] = e
             continue
-        total = clock() - s
-        out[method] = PairResult(mo, len(m), (len(pa.features), len(pb.features)), {
+        total, lift = clock() - s, spent[0]
+        mo, sp = _gravity_spread(m, pa, pb, mo, method, params, clock, spent)
+        timing = {
             "features": pa.timing_ms.get("features", 0.0) + pb.timing_ms.get("features", 0.0),
             "layout": pa.timing_ms.get("layout", 0.0) + pb.timing_ms.get("layout", 0.0),
-            "matching": 1e3 * (t2 - t1), "lift": 1e3 * spent[0],
-            "motion": 1e3 * (total - spent[0])}, pg, (pa, pb))
+            "matching": 1e3 * (t2 - t1), "lift": 1e3 * lift, "motion": 1e3 * (total - lift)}
+        if sp is not None:
+            timing["gravity_tilts"] = 1e3 * (clock() - s - total)
+        out[method] = PairResult(mo, len(m), (len(pa.features), len(pb.features)), timing, pg,
+                                 (pa, pb), sp)
     return out
+
+
+def _estimate(m, pa: Photo, pb: Photo, method: str, params: MotionParams, clock, spent):
+    """The motion of two prepared photos by ``method`` (the time spent lifting added to
+    ``spent[0]``, seconds)."""
+
+    def lifter(scene, px):
+        if scene is None:
+            return None
+
+        def lift(idx):
+            s = clock()
+            res = lifting.lift(scene, px, idx)
+            spent[0] += clock() - s
+            return res
+        return lift
+
+    return estimate(m, pa.camera, pb.camera, pa.height, pb.height,
+                    lifter(pa.scene, m.ua), lifter(pb.scene, m.ub), method, params,
+                    layouts=(pa.layouts, pb.layouts),
+                    orientations=(pa.orientation, pb.orientation),
+                    surfaces=(pa.surface, pb.surface))
+
+
+def _gravity_spread(m, pa: Photo, pb: Photo, mo: PlanarMotion, method: str,
+                    params: MotionParams, clock, spent):
+    """(``mo`` widened by its photos' gravity errors, ``gravity_spread.Spread`` or None when
+    no photo's gravity came from its lines): ``gravity_spread``."""
+    photos = (pa, pb)
+
+    def under(i, axis, angle):
+        p = photos[i]
+        try:
+            q = relift(p, gravity_spread.tilted(p.camera, axis, angle), p.gravity_sigma)
+            return _estimate(m, *((q, pb) if i == 0 else (pa, q)), method, params, clock, spent)
+        except FindmeError:
+            return None
+
+    sp = gravity_spread.spread(mo, (pa.gravity_sigma, pb.gravity_sigma), under)
+    if not sp.tilts:
+        return mo, None
+    return gravity_spread.widened(mo, sp), sp
 
 
 def agreed_gravity(pa: Photo, pb: Photo, m: features.Matches,

@@ -45,7 +45,15 @@ def test_without_a_check_the_motion_rests_on_the_unsure_gravity():
     text = motion_gravity_text(_msg(), "photo 0", "photo 1", ("image", 1 * DEG),
                                ("image", 25 * DEG))
     assert text == ("; it rests on photo 1's gravity from its lines, unsure (± 25 deg), which "
-                    "its figures do not allow for")
+                    "its figures allow for only as far as a tilt by that 1-sigma moves the motion")
+    level = motion_gravity_text(_msg(), "photo 0", "photo 1", ("image", 1 * DEG),
+                                ("level", 10 * DEG))
+    assert level == ("; it rests on photo 1's gravity ASSUMED LEVEL (± 10 deg), which its "
+                     "figures do not allow for")
+    both = motion_gravity_text(_msg(), "photo 0", "photo 1", ("image", 25 * DEG),
+                               ("level", 10 * DEG))
+    assert both.endswith("which its figures allow for only as far as a tilt by that 1-sigma "
+                         "moves the motion (not at all where level is assumed)")
     assert motion_gravity_text(_msg(), "photo 0", "photo 1", None, None) == ""
 
 
@@ -59,8 +67,8 @@ def test_agreed_photos_are_said_and_rest_on_the_gravity_the_motion_used():
     still = motion_gravity_text(_msg(_pg("agreed", 3, 9 * DEG, 9.2 * DEG)), "photo 0",
                                 "photo 1", ("image", 12 * DEG), ("level", math.inf))
     assert still == ("; it rests on photo 0's gravity from its lines, unsure (± 9 deg) and "
-                     "photo 1's gravity from its lines, unsure (± 9 deg), which its figures do "
-                     "not allow for")
+                     "photo 1's gravity from its lines, unsure (± 9 deg), which its figures "
+                     "allow for only as far as a tilt by that 1-sigma moves the motion")
 
 
 def test_photos_that_disagree_are_said_and_keep_their_caveats():
