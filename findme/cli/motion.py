@@ -74,10 +74,9 @@ def motion_json(r: PairResult, metric: bool) -> dict:
                           "sigma_a_deg": round(math.degrees(g.sigma_a), 3),
                           "sigma_b_deg": round(math.degrees(g.sigma_b), 3), "reason": g.reason}
     if r.gravity_spread is not None:
-        others = r.gravity_spread.others(m)
         out["gravity_tilts"] = [
             {"photo": "AB"[t.photo], "axis": gravity_spread.AXES[t.axis],
-             "tilt_deg": round(math.degrees(t.angle), 3), "another": t in others,
+             "tilt_deg": round(math.degrees(t.angle), 3), "another": t.another,
              "motion": None if t.motion is None else _estimate_json(t.motion)}
             for t in r.gravity_spread.tilts]
     return out

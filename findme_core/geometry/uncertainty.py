@@ -94,6 +94,18 @@ def point_sigmas(scene, px: np.ndarray, rays: np.ndarray, P: np.ndarray,
     return parts, jac
 
 
+def tilted_gravity(camera, direction, angle: float) -> np.ndarray:
+    """(3,) ``camera``'s gravity (camera frame) tilted by ``angle`` radians along ``direction``
+    = (e_p, e_r), weights of a tilt about the level frame's x axis (pitch) and z axis (roll),
+    as a gravity covariance's principal axes are given: turned about e_p x - e_r z, so that
+    dg = e_p z + e_r x (level axes x, z in camera coordinates)."""
+    R = camera.R_level_from_cam
+    e_p, e_r = direction
+    w = angle * (e_p * R[0] - e_r * R[2])
+    Rw, _ = cv2.Rodrigues(np.asarray(w, float).reshape(3, 1))
+    return Rw @ camera.gravity
+
+
 def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndarray,
                           edges: np.ndarray | None = None) -> np.ndarray:
     """(N, 2, 3) camera-frame displacement of each point for a 1-sigma tilt of gravity
@@ -107,20 +119,14 @@ def gravity_displacements(scene, px: np.ndarray, P: np.ndarray, surface: np.ndar
         return out
     cam = scene.camera
     edges = np.full(px.shape, np.nan) if edges is None else edges
-    R = cam.R_level_from_cam
-    x_l, z_l = R[0], R[2]
-    P_cam = P @ R
+    P_cam = P @ cam.R_level_from_cam
     for k in range(2):
         s = float(np.sqrt(max(evals[k], 0.0)))
         if s == 0.0:
             continue
-        e_p, e_r = evecs[:, k]
-        axis = e_p * x_l - e_r * z_l            # dg = axis x g = e_p z_l + e_r x_l
         moved = []
         for sign in (1.0, -1.0):
-            w = sign * TILT_STEP * axis
-            Rw, _ = cv2.Rodrigues(w.reshape(3, 1))
-            c2 = cam.with_gravity(Rw @ cam.gravity)
+            c2 = cam.with_gravity(tilted_gravity(cam, evecs[:, k], sign * TILT_STEP))
             try:
                 pieces = scene._build(scene.polyline, c2)
             except (HypothesisError, GeometryError):

@@ -31,11 +31,11 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Callable
 
-import cv2
 import numpy as np
 
 from findme_core.geometry.camera import Camera
 from findme_core.geometry.planar import wrap
+from findme_core.geometry.uncertainty import tilted_gravity
 from findme_core.motion.alternatives import same
 from findme_core.motion.model import PlanarMotion
 
@@ -44,23 +44,21 @@ AXES = ("pitch", "roll")
 
 def tilted(camera: Camera, axis: int, angle: float) -> np.ndarray:
     """(3,) ``camera``'s gravity turned by ``angle`` radians about its level frame's x axis
-    (``axis`` 0: pitch) or z axis (1: roll)."""
-    R = camera.R_level_from_cam
-    w = angle * (R[0] if axis == 0 else -R[2])
-    Rw, _ = cv2.Rodrigues(np.asarray(w, float).reshape(3, 1))
-    return Rw @ camera.gravity
+    (``axis`` 0: pitch) or z axis (1: roll), as ``uncertainty.tilted_gravity`` tilts it."""
+    return tilted_gravity(camera, (1.0, 0.0) if axis == 0 else (0.0, 1.0), angle)
 
 
 @dataclass(frozen=True)
 class Tilt:
     """One sigma point: photo ``photo`` (0: A, 1: B) with its gravity tilted by ``angle``
-    radians about level axis ``axis`` (``AXES``), and the ``motion`` then estimated (None:
-    none found)."""
+    radians about level axis ``axis`` (``AXES``), the ``motion`` then estimated (None: none
+    found) and whether it is ``another`` motion than the answer (``alternatives.same``)."""
 
     photo: int
     axis: int
     angle: float
     motion: PlanarMotion | None
+    another: bool = False
 
 
 @dataclass(frozen=True)
@@ -77,12 +75,8 @@ class Spread:
         return sum(t.motion is None for t in self.tilts)
 
     def others(self, m: PlanarMotion) -> list[Tilt]:
-        """The tilts that gave another motion than ``m``."""
-        return [t for t in self.tilts if t.motion is not None and not _same(m, t.motion)]
-
-
-def _same(m: PlanarMotion, o: PlanarMotion) -> bool:
-    return same(m.yaw, (m.x, m.z), o.yaw, (o.x, o.z))
+        """The tilts that gave another motion than ``m`` (the answer they were made for)."""
+        return [t for t in self.tilts if t.another]
 
 
 def spread(m: PlanarMotion, sigmas, estimate_under: Callable) -> Spread:
@@ -105,8 +99,9 @@ def spread(m: PlanarMotion, sigmas, estimate_under: Callable) -> Spread:
             sq = np.zeros(3)
             for sign in (1.0, -1.0):
                 o = estimate_under(i, axis, sign * s)
-                tilts.append(Tilt(i, axis, sign * s, o))
-                if o is not None and not _same(m, o):
+                another = o is not None and not same(m.yaw, (m.x, m.z), o.yaw, (o.x, o.z))
+                tilts.append(Tilt(i, axis, sign * s, o, another))
+                if another:
                     sq += np.array([o.x - m.x, o.z - m.z, float(wrap(o.yaw - m.yaw))]) ** 2
             var += sq / 2.0
     return Spread(tuple(tilts), var)
