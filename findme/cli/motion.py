@@ -61,6 +61,7 @@ def motion_json(r: PairResult, metric: bool) -> dict:
     on it through their matches (``motion.pair_gravity``); ``gravity_tilts``, then too: the
     motion estimated again with each such photo's gravity tilted by its 1-sigma
     (``motion.gravity_spread``; ``another``: a different motion, which the sigmas cover;
+    ``ruled_out``: a different motion fewer of the matches agree with, which they do not;
     ``motion`` null: none found)."""
     m = r.motion
     out = _estimate_json(m)
@@ -77,6 +78,7 @@ def motion_json(r: PairResult, metric: bool) -> dict:
         out["gravity_tilts"] = [
             {"photo": "AB"[t.photo], "axis": gravity_spread.AXES[t.axis],
              "tilt_deg": round(math.degrees(t.angle), 3), "another": t.another,
+             "ruled_out": t.ruled_out,
              "motion": None if t.motion is None else _estimate_json(t.motion)}
             for t in r.gravity_spread.tilts]
     return out
@@ -188,11 +190,14 @@ def cmd_motion(args) -> int:
               f"z {alt['z_m']:+.3f} {unit} ({math.hypot(alt['x_m'], alt['z_m']):.3f} {unit} "
               f"apart), yaw {alt['yaw_deg']:+.2f} deg")
     for t in out.get("gravity_tilts", ()):
-        if t["another"]:
+        if t["another"] or t["ruled_out"]:
             mo = t["motion"]
+            why = ("the 1-sigma covers it" if t["another"] else
+                   f"the matches rule it out ({mo['inliers']} agree with it, {out['inliers']} "
+                   "with the answer)")
             print(f"  photo {t['photo']}'s gravity tilted {t['tilt_deg']:+.1f} deg ({t['axis']}, "
                   f"its 1-sigma) gives another motion: x {mo['x_m']:+.3f}, z {mo['z_m']:+.3f} "
-                  f"{unit}, yaw {mo['yaw_deg']:+.2f} deg; the 1-sigma covers it")
+                  f"{unit}, yaw {mo['yaw_deg']:+.2f} deg; {why}")
     for which, s in zip("AB", sources):
         g = s["gravity"]
         if res.gravity is not None and res.gravity.status == "agreed":

@@ -4,7 +4,9 @@ service, and Rerun's own MCAP loader on the view channels; every .rrd is read ba
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
+import time
 from collections import defaultdict
 from pathlib import Path
 
@@ -133,21 +135,57 @@ def _listening(pid: int) -> set[str]:
     return out
 
 
-def test_viewer_servers_bind_localhost_by_default():
-    from services.recording.viewer import Sink, _free_port
-    sink = Sink("web")
-    port, wport = _free_port("127.0.0.1"), _free_port("127.0.0.1")
+def _accepts(proc, port: int, deadline_s: float = 10.0) -> None:
+    """Wait until 127.0.0.1:``port`` accepts a connection, the process exits (between tries
+    it is waited on, 50 ms at a time) or ``deadline_s`` passes."""
+    end = time.monotonic() + deadline_s
+    while time.monotonic() < end:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+            return
+        except OSError:
+            try:
+                proc.wait(timeout=0.05)
+                return
+            except subprocess.TimeoutExpired:
+                continue
+
+
+def _serve_web(sink, port: int, wport: int) -> tuple[bool, set[str], str]:
+    """Start the viewer on ``port`` / ``wport``: (whether it said it is serving, the addresses
+    it then listens on, what it wrote to stderr until then)."""
     proc = subprocess.Popen(sink.command(port, wport), stderr=subprocess.PIPE, text=True,
                             stdout=subprocess.DEVNULL, env=dict(os.environ))
+    said, hosted = [], False
     try:
         for line in proc.stderr:          # wait for the viewer to say it is serving
+            said.append(line)
             if "Hosting a web-viewer" in line:
+                hosted = True
                 break
-        addrs = _listening(proc.pid)
+        if hosted:                        # it may say so before both sockets listen
+            _accepts(proc, port)
+            _accepts(proc, wport)
+        addrs = _listening(proc.pid) if hosted else set()
     finally:
         proc.terminate()
         proc.wait(10)
-    assert f"127.0.0.1:{port}" in addrs and f"127.0.0.1:{wport}" in addrs
+    return hosted, addrs, "".join(said[-10:])
+
+
+def test_viewer_servers_bind_localhost_by_default():
+    """Both the gRPC and the web viewer's port listen on 127.0.0.1 and nowhere else. Two free
+    ports are picked and released before the viewer binds them, so another process may take
+    one meanwhile: that (and only that: "in use") is tried again with new ones."""
+    from services.recording.viewer import Sink, _free_port
+    sink = Sink("web")
+    for _ in range(3):
+        port, wport = _free_port("127.0.0.1"), _free_port("127.0.0.1")
+        hosted, addrs, said = _serve_web(sink, port, wport)
+        if hosted or "in use" not in said:
+            break
+    assert hosted, f"the viewer stopped before serving: {said}"
+    assert f"127.0.0.1:{port}" in addrs and f"127.0.0.1:{wport}" in addrs, (addrs, said)
     assert all(a.startswith("127.0.0.1:") for a in addrs), addrs
 
 
