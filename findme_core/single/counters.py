@@ -252,7 +252,7 @@ def behind(camera: Camera, height: float, hyp: Hypothesis, counters: list[Counte
         verts += [np.array([b1[0], _row(base, b1[0])]), np.array([b2[0], _row(base, b2[0])]), b2]
         kinds += [int(SegKind.STEP), int(SegKind.WALL), int(SegKind.STEP)]
         s = c.last + 1
-    return Hypothesis(np.array(verts), np.array(kinds), hyp.score, hyp.support)
+    return Hypothesis(np.array(verts), np.array(kinds), hyp.score, hyp.support, hyp.flat)
 
 
 def _base(camera: Camera, height: float, c: Counter, b1, b2) -> np.ndarray | None:

@@ -23,6 +23,7 @@ from findme_core.errors import InputError
 from findme_core.geometry import ties
 from findme_core.geometry.camera import Camera
 from findme_core.single.appearance import FloorLikelihood, RegionStats, to_lab
+from findme_core.single.flat import no_floor_first
 from findme_core.single.lines import Lines, LineKind, classify, merge_collinear
 from findme_core.single.paths import path_features, path_pieces, path_polyline, path_rows
 from findme_core.single.ranking import (IDX, N_ADDITIVE, RANK_WEIGHTS, SEARCH_WEIGHTS,
@@ -45,12 +46,15 @@ class Hypothesis:
         kinds: (M - 1,) SegKind of each segment.
         score: ranking score (higher is better).
         support: fraction of the in-image WALL length on edge evidence (the paper's score).
+        flat: share of its WALL columns across which the photo's colour does not step
+            (``flat.flat_share``; measured for the best boundary found; 0: not measured).
     """
 
     polyline: np.ndarray
     kinds: np.ndarray
     score: float
     support: float = 0.0
+    flat: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -257,6 +261,7 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
             poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache, built[2])
         f = ranked[i][3]
         hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[IDX["fraction"]])))
+    hyps = no_floor_first(hyps, lab, max_n)
     if clock:
         t.append(clock())
     return HypothesisSet(W, H, hyps, lines, kinds, None,
