@@ -10,10 +10,12 @@ and the wall below it on the floor, 3.3 m off at +-0.10 m (README, "No floor in 
 
 ``flat_share`` measures, over the boundary's WALL columns inside the photo, the share where
 the mean colour of a band of ``BAND`` rows just above (``GAP`` rows clear of it) and of the
-same band just below differ by less than ``FLAT_STEP``. ``separates_nothing``: most of them
-(``FLAT_SHARE``) over at least ``MIN_COLUMNS`` columns. Constants set by what they mean (the
-bands: a few pixels clear of a blurred edge, a stripe of texture; the step: JPEG's noise in a
-20 x 4 px mean is well under 1 unit; "most of its length": a half), then checked (2026-12-02):
+same band just below differ by less than ``FLAT_STEP``, strip by strip of ``COLUMN_STEP``
+columns. ``separates_nothing``: half of them or more (``FLAT_SHARE``) over at least
+``MIN_COLUMNS`` strips. Constants set by what they mean (the bands: a few pixels clear of a
+blurred edge, a stripe of texture; the step: a few units, over the 0.7-1.8 that one rendered
+coat of paint across a poster's boundary steps by after JPEG; "most of its length": a half),
+then checked (2026-12-02):
 of 18 rendered level photos of walls with posters (6 walls x 0.8-1.3 m) 17 show no floor now
 (11 before); the dev split's top-1 boundaries have a flat share of median 0, 99th percentile
 0.36-0.38 (the dataset's gravity, withheld), highest 0.48: a window on a blank wall with no
@@ -42,9 +44,9 @@ BAND = 20
 COLUMN_STEP = 4
 #: a colour step under this (Euclidean, OpenCV 8-bit Lab units) is no step
 FLAT_STEP = 3
-#: a boundary separates nothing when at least this share of its measured columns is flat
+#: a boundary separates nothing when at least this share of its measured strips is flat
 FLAT_SHARE = 0.5
-#: ... measured over at least this many columns (else it is not judged: 0)
+#: ... measured over at least this many strips (else it is not judged: 0)
 MIN_COLUMNS = 16
 
 
