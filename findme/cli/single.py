@@ -119,6 +119,7 @@ def hypotheses_json(hs, camera=None, provenance=None, view=None) -> dict:
         "width": hs.width, "height": hs.height,
         "hypotheses": [{"rank": i + 1, "score": round(float(h.score), 6),
                         "support": round(float(h.support), 4),
+                        "flat": round(float(h.flat), 4),
                         "polyline": [[round(float(u), 3), round(float(v), 3)] for u, v in h.polyline],
                         "segments": [KIND_NAMES[int(k)] for k in h.kinds]}
                        for i, h in enumerate(hs.hypotheses)],
@@ -160,7 +161,10 @@ def cmd_hypotheses(args) -> int:
           + (" (guesses: this photo does not look like a room):" if not view.ok else ":"))
     for h in out["hypotheses"]:
         corners = " ".join(f"({u:.0f},{v:.0f})" for u, v in h["polyline"])
-        print(f"  {h['rank']:2d}  score {h['score']:7.3f}  edge support {h['support']:.2f}  {corners}")
+        flat = (f"  the same colour above and below along {100 * h['flat']:.0f} % of it"
+                if h["flat"] else "")
+        print(f"  {h['rank']:2d}  score {h['score']:7.3f}  edge support {h['support']:.2f}  "
+              f"{corners}{flat}")
     print(f"  ({out['timing_ms']['total']:.0f} ms)")
     if args.overlay:
         print(f"selection image: {args.overlay}")

@@ -38,6 +38,30 @@ def test_no_lines_is_an_empty_list_with_the_reason(tmp_path):
     assert "hypothesis 1 does not exist" in p.stderr and "no straight lines" in p.stderr
 
 
+def test_a_blank_wall_with_posters_says_no_floor_and_why(tmp_path):
+    """Level, 1 m from the rendered room's wall with its posters: the boundary along a
+    poster's lower edge and on across the paint comes second, after "no floor visible", and
+    both the JSON and the text say how much of it is the same colour above and below."""
+    import math
+    from findme_core.synth.render import Pose, Room, render
+    room = Room.rectangle(5.0, 4.0)
+    (x0, z0), (x1, z1) = room.wall_segment(1)
+    n = room.inward_normal(1)[[0, 2]]
+    c = np.array([(x0 + x1) / 2, (z0 + z1) / 2]) + 1.0 * n
+    v = render(room, Pose(c[0], c[1], 1.4, math.degrees(math.atan2(-n[0], -n[1])), 0, 0),
+               640, 480, hfov_deg=70.0, supersample=1)
+    photo = tmp_path / "posters.jpg"
+    cv2.imwrite(str(photo), v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    args = ("hypotheses", photo, "--intrinsics", intrinsics_flag(v.camera), "--gravity", "0,1,0")
+    out = as_json(run_findme(*args, "--json"))
+    first, second = out["hypotheses"][:2]
+    assert first["segments"] == ["none"] and first["flat"] == 0.0 and second["flat"] >= 0.5
+    view = out["room_view"]
+    assert view["ok"] is False and "no floor is in the photo" in view["reason"]
+    text = run_findme(*args).stdout
+    assert f"the same colour above and below along {100 * second['flat']:.0f} % of it" in text
+
+
 def test_paper_method_and_text_output(level_jpg, level_view):
     p = run_findme("hypotheses", level_jpg, "--intrinsics", intrinsics_flag(level_view.camera),
                    "--method", "paper")
