@@ -7,18 +7,17 @@ Frames and units: pixels of the photo, [u1, v1, u2, v2] per line (pixel-centre o
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
+from findme_core.geometry.camera import Camera
 from findme_core.single.hypotheses import HypothesisParams
 from findme_core.single.lines import detect_segments, merge_collinear
-from findme_core.single.methods import WORK_SIZE
+from findme_core.single.segments import work_image, work_scale
 
 
 def _work_scale(image) -> float:
     """The scale ``methods.hypothesize`` works at for this image (1: full size)."""
-    s = min(1.0, WORK_SIZE / max(image.shape[:2]))
-    return s if s < 0.95 else 1.0
+    return work_scale(*image.shape[:2])
 
 
 def _full_size(ends, s: float):
@@ -43,9 +42,8 @@ def line_segments(image) -> np.ndarray:
     """(N, 4) the photo's merged straight lines [u1, v1, u2, v2] in its pixels, as
     ``methods.hypothesize`` finds them (same working size, detector and settings), for a
     photo whose hypotheses came without their lines (e.g. over the bus)."""
-    s, p = _work_scale(image), HypothesisParams()
-    if s < 1.0:
-        H, W = image.shape[:2]
-        image = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
-    segs = detect_segments(image, p.segment_method, p.min_segment_px, lsd_scale=p.lsd_scale)
+    p = HypothesisParams()
+    H, W = image.shape[:2]
+    small, _, s = work_image(image, Camera.from_hfov(60.0, W, H))   # the camera is not used
+    segs = detect_segments(small, p.segment_method, p.min_segment_px, lsd_scale=p.lsd_scale)
     return _full_size(merge_collinear(segs).ends, s)

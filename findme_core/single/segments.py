@@ -169,13 +169,20 @@ class Segments:
         return segs[_long_enough(segs, self.min_length if min_length is None else min_length)]
 
 
+def work_scale(height: int, width: int, work_size: int = WORK_SIZE) -> float:
+    """The scale a ``height`` x ``width`` photo is worked at: work_size / its long side when
+    that is under 0.95 (a photo barely larger is worked at full size), else 1."""
+    s = min(1.0, work_size / max(height, width))
+    return 1.0 if s >= 0.95 else s
+
+
 def work_image(image: np.ndarray, camera: Camera,
                work_size: int = WORK_SIZE) -> tuple[np.ndarray, Camera, float]:
     """(image, camera, scale s) at the working size: the long side ``work_size`` pixels when
-    the photo is larger (INTER_AREA; s = work / photo), else the photo itself (s = 1)."""
+    the photo is larger (INTER_AREA; s = ``work_scale``), else the photo itself (s = 1)."""
     H, W = image.shape[:2]
-    s = min(1.0, work_size / max(H, W))
-    if s >= 0.95:
+    s = work_scale(H, W, work_size)
+    if s == 1.0:
         return image, camera, 1.0
     small = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
     cam = camera.scaled(s)
