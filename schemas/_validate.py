@@ -446,6 +446,11 @@ _PLACED_SIGMAS = ("sigma_x_m", "sigma_z_m", "sigma_yaw_rad", "ambiguity")
 def _plan_point(p: Problems, name: str, q: plan_pb2.PlanPoint) -> None:
     _finite(p, f"{name}.x_m", q.x_m)
     _finite(p, f"{name}.z_m", q.z_m)
+    sigmas = [f for f in ("sigma_x_m", "sigma_z_m") if q.HasField(f)]
+    if len(sigmas) == 1:
+        p.append(f"{name} has {sigmas[0]} without the other axis's 1-sigma")
+    for f in sigmas:
+        _nonneg(p, f"{name}.{f}", getattr(q, f))
 
 
 def _plan_wall(p: Problems, name: str, w: plan_pb2.PlanWall) -> None:

@@ -5,14 +5,16 @@ show how they hold on a room left out of the fit.
                                    [--json OUT.json]
 
 Plans every dev room (``zind-rooms``, spots from the ids, as ``findme eval``) with the raw
-sigmas (``PlanParams.pose_sigma_model`` = (1, 0, 1, 0), ``length_sigma_model`` = (1, 0): the
-joint refinement's covariance alone), matches every seen wall to the truth and every placed
-photo to its true pose, then fits each term as ``sigma = hypot(k * raw, floor)``
+sigmas (``PlanParams.pose_sigma_model`` = (1, 0, 1, 0), ``length_sigma_model`` and
+``corner_sigma_model`` = (1, 0): the joint refinement's covariance alone), matches every seen
+wall to the truth, every placed photo to its true pose and every scored true corner to the
+nearest vertex, then fits each term as ``sigma = hypot(k * raw, floor)``
 (``sigma_coverage.fit_model``: the coverage within 1 and 3 sigma nearest a Gaussian's):
 
 * on all rooms: the values to put in ``PlanParams`` (findme_core/plan/floorplan.py:
-  ``pose_sigma_model`` and ``length_sigma_model`` from ``--gravity given``,
-  ``image_gravity_models``: its length model from ``--gravity withheld``, where each
+  ``pose_sigma_model``, ``length_sigma_model`` and ``corner_sigma_model`` from ``--gravity
+  given``, ``image_gravity_models``: its length and corner models from ``--gravity
+  withheld``, where each
   photo's gravity comes from its own lines, agreed spot by spot; its pose model, which serves
   a phone's gravity too, from ``--gravity inexact``: withheld and a phone's pooled);
 * leaving each room out in turn: the coverage the left-out room gets from the values fitted
@@ -52,7 +54,8 @@ GRAVITIES = {"given": GravityInput(given=True), "withheld": GravityInput(given=F
 INEXACT = ("withheld", "phone")
 
 RAW = dict(pose_sigma_model=(1.0, 0.0, 1.0, 0.0), length_sigma_model=(1.0, 0.0),
-           image_gravity_models=((1.0, 0.0, 1.0, 0.0), (1.0, 0.0)))
+           corner_sigma_model=(1.0, 0.0),
+           image_gravity_models=((1.0, 0.0, 1.0, 0.0), (1.0, 0.0), (1.0, 0.0)))
 
 
 def raw_plan(job) -> tuple[str, dict | None, str | None]:
@@ -79,7 +82,7 @@ def items(dataset: str, plans: dict) -> dict:
         preds = {"rooms": {k.split("/")[1]: d for k, d in plans.items()
                            if d and k.startswith(g + "/")}}
         for q, v in sc.collect(dataset, preds).items():
-            if q.startswith(("plan pose", "wall length (seen)")):
+            if q.startswith(("plan pose", "wall length (seen)", "plan corner")):
                 out.setdefault(q, []).extend(v)
     return out
 

@@ -15,7 +15,9 @@ share within 1, 2 and 3 sigma (a Gaussian: 0.68 / 0.95 / 0.997; the goal: 0.60-0
   dataset measured (``gravity_measured``: not KITTI's nominal one);
 * pair motion: x, z, yaw errors over ``sigma_x_m`` / ``sigma_z_m`` / ``sigma_yaw_deg``;
 * rooms: wall lengths (walls seen and not seen apart; matched to the truth as the shared
-  ``coverage.py`` does), photo poses on the plan (x, z over ``sigma_xz_m``, yaw).
+  ``coverage.py`` does), photo poses on the plan (x, z over ``sigma_xz_m``, yaw), corners
+  (x and z of the vertex nearest each scored true corner, as the shared scorer's corner
+  error, over ``corner_sigma_m``).
 
 Leave-one-room-out (``--loro``, the default): each sigma is scaled by one factor fitted on the
 OTHER rooms (ZInD: one room per group; TUM: blocks of 6 frames; KITTI: one group) by the rule
@@ -180,6 +182,8 @@ def collect(dataset: str, preds: dict) -> dict:
         g = group_of(rid)
         for kind, e, s in _wall_errors(room, r):
             out[kind].append((g, e, s))
+        for e, s in _corner_errors(room, r):
+            out["plan corner x, z"].append((g, e, s))
         truth = {v: room["poses_planar"][i] if isinstance(room["poses_planar"], list)
                  else room["poses_planar"][v] for i, v in enumerate(room["views"])}
         for v, pose in (r.get("poses") or {}).items():
@@ -193,6 +197,23 @@ def collect(dataset: str, preds: dict) -> dict:
             if sy:
                 out["plan pose yaw"].append((g, abs(wrap_deg(pose["yaw_deg"] - t["yaw_deg"])), sy))
     return out
+
+
+def _corner_errors(room: dict, pr: dict):
+    """(|error|, sigma) along x and along z of the predicted vertex nearest each scored true
+    corner (as the shared scorer's corner error), where that vertex has a 1-sigma (a corner
+    of a wall nobody saw has none: inferred)."""
+    poly = np.asarray(pr.get("floor_polygon_m") or [], float).reshape(-1, 2)
+    sig = pr.get("corner_sigma_m") or []
+    if len(poly) == 0 or len(sig) != len(poly):
+        return
+    truth = np.asarray(room["floor_polygon_m"], float)
+    scored = room.get("corners_scored") or [True] * len(truth)
+    for c in truth[np.asarray(scored, bool)]:
+        j = int(np.argmin(np.linalg.norm(poly - c[None], axis=1)))
+        if sig[j] is not None:
+            for ax in (0, 1):
+                yield abs(float(poly[j, ax] - c[ax])), float(sig[j][ax])
 
 
 def _wall_errors(room: dict, pr: dict):

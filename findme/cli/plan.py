@@ -35,13 +35,14 @@ PLAN_HELP = """\
 The room's floor plan from a session of photos, in the order they were taken:
 stand at a spot, turn round taking photos tilted down so that they show the
 floor, move to the next spot. It prints the walls with their lengths and 1-sigma
-(walls not seen marked), openings, the floor area and where each photo was taken
-(x to the right, z forward of the first photo, yaw in degrees). A photo's camera
-comes from PHOTO.json beside it when there is one (intrinsics, gravity_cam,
-camera_height_m), else from the options and its EXIF. An outline the photos
-contradict is not drawn: when they saw past one of its walls, where each photo
-was taken is still printed, with its 1-sigma, and the exit status is 1; when it
-leaves a camera outside, nothing is (exit status 2, as for an error).
+(walls not seen marked), openings, the floor area, the corners with the 1-sigma
+of their x and z (a corner of a wall not seen is inferred) and where each photo
+was taken (x to the right, z forward of the first photo, yaw in degrees). A
+photo's camera comes from PHOTO.json beside it when there is one (intrinsics,
+gravity_cam, camera_height_m), else from the options and its EXIF. An outline
+the photos contradict is not drawn: when they saw past one of its walls, where
+each photo was taken is still printed, with its 1-sigma, and the exit status is
+1; when it leaves a camera outside, nothing is (exit status 2, as for an error).
 
 Example:  findme plan spot1_*.jpg spot2_*.jpg --camera-height 1.45 \\
               --svg plan.svg"""
@@ -152,6 +153,10 @@ def cmd_plan(args) -> int:
               + (f"± {w.sigma_m:.2f} {unit}" if w.seen else f"{unit} (not seen: inferred, not "
                                                             "measured)")
               + "".join(f", opening {a:.2f}-{b:.2f}" for a, b in w.apertures))
+    for k, (v, s) in enumerate(zip(out["floor_polygon_m"], out["corner_sigma_m"])):
+        print(f"  corner {k}: x {v[0]:+.2f} z {v[1]:+.2f} "
+              + (f"± {s[0]:.2f} / {s[1]:.2f} {unit}" if s is not None else
+                 f"{unit} (a wall not seen: inferred, not measured)"))
     _print_poses(out, unit)
     return 0
 

@@ -78,6 +78,12 @@ window.FindMePlan = (function () {
                                 lengthText(w.length_m, units, plan.metric) + (w.kind === 'missing' ? '?' : '')));
     });
     svg.append(labels);
+    (plan.corner_sigma_m || []).forEach((s, k) => {   // where a corner may be: its 1-sigma
+      if (!s || k >= plan.polygon.length) return;      // none: a corner of a wall not seen
+      const [x, z] = plan.polygon[k];
+      svg.append(el('svg:ellipse', {class: 'plan-corner-sigma', 'data-index': k, cx: x, cy: -z,
+                                    rx: s[0], ry: s[1]}));
+    });
     for (const q of placed(plan)) {
       const s = Math.sin(q.yaw_rad), c = Math.cos(q.yaw_rad), r = 0.8 * fs;
       const tip = [q.x_m + 1.8 * r * s, -(q.z_m + 1.8 * r * c)];

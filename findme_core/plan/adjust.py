@@ -36,6 +36,9 @@ class Refined:
         vertices: (V, 2) refined outline vertices (intersections of consecutive lines).
         length, sigma_length: (V,) wall k's length (vertex k to k + 1) and its 1-sigma, m.
         sigma_pose: (N, 3) 1-sigma of each pose (x, z metres, yaw radians).
+        sigma_corner: (V, 2) 1-sigma of each vertex's x and z, metres (the covariance of the
+            lines it is the intersection of, and the camera height's relative error along
+            its distance from the origin photo).
         chi2_dof: weighted residual sum over degrees of freedom (about 1 when the sigmas
             are right; the covariance is inflated by it when above 1).
         n_samples, n_matches: residuals of each kind that took part.
@@ -48,6 +51,7 @@ class Refined:
     length: np.ndarray
     sigma_length: np.ndarray
     sigma_pose: np.ndarray
+    sigma_corner: np.ndarray
     chi2_dof: float
     n_samples: int
     n_matches: int
@@ -96,8 +100,8 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
     n, d = pr.lines(res.x)
     V = vertices_of(n, d, pr.line, pr.V0)
     length = np.linalg.norm(np.roll(V, -1, axis=0) - V, axis=1)
-    # d length / d x by central differences on the line parameters
-    G = np.zeros((len(V), k))
+    # d length / d x and d vertex / d x by central differences on the line parameters
+    G, Gv = np.zeros((len(V), k)), np.zeros((len(V), 2, k))
     for j in range(pr.n_pose, k):
         h = 1e-6
         xp, xm = res.x.copy(), res.x.copy()
@@ -107,12 +111,15 @@ def refine(layouts, poses, spot, outline, axis=None, snapped=None, links=(), mat
         Vm = vertices_of(*pr.lines(xm), pr.line, pr.V0)
         G[:, j] = (np.linalg.norm(np.roll(Vp, -1, 0) - Vp, axis=1)
                    - np.linalg.norm(np.roll(Vm, -1, 0) - Vm, axis=1)) / (2 * h)
+        Gv[:, :, j] = (Vp - Vm) / (2 * h)
     var = np.einsum("vi,ij,vj->v", G, cov, G) + (params.height_rel * length) ** 2
+    # a vertex's x, z: the lines' covariance, and the height scaling its distance from photo 0
+    var_v = np.einsum("vai,ij,vaj->va", Gv, cov, Gv) + (params.height_rel * V) ** 2
     sp = np.full((pr.N, 3), np.nan)
     for i in np.flatnonzero(pr.placed):
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         s = pr.spot[i]
         xy = (0.0, 0.0) if s == pr.spot[0] else sd[pr.spot_ix[s]:pr.spot_ix[s] + 2]
         sp[i] = (xy[0], xy[1], 0.0 if i == 0 else sd[pr.yaw_ix[i]])
-    return Refined(pr.poses(res.x), n, d, V, length, np.sqrt(var), sp, chi2_dof, len(pr.sp),
-                   int(sum(len(m[2]) for m in pr.mt)))
+    return Refined(pr.poses(res.x), n, d, V, length, np.sqrt(var), sp, np.sqrt(var_v), chi2_dof,
+                   len(pr.sp), int(sum(len(m[2]) for m in pr.mt)))

@@ -8,11 +8,11 @@ turned right (radians inside, degrees in ``to_dict``). The polygon is counter-cl
 from above (positive shoelace area in (x, z)); wall k runs from vertex k to vertex k + 1.
 
 Steps: wall lines (``walls``), the outline on them (``polygon``), then poses and lines refined
-together (``adjust``), whose covariance gives each wall length its 1-sigma (plus the camera
-height's relative error times L: every distance scales with the height). Without the
-refinement a wall's ends move with its neighbours' offsets: sigma_L^2 = sum over both
-neighbours of (sigma_d / sin(angle))^2 plus the height term; a line's offset sigma is the
-spread of its samples about it over the square root of their number.
+together (``adjust``), whose covariance gives each wall length and each corner's x and z its
+1-sigma (plus the camera height's relative error times the length, or the corner's distance
+from the first photo: every distance scales with the height). Without the refinement a wall's
+ends move with its neighbours' offsets (``wall_sigmas``). Each is then scaled by its model
+error (``PlanParams``); a wall nobody saw, and its corners, are inferred: no 1-sigma.
 
 Pure numpy; no I/O (doors and openings: ``apertures``).
 """
@@ -26,7 +26,7 @@ import numpy as np
 
 from findme_core.errors import GeometryError
 from findme_core.motion import register
-from findme_core.plan import adjust, apertures, polygon, seen_past, walls
+from findme_core.plan import adjust, apertures, polygon, seen_past, wall_sigmas, walls
 from findme_core.single.layout import Layout
 
 
@@ -51,7 +51,10 @@ class PlanParams:
             leave-one-room-out figures in docs/RESULTS.md).
         length_sigma_model: (k, floor_m): the same for a seen wall's length. A wall nobody
             saw closes the outline: its length is inferred, not measured (1-sigma NaN).
-        image_gravity_models: (pose model, length model) for gravity that is not exact (the
+        corner_sigma_model: (k, floor_m): the same for a corner's x and z (per axis); a
+            corner of a wall nobody saw is inferred (1-sigma NaN).
+        image_gravity_models: (pose model, length model, corner model) for gravity that is
+            not exact (the
             refinement holds gravity fixed: its covariance misses gravity's error). The pose
             model serves a session with a photo whose ``session.Photo.gravity`` is not
             "exact" (a phone's refined by its lines, "sensor", or "image"), and is fitted on
@@ -91,21 +94,25 @@ class PlanParams:
     # 1 / 2 / 3 sigma in docs/RESULTS.md)
     pose_sigma_model: tuple = (2.22, 0.0, 3.32, 0.0)
     length_sigma_model: tuple = (0.39, 0.066)
-    image_gravity_models: tuple = ((3.15, 0.0, 2.85, 0.0), (0.64, 0.0))
+    # corners (2026-12-02, the same tool; 16 corners' x and z with the dataset's gravity,
+    # 14 with gravity withheld; within 1 / 2 / 3 sigma in sample and left out in
+    # docs/RESULTS.md)
+    corner_sigma_model: tuple = (1.42, 0.0)
+    image_gravity_models: tuple = ((3.15, 0.0, 2.85, 0.0), (0.64, 0.0), (0.74, 0.0251))
     inexact_snap_deg: float = 8.0
 
     def for_gravity(self, kinds) -> PlanParams:
         """These parameters for a session whose placed photos' gravity is of ``kinds``
         (``session.Photo.gravity``: "exact", "sensor", "image"): the pose model of
         ``image_gravity_models`` and ``inexact_snap_deg`` when any is not exact, its length
-        model when any came from the image."""
+        and corner models when any came from the image."""
         kinds, out = set(kinds), self
-        pm, lm = self.image_gravity_models
+        pm, lm, cm = self.image_gravity_models
         if kinds - {"exact"}:
             out = replace(out, pose_sigma_model=pm, lines=replace(
                 out.lines, snap_deg=max(out.lines.snap_deg, self.inexact_snap_deg)))
         if "image" in kinds:
-            out = replace(out, length_sigma_model=lm)
+            out = replace(out, length_sigma_model=lm, corner_sigma_model=cm)
         return out
 
 
@@ -139,6 +146,8 @@ class Plan:
             pose's score (NaN when there was none; near 1: ambiguous).
         pose_sigma: (N, 3) 1-sigma of each pose (x, z metres, yaw radians) from the joint
             refinement (NaN: not refined), or None.
+        corner_sigma: (V, 2) 1-sigma of each vertex's x and z, metres (NaN: a corner of a
+            wall nobody saw, inferred), or None.
     """
 
     polygon: np.ndarray
@@ -149,6 +158,7 @@ class Plan:
     notes: tuple = ()
     ambiguity: tuple = ()
     pose_sigma: np.ndarray | None = None
+    corner_sigma: np.ndarray | None = None
 
     @property
     def closed(self) -> bool:
@@ -177,8 +187,12 @@ class Plan:
             if poses[k] is not None and np.all(np.isfinite(s)):
                 poses[k]["sigma_xz_m"] = round(float(np.hypot(s[0], s[1])), 4)
                 poses[k]["sigma_yaw_deg"] = round(math.degrees(float(s[2])), 3)
+        cs = (self.corner_sigma if self.corner_sigma is not None
+              else np.full((len(self.polygon), 2), np.nan))
         return {
             "floor_polygon_m": np.round(self.polygon, 4).tolist(),
+            "corner_sigma_m": [np.round(c, 4).tolist() if np.all(np.isfinite(c)) else None
+                               for c in cs],
             "area_m2": round(self.area_m2, 3),
             "closed": self.closed,
             "manhattan": self.manhattan,
@@ -206,9 +220,12 @@ class Plan:
                       for w in d["walls"])
         poses = np.array([[p["x_m"], p["z_m"], math.radians(p["yaw_deg"])] if p else
                           [np.nan] * 3 for p in d.get("poses", {}).values()], float).reshape(-1, 3)
-        return cls(np.array(d["floor_polygon_m"], float).reshape(-1, 2), walls,
-                   float(d.get("area_m2", abs(polygon.area(d["floor_polygon_m"])))), poses,
-                   bool(d.get("manhattan", False)))
+        V = np.array(d["floor_polygon_m"], float).reshape(-1, 2)
+        cs = d.get("corner_sigma_m")
+        cs = None if cs is None else np.array([c if c is not None else [np.nan] * 2
+                                               for c in cs], float).reshape(-1, 2)
+        return cls(V, walls, float(d.get("area_m2", abs(polygon.area(V)))), poses,
+                   bool(d.get("manhattan", False)), corner_sigma=cs)
 
 
 def world_walls(L: Layout, pose) -> np.ndarray:
@@ -235,7 +252,7 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
     poses = np.asarray(poses, float).reshape(-1, 3)
     spot = np.arange(len(poses)) if spot is None else spot
     ev, wl, out, snapped = seen_past.outline(layouts, poses, params, spot)
-    V, sig_len, pose_sig = out.vertices, None, None
+    V, sig_len, pose_sig, sig_v = out.vertices, None, None, None
     if refine:   # refine, redraw the outline at the refined poses, refine once more
         try:
             r = adjust.refine(layouts, poses, spot, out, wl.manhattan, snapped, links, matches,
@@ -244,15 +261,22 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
             r = adjust.refine(layouts, r.poses, spot, out, wl.manhattan, snapped, links,
                               matches, focal, params.adjust, prior=poses, tilt=tilt)
             poses, V, sig_len, pose_sig = r.poses, r.vertices, r.sigma_length, r.sigma_pose
+            sig_v = r.sigma_corner
         except GeometryError:
             pass
     lines = polygon.Lines.of(wl)
     used = out.line[out.line >= 0]
     manhattan = wl.manhattan is not None and bool(np.all(snapped[used]))
     if sig_len is None:
-        sig_len = _line_sigmas(out, lines, _offset_sigmas(ev, wl, params), params)
+        sig_d = wall_sigmas.offset_sigmas(ev, wl, params.offset_floor_m)
+        sig_len = wall_sigmas.length_sigmas(out, lines, sig_d, params.height_rel)
+        sig_v = wall_sigmas.corner_sigmas(out, lines, sig_d, params.height_rel)
+    seen = np.asarray(out.seen[:len(V)], bool)
     k, f = params.length_sigma_model
-    sig_len = np.where(out.seen[:len(V)], np.hypot(k * np.asarray(sig_len, float), f), np.nan)
+    sig_len = np.where(seen, np.hypot(k * np.asarray(sig_len, float), f), np.nan)
+    k, f = params.corner_sigma_model     # a corner of a wall nobody saw is inferred
+    sig_v = np.where((seen & np.roll(seen, 1))[:, None],
+                     np.hypot(k * np.asarray(sig_v, float), f), np.nan)
     if pose_sig is not None:
         kx, fx, ky, fy = params.pose_sigma_model
         fixed = pose_sig == 0.0                  # the frame's origin: exact by definition
@@ -271,41 +295,7 @@ def build(layouts, poses, params: PlanParams = PlanParams(), notes=(), ambiguity
     n = len(poses)
     return Plan(V, tuple(walls_), abs(polygon.area(V)), poses, manhattan,
                 tuple(notes) or (None,) * n, tuple(ambiguity) or (float("nan"),) * n,
-                pose_sig if pose_sig is not None else np.full((n, 3), np.nan))
-
-
-def _line_sigmas(out: polygon.Outline, lines: polygon.Lines, sig_d, params: PlanParams):
-    """(V,) wall length 1-sigma without the refinement: each end moves with its neighbour's
-    offset, sigma_L^2 = sum over both neighbours of (sigma_d / sin(angle))^2, plus the camera
-    height's relative error times L."""
-    V = out.vertices
-    res = []
-    for k in range(len(V)):
-        length = float(np.linalg.norm(V[(k + 1) % len(V)] - V[k]))
-        s2 = (params.height_rel * length) ** 2
-        for j in (k - 1, (k + 1) % len(V)):
-            lk, lj = out.line[k], out.line[j]
-            if lk >= 0 and lj >= 0:
-                na, nb = lines.normals[lk], lines.normals[lj]
-                sin = abs(float(na[0] * nb[1] - na[1] * nb[0]))
-                s2 += (sig_d[lj] / max(sin, 0.2)) ** 2
-            else:
-                s2 += 0.1 ** 2   # an end not on a wall line: only the floor raster bounds it
-        res.append(math.sqrt(s2))
-    return np.array(res)
-
-
-def _offset_sigmas(ev: walls.Evidence, wl: walls.WallLines, params: PlanParams) -> np.ndarray:
-    """(K,) 1-sigma of each wall line's offset: the weighted spread of its samples about it
-    over the square root of their number (the wall lines of ``polygon.Lines.of``)."""
-    k_all = wl.walls
-    out = np.full(len(k_all), 0.1)
-    for i, k in enumerate(k_all):
-        m = wl.sample_line == k
-        e = ev.points[m] @ wl.normals[k] - wl.offsets[k]
-        if len(e) >= 2:
-            out[i] = max(float(np.sqrt(np.mean(e ** 2)) / np.sqrt(len(e))), params.offset_floor_m)
-    return out
+                pose_sig if pose_sig is not None else np.full((n, 3), np.nan), sig_v)
 
 
 def _openings(a, b, fans, fan_photo, base: walls.Evidence, params: PlanParams) -> tuple:

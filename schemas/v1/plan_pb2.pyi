@@ -30,12 +30,16 @@ PLAN_PHOTO_STATUS_NOT_PLACED: PlanPhotoStatus
 PLAN_PHOTO_STATUS_LEFT_OUT: PlanPhotoStatus
 
 class PlanPoint(_message.Message):
-    __slots__ = ("x_m", "z_m")
+    __slots__ = ("x_m", "z_m", "sigma_x_m", "sigma_z_m")
     X_M_FIELD_NUMBER: _ClassVar[int]
     Z_M_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_X_M_FIELD_NUMBER: _ClassVar[int]
+    SIGMA_Z_M_FIELD_NUMBER: _ClassVar[int]
     x_m: float
     z_m: float
-    def __init__(self, x_m: _Optional[float] = ..., z_m: _Optional[float] = ...) -> None: ...
+    sigma_x_m: float
+    sigma_z_m: float
+    def __init__(self, x_m: _Optional[float] = ..., z_m: _Optional[float] = ..., sigma_x_m: _Optional[float] = ..., sigma_z_m: _Optional[float] = ...) -> None: ...
 
 class PlanOpening(_message.Message):
     __slots__ = ("from_m", "to_m")

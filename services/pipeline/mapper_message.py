@@ -1,6 +1,6 @@
 """The mapper's Plan message from a core plan (``floorplan.Plan``) and its placement: the
-outline, the walls (seen, openings, missing: a wall nobody saw has no 1-sigma), each photo's
-pose and 1-sigma or the reason it is not placed.
+outline and its corners' 1-sigmas, the walls (seen, openings, missing: a wall nobody saw and
+its corners have no 1-sigma), each photo's pose and 1-sigma or the reason it is not placed.
 
 Frames and units: the plan frame (the level frame of its first photo), metres, radians.
 """
@@ -29,8 +29,12 @@ def fill(msg, plan, pl, timing, photos, order, status, outline: bool = True) -> 
 
 
 def _outline(msg, plan) -> None:
-    for v in plan.polygon:
-        msg.polygon.add(x_m=float(v[0]), z_m=float(v[1]))
+    cs = (plan.corner_sigma if plan.corner_sigma is not None
+          else np.full(plan.polygon.shape, np.nan))
+    for v, s in zip(plan.polygon, cs):
+        q = msg.polygon.add(x_m=float(v[0]), z_m=float(v[1]))
+        if np.all(np.isfinite(s)):   # a corner of a wall nobody saw: inferred, no 1-sigma
+            q.sigma_x_m, q.sigma_z_m = map(float, s)
     for w in plan.walls:
         gaps = sum(b - a for a, b in w.apertures)
         kind = (schemas.WALL_KIND_MISSING if not w.seen else schemas.WALL_KIND_OPENING

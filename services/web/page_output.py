@@ -149,6 +149,8 @@ def plan_to_page(m) -> dict:
             "camera_height_m": m.camera_height_m, "reason": m.reason, "area_m2": m.area_m2,
             "closed": m.closed, "manhattan": m.manhattan,
             "polygon": [xz(q) for q in m.polygon],
+            "corner_sigma_m": [[q.sigma_x_m, q.sigma_z_m] if q.HasField("sigma_x_m") else None
+                               for q in m.polygon],
             "walls": [{"a": xz(w.a), "b": xz(w.b), "length_m": w.length_m,
                        "sigma_m": None if w.kind == schemas.WALL_KIND_MISSING else w.sigma_m,
                        "kind": kind(schemas.WallKind, w.kind, "WALL_KIND_"),

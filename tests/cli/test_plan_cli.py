@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import cv2
 import numpy as np
@@ -58,6 +59,11 @@ def test_the_plan_is_the_rendered_room(session_on_disk):
     V = np.array(plan["floor_polygon_m"])
     dist = np.linalg.norm(V[:, None] - room.polygon[None], axis=2)
     assert len(V) == 4 and dist.min(1).max() < 0.15, V.round(3)
+    # each corner with the 1-sigma of its x and z, the true corner within 3 of them
+    S = np.array(plan["corner_sigma_m"], float)
+    T = room.polygon[dist.argmin(1)]
+    assert S.shape == (4, 2) and np.all((S > 0) & (S < 0.2)), S
+    assert np.all(np.abs(V - T) < 3 * S), (V - T, S)
     # a closed room: no opening (photo 3 faces its wall 1 m away; when its top hypothesis was
     # a poster's lower edge, its floor ran 4 m past the wall and opened it)
     assert [w["apertures"] for w in plan["walls"]] == [[]] * 4
@@ -77,13 +83,18 @@ def test_plain_photos_take_the_flags_camera(session_on_disk, tmp_path):
         plain.append(tmp_path / p.name)
         plain[-1].write_bytes(p.read_bytes())
     c = room.views[0].camera
-    plan = as_json(run_findme("plan", *plain, "--intrinsics", f"{c.fx},{c.fy},{c.cx},{c.cy}",
-                              "--gravity", ",".join(f"{g:.9f}" for g in c.gravity),
-                              "--gravity-sigma", "0", "--camera-height", str(H), "--json",
-                              timeout=300))
-    V = np.array(plan["floor_polygon_m"])
+    out = run_findme("plan", *plain, "--intrinsics", f"{c.fx},{c.fy},{c.cx},{c.cy}",
+                     "--gravity", ",".join(f"{g:.9f}" for g in c.gravity),
+                     "--gravity-sigma", "0", "--camera-height", str(H), timeout=300)
+    assert out.returncode == 0, out.stderr
+    # the text: walls, then each corner as "corner k: x +X z +Z ± SX / SZ m"
+    corners = re.findall(r"^  corner (\d): x ([-+][\d.]+) z ([-+][\d.]+) ± ([\d.]+) / "
+                         r"([\d.]+) m$", out.stdout, re.M)
+    assert [int(k) for k, *_ in corners] == [0, 1, 2, 3], out.stdout
+    V = np.array([[float(x), float(z)] for _, x, z, _, _ in corners])
     dist = np.linalg.norm(V[:, None] - room.polygon[None], axis=2)
-    assert len(V) == 4 and dist.min(1).max() < 0.15, V.round(3)
+    assert dist.min(1).max() < 0.15, V.round(3)
+    assert all(0 < float(s) < 0.2 for *_, sx, sz in corners for s in (sx, sz)), corners
 
 
 def _err(pose, truth):

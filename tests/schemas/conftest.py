@@ -131,9 +131,13 @@ def sample_messages() -> list[tuple[str, object]]:
     walls = [S.PlanWall(a=square[k], b=square[(k + 1) % 4], length_m=5.0 if k % 2 == 0 else 4.0,
                         sigma_m=0.03, kind=kinds[k]) for k in range(4)]
     walls[0].openings.append(S.PlanOpening(from_m=1.2, to_m=2.1))
+    # corners 1 and 2 measured; 3 and 0 end the MISSING wall: inferred, no 1-sigma
+    corners = [P(x_m=q.x_m, z_m=q.z_m) for q in square]
+    for q, s in ((corners[1], (0.04, 0.03)), (corners[2], (0.05, 0.06))):
+        q.sigma_x_m, q.sigma_z_m = s
     plan = S.Plan(
         session=SESSION, up_to_index=4, photos=4, origin_index=1, metric=True,
-        camera_height_m=1.42, polygon=square, walls=walls, area_m2=20.0, closed=False,
+        camera_height_m=1.42, polygon=corners, walls=walls, area_m2=20.0, closed=False,
         manhattan=True, time_ns=T0 + 14_000_000_000,
         timing_ms={"relate": 410.5, "place": 120.25, "plan": 12.0},
         poses=[S.PlanPhoto(index=0, status=S.PLAN_PHOTO_STATUS_LEFT_OUT,

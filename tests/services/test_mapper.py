@@ -61,6 +61,11 @@ def test_the_plan_of_the_rendered_room_is_exact(room, mapped):
     assert d.min(0).max() < 0.04 and d.min(1).max() < 0.04, (V.round(3), T.round(3))
     assert sorted(w.length_m for w in plan.walls) == pytest.approx(room.wall_lengths(), abs=0.03)
     assert all(w.kind == schemas.WALL_KIND_WALL and 0 < w.sigma_m < 0.2 for w in plan.walls)
+    # every corner carries its 1-sigma per axis, and the true corner lies within 3 of them
+    near = T[d.argmin(1)]
+    for q, t in zip(plan.polygon, near):
+        assert q.HasField("sigma_x_m") and 0 < q.sigma_x_m < 0.2 and 0 < q.sigma_z_m < 0.2
+        assert abs(q.x_m - t[0]) < 3 * q.sigma_x_m and abs(q.z_m - t[1]) < 3 * q.sigma_z_m
     assert plan.area_m2 == pytest.approx(abs(polygon.area(T)), rel=0.01)
     assert [q.index for q in plan.poses] == list(range(12))
     assert all(q.status == schemas.PLAN_PHOTO_STATUS_PLACED for q in plan.poses)

@@ -32,6 +32,7 @@ def test_plan_as_the_page_reads_it():
     assert d["walls"][0]["openings"] == [[1.2, 2.1]] and d["walls"][0]["a"] == [-1.5, -1.0]
     assert [q["status"] for q in d["poses"]] == ["left_out", "placed", "placed", "not_placed"]
     assert d["poses"][0]["x_m"] is None and d["poses"][2]["ambiguity"] == 0.35
+    assert d["corner_sigma_m"] == [None, [0.04, 0.03], [0.05, 0.06], None]
     r = to_page("s", samples["plan-reason"])
     assert r["reason"] and r["walls"] == [] and r["polygon"] == []
     r = to_page("s", samples["plan-refused"])       # no outline, the photos' places kept
@@ -46,6 +47,12 @@ def test_a_refused_outline_shows_where_the_photos_were_not_an_older_outline(brow
     render = "m => FindMePlan.render(m, 'm')"
     page.evaluate(render, to_page("s", samples["plan-closed"]))
     assert page.get_attribute("#plan-map", "data-walls") == "4"
+    # each measured corner's 1-sigma drawn; none for the two ends of the missing wall
+    page.evaluate(render, to_page("s", samples["plan"]))
+    corners = page.eval_on_selector_all(
+        "#plan-map ellipse.plan-corner-sigma",
+        "els => els.map(e => [+e.dataset.index, +e.getAttribute('rx'), +e.getAttribute('ry')])")
+    assert corners == [[1, 0.04, 0.03], [2, 0.05, 0.06]]
     refused = to_page("s", samples["plan-refused"])
     page.evaluate(render, refused)
     assert page.get_attribute("#plan", "data-refused") == "true"

@@ -106,6 +106,14 @@ def test_partial_view_names_the_missing_walls():
     assert all(math.isfinite(w.sigma_m) and w.sigma_m > 0 for w in plan.walls if w.seen)
     back = floorplan.Plan.from_dict(d)
     assert all(math.isnan(back.walls[k].sigma_m) for k in plan.missing)
+    # so are the corners of a wall nobody saw: the others have a 1-sigma per axis
+    n = len(plan.polygon)
+    inferred = {v for k in plan.missing for v in (k, (k + 1) % n)}
+    for v in range(n):
+        assert (np.isnan(plan.corner_sigma[v]).all() if v in inferred
+                else bool(np.all(plan.corner_sigma[v] > 0))), (v, plan.corner_sigma)
+        assert (d["corner_sigma_m"][v] is None) == (v in inferred)
+    np.testing.assert_allclose(back.corner_sigma, plan.corner_sigma, atol=1e-4)
 
 
 def test_to_dict_round_trip_and_relocalise():
@@ -175,6 +183,14 @@ def test_refined_wall_lengths_within_their_sigma():
         err = np.abs(true_len - w.length_m).min()
         assert err < 3 * w.sigma_m, (w.length_m, w.sigma_m, true_len)
         assert w.sigma_m < 0.02 * w.length_m + 0.03
+    # every corner's x and z within 3 of its own 1-sigmas of the true corner, and those near
+    # the height term (2 % of its distance from photo 0)
+    raw = floorplan.PlanParams(length_sigma_model=(1.0, 0.0), corner_sigma_model=(1.0, 0.0))
+    plan = floorplan.build(noisy, truth, raw, spot=lab, links=links)
+    for v, s in zip(plan.polygon, plan.corner_sigma):
+        t = poly[np.argmin(np.linalg.norm(poly - v, axis=1))]
+        assert np.all(np.abs(v - t) < 3 * s), (v, t, s)
+        assert np.all(s < 0.02 * np.linalg.norm(v) + 0.03), (v, s)
 
 
 @pytest.mark.parametrize("verts", [[], [[0.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]]])
@@ -268,11 +284,12 @@ def test_a_slanted_wall_stays_off_the_axes_under_inexact_gravity():
 
 def test_plan_params_for_gravity():
     p = floorplan.PlanParams()
-    (pm, lm), snap = p.image_gravity_models, p.inexact_snap_deg
+    (pm, lm, cm), snap = p.image_gravity_models, p.inexact_snap_deg
     assert p.for_gravity({"exact"}) == p
     s = p.for_gravity(["exact", "sensor"])
-    assert (s.pose_sigma_model, s.length_sigma_model, s.lines.snap_deg) == (
-        pm, p.length_sigma_model, snap)
+    assert (s.pose_sigma_model, s.length_sigma_model, s.corner_sigma_model,
+            s.lines.snap_deg) == (pm, p.length_sigma_model, p.corner_sigma_model, snap)
     i = p.for_gravity({"image"})
-    assert (i.pose_sigma_model, i.length_sigma_model, i.lines.snap_deg) == (pm, lm, snap)
+    assert (i.pose_sigma_model, i.length_sigma_model, i.corner_sigma_model,
+            i.lines.snap_deg) == (pm, lm, cm, snap)
     assert p.lines.snap_deg < snap
