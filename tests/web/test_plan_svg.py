@@ -1,8 +1,11 @@
 """``findme plan --svg``'s drawing (findme_io/plan_svg.py) measured in headless Chromium with
 its real fonts: no wall label covers its wall's line, whatever the wall's direction, and
-every label lies inside the drawing."""
+every label lies inside the drawing; each measured corner is drawn with its 1-sigma."""
 
 from __future__ import annotations
+
+import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -62,3 +65,18 @@ def test_wall_labels_clear_their_lines(browser, name, feet):
         assert d > 1.5 + 1.0, f"{box['text']!r} is {d:.1f} px from its wall (stroke 3 px)"
         assert box["x"] >= 0 and box["y"] >= 0, box
         assert box["x"] + box["width"] <= got["w"] and box["y"] + box["height"] <= got["h"], box
+
+
+def test_each_measured_corner_is_drawn_with_its_sigma():
+    """Corners with a 1-sigma get an ellipse of that size (80 px a metre) at the corner; the
+    two ends of the wall nobody saw, inferred, get none."""
+    sig = np.array([[0.05, 0.1], [np.nan, np.nan], [np.nan, np.nan], [0.2, 0.04]])
+    # rectangle: wall 1 (vertex 1 to 2) not seen, so corners 1 and 2 are inferred
+    svg = plan_svg(replace(PLANS["rectangle"], corner_sigma=sig), ["p0"])
+    got = [tuple(float(v) for v in m) for m in re.findall(
+        r'<ellipse class="corner-sigma" cx="([\d.]+)" cy="([\d.]+)" rx="([\d.]+)" '
+        r'ry="([\d.]+)"', svg)]
+    assert [g[2:] for g in got] == [(4.0, 8.0), (16.0, 3.2)]
+    # at corners (0, 0) and (0, 3): the same x, 3 m = 240 px apart (the page's y runs down)
+    assert got[0][0] == got[1][0] and got[0][1] - got[1][1] == pytest.approx(240.0, abs=0.2)
+    assert "corner-sigma" not in plan_svg(PLANS["rectangle"], ["p0"])
