@@ -13,10 +13,10 @@ nearest vertex, then fits each term as ``sigma = hypot(k * raw, floor)``
 
 * on all rooms: the values to put in ``PlanParams`` (findme_core/plan/floorplan.py:
   ``pose_sigma_model``, ``length_sigma_model`` and ``corner_sigma_model`` from ``--gravity
-  given``, ``image_gravity_models``: its length and corner models from ``--gravity
-  withheld``, where each
-  photo's gravity comes from its own lines, agreed spot by spot; its pose model, which serves
-  a phone's gravity too, from ``--gravity inexact``: withheld and a phone's pooled);
+  given``, ``image_gravity_models``: its length model from ``--gravity withheld``, where each
+  photo's gravity comes from its own lines, agreed spot by spot; its pose and corner models,
+  which serve a phone's gravity too, from ``--gravity inexact``: withheld and a phone's
+  pooled);
 * leaving each room out in turn: the coverage the left-out room gets from the values fitted
   on the others (what a room never seen gets), next to the in-sample coverage.
 

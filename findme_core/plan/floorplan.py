@@ -54,12 +54,12 @@ class PlanParams:
         corner_sigma_model: (k, floor_m): the same for a corner's x and z (per axis); a
             corner of a wall nobody saw is inferred (1-sigma NaN).
         image_gravity_models: (pose model, length model, corner model) for gravity that is
-            not exact (the
-            refinement holds gravity fixed: its covariance misses gravity's error). The pose
-            model serves a session with a photo whose ``session.Photo.gravity`` is not
-            "exact" (a phone's refined by its lines, "sensor", or "image"), and is fitted on
-            both pooled (``tools/calibrate_plan.py --gravity inexact``: gravity withheld and
-            a phone's); the length model one with an "image" photo (``--gravity withheld``).
+            not exact (the refinement holds gravity fixed: its covariance misses gravity's
+            error). The pose and corner models serve a session with a photo whose
+            ``session.Photo.gravity`` is not "exact" (a phone's refined by its lines,
+            "sensor", or "image"), and are fitted on both pooled (``tools/calibrate_plan.py
+            --gravity inexact``: gravity withheld and a phone's); the length model one with
+            an "image" photo (``--gravity withheld``).
             Refitted 2026-12-01 with ``inexact_snap_deg``: yaw k 6.05 -> 5.20, length k
             6.36 -> 0.95 (Manhattan walls come out right where they had come out degrees
             off); and again once the refinement marginalised each photo's tilt in its
@@ -95,24 +95,24 @@ class PlanParams:
     pose_sigma_model: tuple = (2.22, 0.0, 3.32, 0.0)
     length_sigma_model: tuple = (0.39, 0.066)
     # corners (2026-12-02, the same tool; 16 corners' x and z with the dataset's gravity,
-    # 14 with gravity withheld; within 1 / 2 / 3 sigma in sample and left out in
-    # docs/RESULTS.md)
+    # 28 with gravity withheld and a phone's pooled; within 1 / 2 / 3 sigma in sample and
+    # left out in docs/RESULTS.md)
     corner_sigma_model: tuple = (1.42, 0.0)
-    image_gravity_models: tuple = ((3.15, 0.0, 2.85, 0.0), (0.64, 0.0), (0.74, 0.0251))
+    image_gravity_models: tuple = ((3.15, 0.0, 2.85, 0.0), (0.64, 0.0), (0.74, 0.0291))
     inexact_snap_deg: float = 8.0
 
     def for_gravity(self, kinds) -> PlanParams:
         """These parameters for a session whose placed photos' gravity is of ``kinds``
-        (``session.Photo.gravity``: "exact", "sensor", "image"): the pose model of
-        ``image_gravity_models`` and ``inexact_snap_deg`` when any is not exact, its length
-        and corner models when any came from the image."""
+        (``session.Photo.gravity``: "exact", "sensor", "image"): the pose and corner models
+        of ``image_gravity_models`` and ``inexact_snap_deg`` when any is not exact, its
+        length model when any came from the image."""
         kinds, out = set(kinds), self
         pm, lm, cm = self.image_gravity_models
         if kinds - {"exact"}:
-            out = replace(out, pose_sigma_model=pm, lines=replace(
+            out = replace(out, pose_sigma_model=pm, corner_sigma_model=cm, lines=replace(
                 out.lines, snap_deg=max(out.lines.snap_deg, self.inexact_snap_deg)))
         if "image" in kinds:
-            out = replace(out, length_sigma_model=lm, corner_sigma_model=cm)
+            out = replace(out, length_sigma_model=lm)
         return out
 
 

@@ -288,7 +288,7 @@ def test_plan_params_for_gravity():
     assert p.for_gravity({"exact"}) == p
     s = p.for_gravity(["exact", "sensor"])
     assert (s.pose_sigma_model, s.length_sigma_model, s.corner_sigma_model,
-            s.lines.snap_deg) == (pm, p.length_sigma_model, p.corner_sigma_model, snap)
+            s.lines.snap_deg) == (pm, p.length_sigma_model, cm, snap)
     i = p.for_gravity({"image"})
     assert (i.pose_sigma_model, i.length_sigma_model, i.corner_sigma_model,
             i.lines.snap_deg) == (pm, lm, cm, snap)
