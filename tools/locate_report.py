@@ -16,8 +16,9 @@ v's pose in o's frame from the room's ``poses_planar``. Success: within 0.25 m a
 the returned poses (best first; a symmetric room gives several) is right, and the
 ambiguity (runner-up score / best score), and what ``findme locate-in`` says
 (``relocalise.verdict``): the pose stated (right or wrong), or the candidates given (the
-right one among them or not). Its last lines check ``relocalise.FOUND_RATIO`` and
-``relocalise.FOUND_SIGMA`` leave one room out. --cache keeps each room's analysed photos.
+right one among them or not). Its last lines check ``relocalise.FOUND_RATIO`` leave one room
+out and fit ``relocalise.FOUND_SIGMA`` on all rooms and with each left out, by the rule the
+product's sigma constants are fitted by. --cache keeps each room's analysed photos.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from findme.evaluation.rooms import room_spots  # noqa: E402
 from findme_core.plan import fuse, relocalise, session  # noqa: E402
 from findme_core.errors import FindmeError, OutlineRefused  # noqa: E402
+from tools import sigma_coverage as sc  # noqa: E402
 from tools.plan_report import cached_photos  # noqa: E402 (the same --cache files)
 
 
@@ -210,26 +212,40 @@ def _found_ratio_loro(rows) -> str:
             f"/ wrong): {', '.join(parts)}; in all {right} / {wrong}")
 
 
+#: the grids ``_found_sigma_loro`` fits the found pose's 1-sigma on: metres (x, z), degrees
+SIGMA_GRID_M = np.exp(np.linspace(np.log(0.005), np.log(1.0), 241))
+SIGMA_GRID_DEG = np.exp(np.linspace(np.log(0.05), np.log(10.0), 241))
+
+
 def _found_sigma_loro(rows) -> str:
     """``relocalise.FOUND_SIGMA`` against the stated poses (turns found with the plan's
-    photos): the RMS errors in sample (x and z pooled; yaw) and the coverage (within 1 / 2 / 3
-    sigma) when each room is scored with the RMS of the other rooms' errors."""
+    photos): the constant 1-sigma fitted by the rule the product's sigma constants are
+    fitted by (``sigma_coverage.fit_factor``: coverage nearest 0.68 within 1 and 0.99 within
+    3; x and z pooled, yaw), on all rooms and with each room left out, the coverage each room
+    gets from the value fitted on the others, and the RMS errors beside them."""
     done = [(room, d) for room, d in _turns_found_with_photos(rows) if d["found"]]
     if not done:
         return "found sigma: no pose stated"
     xz = lambda ds: np.array([e for d in ds for e in (d["dx_m"], d["dz_m"])])  # noqa: E731
     yaw = lambda ds: np.array([d["dyaw_deg"] for d in ds])  # noqa: E731
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))  # noqa: E731
-    zx, zy = [], []
+
+    def fit(e, grid):
+        return sc.fit_factor(lambda s: np.abs(e) / s, grid)[1]
+    zx, zy, folds = [], [], []
     for room in sorted({r for r, _ in done}):
         train, mine = [d for r, d in done if r != room], [d for r, d in done if r == room]
         if train:
-            zx += list(np.abs(xz(mine)) / rms(xz(train)))
-            zy += list(np.abs(yaw(mine)) / rms(yaw(train)))
+            sx, sy = fit(xz(train), SIGMA_GRID_M), fit(yaw(train), SIGMA_GRID_DEG)
+            zx += list(np.abs(xz(mine)) / sx)
+            zy += list(np.abs(yaw(mine)) / sy)
+            folds.append(f"{room} {sx:.3f} m {sy:.2f} deg")
     cov = lambda z: " / ".join(f"{np.mean(np.array(z) <= k):.2f}" for k in (1, 2, 3))  # noqa: E731
     ds = [d for _, d in done]
-    return (f"found sigma {relocalise.FOUND_SIGMA}: in sample RMS x, z {rms(xz(ds)):.3f} m, yaw "
-            f"{rms(yaw(ds)):.2f} deg (n {len(ds)}); leave one room out within 1 / 2 / 3 sigma: "
+    return (f"found sigma {relocalise.FOUND_SIGMA}: fitted on all rooms x, z "
+            f"{fit(xz(ds), SIGMA_GRID_M):.3f} m, yaw {fit(yaw(ds), SIGMA_GRID_DEG):.2f} deg "
+            f"(RMS {rms(xz(ds)):.3f} m, {rms(yaw(ds)):.2f} deg; n {len(ds)}); without each "
+            f"room: {', '.join(folds)}; leave one room out within 1 / 2 / 3 sigma: "
             f"x, z {cov(zx)}, yaw {cov(zy)}")
 
 
