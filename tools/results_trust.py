@@ -146,9 +146,9 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "goal: 0.60-0.80 within 1, >= 0.97 within 3, for >= 10 items; \"left out\": each room's "
         "sigmas scaled by the one factor fitted on the others by the rule the product's sigma "
         "constants are fitted by (`sigma_coverage.fit_factor`: nearest 0.68 within 1 and 0.99 "
-        "within 3), i.e. the constant chosen leave-one-room-out; gravity is scored where the dataset measured it, not on KITTI's nominal "
-        "one). With the dataset's gravity, exact, taken as it is with the default 1-sigma of "
-        "0.5°:", "",
+        "within 3), i.e. the constant chosen leave-one-room-out; gravity is scored where the "
+        "dataset measured it, not on KITTI's nominal one). With the dataset's gravity, exact, "
+        "taken as it is with the default 1-sigma of 0.5°:", "",
         *coverage_rows(split, ours_preds), "",
         "Gravity withheld (`--no-gravity`: gravity from each photo's lines; rooms: agreed spot "
         "by spot, `plan/shared_gravity`):", "",
