@@ -176,7 +176,7 @@ class Plan:
         refused outline's photos are given (``errors.OutlineRefused``)."""
         if not outline:
             return {**replace(self, polygon=np.zeros((0, 2)), walls=(), area_m2=0.0,
-                              manhattan=False).to_dict(ids), "closed": False}
+                              manhattan=False, corner_sigma=None).to_dict(ids), "closed": False}
         ids = list(ids) if ids is not None else [str(i) for i in range(len(self.poses))]
         poses = {}
         sig = self.pose_sigma if self.pose_sigma is not None else np.full((len(ids), 3), np.nan)

@@ -211,9 +211,11 @@ def test_a_plans_poses_without_its_outline():
     plan = floorplan.Plan(np.array([[0.0, 0.0], [4.0, 0.0], [2.0, 3.0]]), walls, 6.0,
                           np.array([[1.0, 1.0, 0.0], [np.nan] * 3]), True,
                           notes=(None, "no layout"), pose_sigma=np.array([[0.03, 0.04, 0.01],
-                                                                          [np.nan] * 3]))
+                                                                          [np.nan] * 3]),
+                          corner_sigma=np.full((3, 2), 0.05))
     full, bare = plan.to_dict(["a", "b"]), plan.to_dict(["a", "b"], outline=False)
     assert bare["floor_polygon_m"] == [] and bare["walls"] == [] and bare["area_m2"] == 0.0
+    assert bare["corner_sigma_m"] == [] and full["corner_sigma_m"] == [[0.05, 0.05]] * 3
     assert bare["closed"] is False and bare["manhattan"] is False
     assert bare["poses"] == full["poses"] and bare["poses"]["a"]["sigma_xz_m"] == 0.05
     assert bare["notes"] == {"b": "no layout"} and len(full["walls"]) == 1
