@@ -86,8 +86,7 @@ def plan_svg(plan: Plan, names=None, truth=None, feet: bool = False, px_per_m: f
         x, y, _, _ = label_box(mid, (u[1], u[0]), label)
         out.append(f'<text x="{x:.1f}" y="{y:.1f}" text-anchor="middle" fill="#222" '
                    f'class="wall-label">{escape(label)}</text>')
-    cs = plan.corner_sigma if plan.corner_sigma is not None else ()
-    for v, sg in zip(plan.polygon, cs):   # where each measured corner may be: its 1-sigma
+    for v, sg in zip(plan.polygon, plan.corner_sigma):   # where a measured corner may be
         if np.all(np.isfinite(sg)):
             x, y = P(v).split(",")
             out.append(f'<ellipse class="corner-sigma" cx="{x}" cy="{y}" '

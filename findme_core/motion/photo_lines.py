@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from findme_core.geometry.camera import Camera
 from findme_core.single.hypotheses import HypothesisParams
 from findme_core.single.lines import detect_segments, merge_collinear
-from findme_core.single.segments import work_image, work_scale
+from findme_core.single.segments import work_pixels, work_scale
 
 
 def _work_scale(image) -> float:
@@ -43,7 +42,6 @@ def line_segments(image) -> np.ndarray:
     ``methods.hypothesize`` finds them (same working size, detector and settings), for a
     photo whose hypotheses came without their lines (e.g. over the bus)."""
     p = HypothesisParams()
-    H, W = image.shape[:2]
-    small, _, s = work_image(image, Camera.from_hfov(60.0, W, H))   # the camera is not used
+    small, s = work_pixels(image)
     segs = detect_segments(small, p.segment_method, p.min_segment_px, lsd_scale=p.lsd_scale)
     return _full_size(merge_collinear(segs).ends, s)

@@ -147,7 +147,7 @@ class Plan:
         pose_sigma: (N, 3) 1-sigma of each pose (x, z metres, yaw radians) from the joint
             refinement (NaN: not refined), or None.
         corner_sigma: (V, 2) 1-sigma of each vertex's x and z, metres (NaN: a corner of a
-            wall nobody saw, inferred), or None.
+            wall nobody saw, inferred; all NaN when not given).
     """
 
     polygon: np.ndarray
@@ -159,6 +159,10 @@ class Plan:
     ambiguity: tuple = ()
     pose_sigma: np.ndarray | None = None
     corner_sigma: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.corner_sigma is None:   # none given: every corner not measured
+            object.__setattr__(self, "corner_sigma", np.full((len(self.polygon), 2), np.nan))
 
     @property
     def closed(self) -> bool:
@@ -187,12 +191,10 @@ class Plan:
             if poses[k] is not None and np.all(np.isfinite(s)):
                 poses[k]["sigma_xz_m"] = round(float(np.hypot(s[0], s[1])), 4)
                 poses[k]["sigma_yaw_deg"] = round(math.degrees(float(s[2])), 3)
-        cs = (self.corner_sigma if self.corner_sigma is not None
-              else np.full((len(self.polygon), 2), np.nan))
         return {
             "floor_polygon_m": np.round(self.polygon, 4).tolist(),
             "corner_sigma_m": [np.round(c, 4).tolist() if np.all(np.isfinite(c)) else None
-                               for c in cs],
+                               for c in self.corner_sigma],
             "area_m2": round(self.area_m2, 3),
             "closed": self.closed,
             "manhattan": self.manhattan,

@@ -79,7 +79,7 @@ def corner_sigmas(out: polygon.Outline, lines: polygon.Lines, sig_d,
             A = np.array([lines.normals[la], lines.normals[lb]], float)
             det = float(A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0])
             inv = np.array([[A[1, 1], -A[0, 1]], [-A[1, 0], A[0, 0]]]) / math.copysign(
-                max(abs(det), MIN_SIN), det if det != 0.0 else 1.0)
+                max(abs(det), MIN_SIN), det)
             var = (inv ** 2) @ (np.array([sig_d[la], sig_d[lb]], float) ** 2)
         res[k] = np.sqrt(var + (height_rel * V[k]) ** 2)
     return res

@@ -176,15 +176,23 @@ def work_scale(height: int, width: int, work_size: int = WORK_SIZE) -> float:
     return 1.0 if s >= 0.95 else s
 
 
-def work_image(image: np.ndarray, camera: Camera,
-               work_size: int = WORK_SIZE) -> tuple[np.ndarray, Camera, float]:
-    """(image, camera, scale s) at the working size: the long side ``work_size`` pixels when
-    the photo is larger (INTER_AREA; s = ``work_scale``), else the photo itself (s = 1)."""
+def work_pixels(image: np.ndarray, work_size: int = WORK_SIZE) -> tuple[np.ndarray, float]:
+    """(image, scale s) at the working size: the long side ``work_size`` pixels when the
+    photo is larger (INTER_AREA; s = ``work_scale``), else the photo itself (s = 1)."""
     H, W = image.shape[:2]
     s = work_scale(H, W, work_size)
     if s == 1.0:
+        return image, 1.0
+    return cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA), s
+
+
+def work_image(image: np.ndarray, camera: Camera,
+               work_size: int = WORK_SIZE) -> tuple[np.ndarray, Camera, float]:
+    """(image, camera, scale s) at the working size (``work_pixels``), the camera scaled to
+    match."""
+    small, s = work_pixels(image, work_size)
+    if s == 1.0:
         return image, camera, 1.0
-    small = cv2.resize(image, (round(W * s), round(H * s)), interpolation=cv2.INTER_AREA)
     cam = camera.scaled(s)
     return (small, Camera(cam.fx, cam.fy, cam.cx, cam.cy, small.shape[1], small.shape[0],
                           cam.gravity), s)
@@ -194,6 +202,4 @@ def photo_segments(image: np.ndarray, work_size: int = WORK_SIZE) -> Segments:
     """The whole-frame segments of a photo at the working size, as the hypotheses detect
     them (``LSD_SCALE``, ``MIN_SEGMENT_PX``): detected once for a photo without gravity,
     they give its gravity (``vanishing.estimate_gravity``) and then its hypotheses."""
-    H, W = image.shape[:2]
-    small, _, _ = work_image(image, Camera.from_hfov(60.0, W, H), work_size)
-    return Segments.detect(small)
+    return Segments.detect(work_pixels(image, work_size)[0])

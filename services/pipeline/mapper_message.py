@@ -29,9 +29,7 @@ def fill(msg, plan, pl, timing, photos, order, status, outline: bool = True) -> 
 
 
 def _outline(msg, plan) -> None:
-    cs = (plan.corner_sigma if plan.corner_sigma is not None
-          else np.full(plan.polygon.shape, np.nan))
-    for v, s in zip(plan.polygon, cs):
+    for v, s in zip(plan.polygon, plan.corner_sigma):
         q = msg.polygon.add(x_m=float(v[0]), z_m=float(v[1]))
         if np.all(np.isfinite(s)):   # a corner of a wall nobody saw: inferred, no 1-sigma
             q.sigma_x_m, q.sigma_z_m = map(float, s)
