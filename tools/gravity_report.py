@@ -63,8 +63,8 @@ def report(dataset: str, preds: dict) -> dict:
                         continue
                     err = float(np.linalg.norm(np.subtract(x, q["xyz_m"])))
                     cover[k].append(err <= sg)
-                    if sp is not None:   # (boundary, height, pixel, gravity) in quadrature
-                        cover_nh[k].append(err <= math.hypot(sp[0], sp[2], sp[3]))
+                    if sp is not None:   # views.SIGMA_PARTS in quadrature, height left out
+                        cover_nh[k].append(err <= math.hypot(sp[0], *sp[2:]))
                     rel[k].append(sg / max(np.linalg.norm(q["xyz_m"]), 1e-9))
         if not ang:
             continue

@@ -135,7 +135,8 @@ def analyse_view(args, seen=None):
             "truth": np.array([meta[kind][i]["xyz_m"] for i in keep]),
             "sigma": np.array([base[i].sigma_m for i in keep]),
             "other": np.array([np.sqrt(sum(base[i].sigma_parts[k] ** 2 for k in
-                                           ("height", "pixel", "gravity"))) for i in keep]),
+                                           ("height", "pixel", "gravity", "surface")))
+                              for i in keep]),
             "on_floor": np.array([base[i].surface == "floor" for i in keep]),
             "alts": np.stack([_xyz(s.locate(px) if s else None, len(px))[keep] for s in alts], 1),
             "shifted": np.stack([_xyz(s.locate(px) if s else None, len(px))[keep]

@@ -27,7 +27,7 @@ from findme_io.imageio import read_image
 
 POINT_KINDS = ("floor_points", "wall_points", "nonfloor_points")
 #: order of the per-point sigma parts written as ``<kind>_sigma_parts_m``
-SIGMA_PARTS = ("boundary", "height", "pixel", "gravity")
+SIGMA_PARTS = ("boundary", "height", "pixel", "gravity", "surface")
 #: the surface a user tapping a dataset's query point would say it is on (``--declared-surface``;
 #: TUM's non-floor points: ``declared_surfaces``)
 DECLARED = {"floor_points": "floor", "wall_points": "wall"}

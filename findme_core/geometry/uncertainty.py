@@ -148,7 +148,8 @@ def distances(points: list, height: float, height_sigma: float):
     Height errors scale every point alike, so that part of a distance's sigma is
     d * height_sigma / height; a gravity tilt moves every point of the photo together, so
     its part is the change of the distance along each tilt axis (``Located.gravity_jac``);
-    boundary and pixel parts are taken as independent.
+    boundary, pixel and surface parts (a top's reading, ``tops.face_or_top``) are taken as
+    independent.
 
     Returns:
         list of (distance | None, sigma | None, error | None), len(points) - 1 entries.
@@ -164,6 +165,8 @@ def distances(points: list, height: float, height_sigma: float):
             grav = float(np.sum(((b.gravity_jac - a.gravity_jac) @ ((b.xyz - a.xyz) / d)) ** 2))
         s = np.sqrt((d * height_sigma / height) ** 2 + grav
                     + a.sigma_parts["boundary"] ** 2 + b.sigma_parts["boundary"] ** 2
-                    + a.sigma_parts["pixel"] ** 2 + b.sigma_parts["pixel"] ** 2)
+                    + a.sigma_parts["pixel"] ** 2 + b.sigma_parts["pixel"] ** 2
+                    + a.sigma_parts["surface"] ** 2
+                    + b.sigma_parts["surface"] ** 2)
         out.append((d, float(s), None))
     return out

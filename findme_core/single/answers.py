@@ -29,6 +29,7 @@ class Reason(IntEnum):
     NO_LINES = 14
     TOP_ABOVE = 15
     TOP_TOO_DEEP = 16
+    FACE_OR_TOP = 17
 
 
 #: Why a pixel has no 3D position, for the user. A point said to be on a wall that the
@@ -86,6 +87,10 @@ REASONS = {
     Reason.TOP_ABOVE:
         "the pixel is at or above the horizon: a top seen there is not below the camera, and "
         "only tops the camera looks down on are measured",
+    Reason.FACE_OR_TOP:
+        "a level edge runs below this point, the front edge of a top (a counter, a cabinet, a "
+        "table) or a line on the wall: on the face below it and on that top the point lies too "
+        "far apart to give one position; say top or wall to measure it on one",
 }
 
 #: What the user should know of an answered point (``scene.Located.note``), by code. A point
@@ -94,18 +99,27 @@ REASONS = {
 #: phone's gravity, surfaces said; ``tools/surface_coverage.py``): in the 86 ZInD views with a
 #: floor point noted, 8.7 % of the wall points lie beyond 3 sigma; 2.0 % in the other 85.
 FLOOR_PAST_LINE = 1
+#: A point nobody said the surface of, read on a face with a top's front edge below it
+#: (``tops.face_or_top``): its 1-sigma spans the face and the top.
+FACE_OR_TOP_NOTE = 2
 NOTES = {
     FLOOR_PAST_LINE:
         "the chosen floor line runs below this point you said is on the floor: if the floor "
         "reaches here, the wall in this direction stands beyond it and the line is wrong there "
         "(walls measured in this direction come out too near); choose a hypothesis whose floor "
         "line runs above this point",
+    FACE_OR_TOP_NOTE:
+        "a level edge runs below this point, the front edge of a top (a counter, a cabinet, a "
+        "table) or a line on the wall: the point is given on the face below it, as the floor "
+        "line has it, and its 1-sigma spans where it would be on that top; if it is on the top "
+        "or beyond it, say top (or floor) to measure it there",
 }
 
 #: The surfaces a located point can be on (and a user can say it is on), by code 1, 2, 3:
 #: the floor, a wall (or the face of anything standing on the floor line), the top of
 #: something standing on it (a table, a counter, a cabinet: ``tops``). A point is on a top
-#: only when said to be: nothing in the boundary tells a top from the wall above it.
+#: only when said to be: nothing in the boundary tells a top from the wall above it (a point
+#: read on a face with a top's edge below it has a 1-sigma that spans both, ``tops``).
 SURFACES = ("floor", "wall", "top")
 SURFACE_NAMES = dict(enumerate(SURFACES, 1))
 SURFACE_CODES = {name: code for code, name in SURFACE_NAMES.items()}

@@ -37,8 +37,9 @@ import numpy as np
 from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
 # the answers' texts live in ``answers``; re-exported here, where they began
-from findme_core.single.answers import (FLOOR_PAST_LINE, NOTES, REASONS,  # noqa: F401
-                                        SURFACE_CODES, SURFACE_NAMES, SURFACES, Reason)
+from findme_core.single.answers import (FACE_OR_TOP_NOTE, FLOOR_PAST_LINE,  # noqa: F401
+                                        NOTES, REASONS, SURFACE_CODES, SURFACE_NAMES,
+                                        SURFACES, Reason)
 from findme_core.single import tops
 from findme_core.single.search import SegKind
 from findme_core.single.seen import shows_floor, walls_seen
@@ -60,9 +61,10 @@ class Located:
         surface: "floor", "wall" or "top" (only when said), None when there is no answer.
         xyz: (3,) camera-frame point in metres, None when there is no answer.
         sigma_m: 1-sigma radius of the point in metres: the root sum of squares of
-            ``sigma_parts`` ("boundary": the boundary off by one pixel, "height": the camera
+            ``sigma_parts`` ("boundary": the boundary off by its sigma, "height": the camera
             height off by its sigma, "pixel": the tap off by one pixel, "gravity": gravity's
-            tilt off by its covariance).
+            tilt off by its covariance, "surface": how far the point would be on the top whose
+            front edge runs below it, nobody having said its surface, ``tops.face_or_top``).
         error: why there is no answer, else None.
         gravity_jac: (2, 3) camera-frame displacement of the point (metres) for a 1-sigma
             tilt of gravity along each principal axis of its covariance (every point of a
@@ -216,6 +218,7 @@ class Scene:
             surface: (N,) 1 floor, 2 wall, 0 none,
             sigma: (N,) 1-sigma radius (m; inf where no answer),
             parts: dict of (N,) sigma components "height", "boundary", "pixel", "gravity",
+                "surface" (zero here),
             reason: (N,) failure reason code (0 = answered; see ``REASONS``).
 
         Unlike ``locate``, points on a wall whose base is not in view (or in a photo that
@@ -232,7 +235,8 @@ class Scene:
         boundary (below the horizon); a top pixel on its top (``tops.place``); a wall pixel
         the boundary puts on the floor gets no
         answer. ``unseen``: answer points on walls whose base is outside the photo (or in a photo
-        that shows almost no floor) too."""
+        that shows almost no floor) too, each face point read on its face alone (the motion's
+        lifting; else a point nobody said the surface of gains ``tops.face_or_top``'s spread)."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         edges = np.full(px.shape, np.nan)   # the front edges of points on tops (``tops.place``)
@@ -263,16 +267,23 @@ class Scene:
         surface = np.where(ok, surface, 0)
         P = t[:, None] * rays
         P[~ok] = np.nan
+        # a face with a top's edge below the point: the top reading's spread (not lifting's)
+        spread = np.zeros(len(px)) if unseen else tops.face_or_top(
+            self, [True] * len(px) if surfaces is None else [x is None for x in surfaces],
+            pxs, rays, t, surface, reason)
+        note = np.where((spread > 0) & (note == 0), FACE_OR_TOP_NOTE, note)
 
         parts, jac = point_sigmas(self, pxs, rays, P, surface, edges)
+        parts["surface"] = spread
         sigma = np.sqrt(sum(x * x for x in parts.values()))
         if self.max_rel_sigma is not None:
             with np.errstate(invalid="ignore"):
                 loose = ok & ~(sigma <= self.max_rel_sigma * np.linalg.norm(P, axis=1))
-            by_gravity = parts["gravity"] >= np.maximum.reduce(
-                [x for k, x in parts.items() if k != "gravity"])
-            reason = np.where(loose, np.where(by_gravity, Reason.LOOSE_GRAVITY, Reason.LOOSE),
-                              reason)
+            rest = np.maximum.reduce([parts[k] for k in ("height", "boundary", "pixel")])
+            by_gravity = parts["gravity"] >= np.maximum(rest, parts["surface"])
+            by_top = ~by_gravity & (parts["surface"] >= rest)
+            reason = np.where(loose, np.select([by_gravity, by_top], [
+                Reason.LOOSE_GRAVITY, Reason.FACE_OR_TOP], Reason.LOOSE), reason)
             ok &= ~loose
             surface = np.where(ok, surface, 0)
             P[~ok] = np.nan

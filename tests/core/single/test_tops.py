@@ -15,8 +15,8 @@ import pytest
 from findme_core.motion.photo_lines import photo_lines
 from findme_core.errors import GeometryError
 from findme_core.single import hypotheses, tops
-from findme_core.single.answers import REASONS, Reason
-from findme_core.single.scene import Scene
+from findme_core.single.answers import FACE_OR_TOP_NOTE, NOTES, REASONS, Reason
+from findme_core.single.scene import Scene, distances
 from findme_core.single.search import SegKind
 from tests.core.level_lines import camera, hline, seg
 
@@ -234,3 +234,86 @@ def test_pixels_meet_the_lines_in_blocks_with_the_same_answer(monkeypatch):
     for block in (1, 7, 161, 500):
         monkeypatch.setattr(tops, "BLOCK", block)
         np.testing.assert_array_equal(tops.edge_rows(*args), whole)
+
+
+def test_a_point_nobody_said_the_surface_of_spans_the_face_and_the_top():
+    """Nothing said, a pixel on the cabinet's top is read on the face below it, as the
+    boundary has it, and its 1-sigma gains the distance to its top reading: the truth, on the
+    top, lies within it, where the face's 1-sigma alone put the top's far side beyond 5."""
+    cam = camera()
+    sc = _scene(cam, _cabinet_lines(cam), boundary_sigma_px=2.0)
+    px, truth = _on_top(cam)
+    plain, said_top = sc.locate(px), sc.locate(px, ["top"] * len(px))
+    z_face = []
+    for p, q, t in zip(plain, said_top, truth):
+        assert p.surface == "wall" and p.note == NOTES[FACE_OR_TOP_NOTE]
+        assert p.sigma_parts["surface"] == pytest.approx(np.linalg.norm(p.xyz - q.xyz))
+        assert p.sigma_m ** 2 == pytest.approx(sum(x * x for x in p.sigma_parts.values()))
+        assert np.linalg.norm(p.xyz - t) <= p.sigma_m
+        z_face.append(np.linalg.norm(p.xyz - t)
+                      / np.sqrt(p.sigma_m ** 2 - p.sigma_parts["surface"] ** 2))
+    assert max(z_face) > 5.0     # the face's own 1-sigma: the far side of the top far beyond
+    # said wall or top, the user has decided: no spread, no note
+    for said in ("wall", "top"):
+        got = sc.locate(px, [said] * len(px))
+        assert all(p.sigma_parts["surface"] == 0 and p.note is None for p in got)
+    # a distance between two such points carries both spreads
+    (d, s, _), = distances(plain[:2], H_CAM, 0.0)
+    assert s ** 2 >= plain[0].sigma_parts["surface"] ** 2 + plain[1].sigma_parts["surface"] ** 2
+    # the motion's lifting reads every face point on its face alone
+    _, _, _, parts, _ = sc.locate_level(px)
+    assert np.all(parts["surface"] == 0)
+
+
+def test_a_face_point_with_no_top_edge_below_it_keeps_its_sigma():
+    """A wall point 1.2 m up above a chair rail (its top reading metres behind the wall,
+    deeper than a top reaches) keeps the face's 1-sigma, with no note."""
+    cam = camera(15.0)
+    P = np.array([[0.2, H_CAM - 1.2, FACE_Z]])
+    uv, _ = cam.project_level(P)
+    got = _scene(cam, np.array([_hline(cam, FACE_Z, 0.9)])).locate(uv)[0]
+    assert got.surface == "wall" and got.sigma_parts["surface"] == 0 and got.note is None
+
+
+def test_readings_too_far_apart_are_refused_with_the_reason():
+    """Where the face and the top put the point farther apart than the scene's allowed
+    share of its distance, it has no answer, and the reason says why and what to say."""
+    cam = camera()
+    sc = _scene(cam, _cabinet_lines(cam), max_rel_sigma=0.1)
+    px, _ = _on_top(cam)
+    got = sc.locate(px)
+    far = [p for p in got if p.xyz is None]
+    assert far and all(p.error == REASONS[Reason.FACE_OR_TOP] for p in far)
+    near = [p for p in got if p.xyz is not None]
+    assert all(p.sigma_m <= 0.1 * np.linalg.norm(p.xyz) for p in near)
+    # said top, the same pixels are answered on the top
+    assert all(p.surface == "top" for p in sc.locate(px, ["top"] * len(px)))
+
+
+def test_the_rendered_cabinets_top_with_nothing_said(box_view):
+    """The rendered cabinet, the photo's own lines, nothing said: every pixel of the top
+    whose front edge the lines find lies within 1.5 of its 1-sigma, and 95 % of all within 3
+    (read on the face with the face's 1-sigma alone, most lie beyond 3)."""
+    v, cam = box_view, box_view.camera
+    hs = hypotheses.generate(v.image, cam, 10)
+    poly = v.ground_truth_boundary_polyline()
+    poly = poly[np.isfinite(poly[:, 1])]
+    sc = Scene(cam, v.camera_height, poly, None, lines=photo_lines(hs, v.image),
+               boundary_sigma_px=2.0)
+    R = cam.R_level_from_cam
+    level = v.points_cam.reshape(-1, 3) @ R.T
+    on_top = (v.labels.ravel() == 50) & (np.abs(v.camera_height - level[:, 1]
+                                                 - v.room.boxes[0].height) < 1e-3)
+    pick = np.flatnonzero(on_top)[::41]
+    w = v.labels.shape[1]
+    px = np.column_stack([pick % w, pick // w]).astype(float)
+    got = sc.locate(px)
+    assert all(p.xyz is not None for p in got) and len(got) >= 30
+    truth = v.points_cam.reshape(-1, 3)[pick]
+    err = np.array([np.linalg.norm(p.xyz - q) for p, q in zip(got, truth)])
+    sig = np.array([p.sigma_m for p in got])
+    spread = np.array([p.sigma_parts["surface"] for p in got])
+    assert np.mean(spread > 0) >= 0.7
+    assert np.all(err[spread > 0] <= 1.5 * sig[spread > 0])
+    assert np.mean(err <= 3 * sig) >= 0.95
+    assert np.mean(err > 3 * np.sqrt(sig ** 2 - spread ** 2)) > 0.5
