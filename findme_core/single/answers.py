@@ -2,12 +2,17 @@
 what to know of it (``NOTES``), and the surfaces a point can be on (``SURFACES``).
 
 The texts reach the CLI, the services' ``MeasuredPoint.error`` / ``note`` and the phone page
-unchanged, so each says what happened and what to do. No computation; no I/O.
+unchanged, so each says what happened and what to do. ``said_codes`` checks what a caller
+said of each pixel. No I/O.
 """
 
 from __future__ import annotations
 
 from enum import IntEnum
+
+import numpy as np
+
+from findme_core.errors import InputError
 
 
 class Reason(IntEnum):
@@ -123,3 +128,22 @@ NOTES = {
 SURFACES = ("floor", "wall", "top")
 SURFACE_NAMES = dict(enumerate(SURFACES, 1))
 SURFACE_CODES = {name: code for code, name in SURFACE_NAMES.items()}
+
+
+def said_codes(surfaces, n: int) -> np.ndarray:
+    """(n,) the ``SURFACE_CODES`` of what was said of each of n pixels (0: nothing said;
+    ``surfaces`` None: nothing said of any).
+
+    Raises:
+        InputError: ``surfaces`` is not one entry per pixel, or names no surface.
+    """
+    if surfaces is None:
+        return np.zeros(n, int)
+    said = list(surfaces)
+    if len(said) != n:
+        raise InputError(f"{len(said)} surfaces said for {n} pixels: say one per pixel "
+                         "(None where nothing is said)")
+    bad = [x for x in said if x is not None and x not in SURFACE_CODES]
+    if bad:
+        raise InputError(f"surface {bad[0]!r} is none of {', '.join(SURFACES)} (or None)")
+    return np.array([SURFACE_CODES.get(x, 0) for x in said], int)

@@ -39,7 +39,7 @@ from findme_core.geometry.camera import Camera
 # the answers' texts live in ``answers``; re-exported here, where they began
 from findme_core.single.answers import (FACE_OR_TOP_NOTE, FLOOR_PAST_LINE,  # noqa: F401
                                         NOTES, REASONS, SURFACE_CODES, SURFACE_NAMES,
-                                        SURFACES, Reason)
+                                        SURFACES, Reason, said_codes)
 from findme_core.single import tops
 from findme_core.single.search import SegKind
 from findme_core.single.seen import shows_floor, walls_seen
@@ -236,7 +236,10 @@ class Scene:
         the boundary puts on the floor gets no
         answer. ``unseen``: answer points on walls whose base is outside the photo (or in a photo
         that shows almost no floor) too, each face point read on its face alone (the motion's
-        lifting; else a point nobody said the surface of gains ``tops.face_or_top``'s spread)."""
+        lifting; else a point nobody said the surface of gains ``tops.face_or_top``'s spread).
+
+        Raises:
+            InputError: ``surfaces`` is not one entry per pixel or names no surface."""
         cam = self.camera
         px = np.asarray(pixels, float).reshape(-1, 2)
         edges = np.full(px.shape, np.nan)   # the front edges of points on tops (``tops.place``)
@@ -251,8 +254,8 @@ class Scene:
         elif not self.shows_floor:   # no wall's foot is seen (``seen.shows_floor``)
             reason = np.where((reason == 0) & (surface == 2), Reason.NO_FLOOR_VIEW, reason)
         note = np.zeros(len(px), int)
+        said = said_codes(surfaces, len(px))     # 0: nothing said
         if surfaces is not None:
-            said = np.array([SURFACE_CODES.get(x, 0) for x in surfaces])
             floor = (said == 1) & (rays[:, 1] > 0)
             note[floor & (surface != 1)] = FLOOR_PAST_LINE   # the line puts no floor here
             t = np.where(floor, self.height / np.where(floor, rays[:, 1], 1.0), t)
@@ -269,8 +272,7 @@ class Scene:
         P[~ok] = np.nan
         # a face with a top's edge below the point: the top reading's spread (not lifting's)
         spread = np.zeros(len(px)) if unseen else tops.face_or_top(
-            self, [True] * len(px) if surfaces is None else [x is None for x in surfaces],
-            pxs, rays, t, surface, reason)
+            self, said == 0, pxs, rays, t, surface, reason)
         note = np.where((spread > 0) & (note == 0), FACE_OR_TOP_NOTE, note)
 
         parts, jac = point_sigmas(self, pxs, rays, P, surface, edges)
@@ -292,7 +294,8 @@ class Scene:
 
     def locate(self, pixels, surfaces=None) -> list[Located]:
         """3D of each (u, v) pixel (N, 2) in the camera frame; failures are reported per
-        point (``Located.error``), not raised. ``surfaces``: as ``_locate_all``."""
+        point (``Located.error``), not raised. ``surfaces``: as ``_locate_all`` (InputError
+        when they are not one surface or None per pixel)."""
         px = np.asarray(pixels, float).reshape(-1, 2)
         P, surface, sigma, parts, reason, jacs, notes = self._locate_all(px, surfaces)
         R = self.camera.R_level_from_cam

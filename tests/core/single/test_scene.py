@@ -2,7 +2,7 @@ import cv2
 import numpy as np
 import pytest
 
-from findme_core.errors import GeometryError, HypothesisError
+from findme_core.errors import GeometryError, HypothesisError, InputError
 from findme_core.geometry.camera import Camera
 from findme_core.single.scene import REASONS, Scene, boundary_sigma_px, distances
 from findme_core.single.search import SegKind
@@ -89,6 +89,19 @@ def test_outside_image_and_nan():
     out = scene.locate([(-5, 10), (700, 10), (float("nan"), 3)])
     assert [p.xyz for p in out] == [None] * 3
     assert "outside the 640x480 image" in out[0].error and "not finite" in out[2].error
+
+
+@pytest.mark.parametrize("said,msg", [
+    (["floor"], "1 surfaces said for 2 pixels"),           # was applied to both pixels
+    (["wall", "top", "floor"], "3 surfaces said for 2"),  # was a numpy broadcast error
+    (["bogus", None], "surface 'bogus' is none of floor, wall, top"),   # was taken as unsaid
+])
+def test_what_is_said_is_one_surface_or_none_per_pixel(said, msg):
+    scene = Scene(Camera.from_hfov(70, 640, 480), 1.5, [[0, 400], [639, 400]])
+    with pytest.raises(InputError, match=msg):
+        scene.locate([(320, 100), (320, 450)], said)
+    got = scene.locate([(320, 100), (320, 450)], [None, "floor"])
+    assert [p.surface for p in got] == ["wall", "floor"]
 
 
 def test_open_and_none_segments():
