@@ -80,7 +80,9 @@ def test_said_surfaces_reach_the_service_and_come_back(app):
 def test_a_point_said_on_a_top_comes_back_on_it(app, counter_view):
     """A rendered counter against the far wall, through a real gateway and measurement
     service: a pixel of its top said "top" comes back on the top (its front edge found among
-    the lines the hypotheses came with), one of the floor said "top" with no point and why."""
+    the lines the hypotheses came with), one of the floor said "top" with no point and why.
+    Said nothing, a top pixel comes back on the counter's face with a 1-sigma that spans its
+    top reading and the note that says so, or with no point and why."""
     v, cam = counter_view, counter_view.camera
     lens = {"kind": "intrinsics", "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
             "width": cam.width, "height": cam.height}
@@ -98,10 +100,22 @@ def test_a_point_said_on_a_top_comes_back_on_it(app, counter_view):
             await next_of(ws, "scene", index=0, rank=1)
             await ws.send_str(json.dumps({"type": "measure", "id": 1, "index": 0,
                                           "pixels": pixels, "surfaces": ["top"] * len(pixels)}))
-            return await next_of(ws, "measure", id=1)
+            said = await next_of(ws, "measure", id=1)
+            await ws.send_str(json.dumps({"type": "measure", "id": 2, "index": 0,
+                                          "pixels": pixels[:-1]}))
+            return said, await next_of(ws, "measure", id=2)
 
-    reply = asyncio.run(run())
-    assert not reply["error"], reply
+    reply, unsaid = asyncio.run(run())
+    assert not reply["error"] and not unsaid["error"], (reply, unsaid)
+    assert sum(p["xyz"] is not None for p in unsaid["points"]) >= 2, unsaid
+    for p, q, t in zip(unsaid["points"], reply["points"], truth):
+        if p["xyz"] is None:
+            assert "too far apart to give one position; say top or wall" in p["error"], p
+            continue
+        assert (p["surface"], p["said"]) == ("wall", None), p
+        assert "a level edge runs below this point" in p["note"], p
+        assert np.linalg.norm(np.subtract(p["xyz"], t)) < 3 * p["sigma_m"], (p, t)
+        assert p["sigma_m"] > np.linalg.norm(np.subtract(p["xyz"], q["xyz"])) * 0.9, (p, q)
     *tops, on_floor = reply["points"]
     assert len(tops) >= 3
     for p, t in zip(tops, truth):
