@@ -255,7 +255,7 @@ class Scene:
             reason = np.where((reason == 0) & (surface == 2), Reason.NO_FLOOR_VIEW, reason)
         note = np.zeros(len(px), int)
         said = said_codes(surfaces, len(px))     # 0: nothing said
-        if surfaces is not None:
+        if said.any():
             floor = (said == 1) & (rays[:, 1] > 0)
             note[floor & (surface != 1)] = FLOOR_PAST_LINE   # the line puts no floor here
             t = np.where(floor, self.height / np.where(floor, rays[:, 1], 1.0), t)
@@ -273,7 +273,7 @@ class Scene:
         # a face with a top's edge below the point: the top reading's spread (not lifting's)
         spread = np.zeros(len(px)) if unseen else tops.face_or_top(
             self, said == 0, pxs, rays, t, surface, reason)
-        note = np.where((spread > 0) & (note == 0), FACE_OR_TOP_NOTE, note)
+        note = np.where(spread > 0, FACE_OR_TOP_NOTE, note)   # unsaid: no other note
 
         parts, jac = point_sigmas(self, pxs, rays, P, surface, edges)
         parts["surface"] = spread

@@ -214,14 +214,15 @@ def face_or_top(scene, unsaid, px, rays, t, surface, reason,
 
     A pixel in ``unsaid`` (N,) bool, nobody having said its surface, that the boundary puts on
     a face (``surface`` 2, ``reason`` 0, ray parameter ``t``) has a top reading where
-    ``place`` finds a top's front edge below it; the spread is |t_top - t| |r| (``rays``:
-    (N, 3) level rays of the (N, 2) pixels ``px``): how far apart the two answers lie.
+    ``place`` (taking those pixels as said top) finds a top's front edge below it; the spread
+    is |t_top - t| |r| (``rays``: (N, 3) level rays of the (N, 2) pixels ``px``): how far
+    apart the two answers lie.
     """
-    face = np.asarray(unsaid, bool) & (reason == 0) & (surface == 2) & (rays[:, 1] > 0)
+    unsaid = np.asarray(unsaid, bool)
     out = np.zeros(len(px))
-    if scene.lines is None or not face.any():
+    if scene.lines is None or not unsaid.any():
         return out
-    t_top, s_top, _, _ = place(scene, face, px, rays, t, surface, reason, params)
-    top = face & (s_top == 3)
+    t_top, s_top, _, _ = place(scene, unsaid, px, rays, t, surface, reason, params)
+    top = unsaid & (s_top == 3)
     out[top] = np.abs(t_top[top] - t[top]) * np.linalg.norm(rays[top], axis=1)
     return out

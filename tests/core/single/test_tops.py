@@ -18,6 +18,7 @@ from findme_core.single import hypotheses, tops
 from findme_core.single.answers import FACE_OR_TOP_NOTE, NOTES, REASONS, Reason
 from findme_core.single.scene import Scene, distances
 from findme_core.single.search import SegKind
+from tests.conftest import top_pixels
 from tests.core.level_lines import camera, hline, seg
 
 H_CAM, FACE_Z, TOP, BACK_Z = 1.45, 2.0, 0.6, 2.5
@@ -164,13 +165,19 @@ def test_a_top_points_sigma_moves_with_its_boundary_and_edge():
         np.testing.assert_allclose(p.xyz, q.xyz, atol=1e-9)   # the answer is the same
 
 
+def _rendered_scene(v, **kw):
+    """The rendered view's scene under its true boundary, with the lines the detector finds
+    in the photo (``kw``: the scene's other arguments)."""
+    hs = hypotheses.generate(v.image, v.camera, 10)
+    poly = v.ground_truth_boundary_polyline()
+    poly = poly[np.isfinite(poly[:, 1])]
+    return Scene(v.camera, v.camera_height, poly, None, lines=photo_lines(hs, v.image), **kw)
+
+
 def test_the_rendered_cabinets_top_from_the_photos_own_lines(box_view):
     """The detector's lines of a rendered photo: every answered point lies on the top."""
     v, cam = box_view, box_view.camera
-    hs = hypotheses.generate(v.image, cam, 10)
-    poly = v.ground_truth_boundary_polyline()
-    poly = poly[np.isfinite(poly[:, 1])]
-    sc = Scene(cam, v.camera_height, poly, None, lines=photo_lines(hs, v.image))
+    sc = _rendered_scene(v)
     R = cam.R_level_from_cam
     level = v.points_cam.reshape(-1, 3) @ R.T
     height = v.camera_height - level[:, 1]
@@ -294,22 +301,9 @@ def test_the_rendered_cabinets_top_with_nothing_said(box_view):
     """The rendered cabinet, the photo's own lines, nothing said: every pixel of the top
     whose front edge the lines find lies within 1.5 of its 1-sigma, and 95 % of all within 3
     (read on the face with the face's 1-sigma alone, most lie beyond 3)."""
-    v, cam = box_view, box_view.camera
-    hs = hypotheses.generate(v.image, cam, 10)
-    poly = v.ground_truth_boundary_polyline()
-    poly = poly[np.isfinite(poly[:, 1])]
-    sc = Scene(cam, v.camera_height, poly, None, lines=photo_lines(hs, v.image),
-               boundary_sigma_px=2.0)
-    R = cam.R_level_from_cam
-    level = v.points_cam.reshape(-1, 3) @ R.T
-    on_top = (v.labels.ravel() == 50) & (np.abs(v.camera_height - level[:, 1]
-                                                 - v.room.boxes[0].height) < 1e-3)
-    pick = np.flatnonzero(on_top)[::41]
-    w = v.labels.shape[1]
-    px = np.column_stack([pick % w, pick // w]).astype(float)
-    got = sc.locate(px)
+    px, truth = top_pixels(box_view, step=41)
+    got = _rendered_scene(box_view, boundary_sigma_px=2.0).locate(px)
     assert all(p.xyz is not None for p in got) and len(got) >= 30
-    truth = v.points_cam.reshape(-1, 3)[pick]
     err = np.array([np.linalg.norm(p.xyz - q) for p, q in zip(got, truth)])
     sig = np.array([p.sigma_m for p in got])
     spread = np.array([p.sigma_parts["surface"] for p in got])
