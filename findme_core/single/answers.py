@@ -1,5 +1,6 @@
-"""What a located pixel's answer says to the user: why it has none (``Reason``, ``REASONS``),
-what to know of it (``NOTES``), and the surfaces a point can be on (``SURFACES``).
+"""What a located pixel's answer says to the user: the answer (``Located``), why it has none
+(``Reason``, ``REASONS``), what to know of it (``NOTES``), and the surfaces a point can be on
+(``SURFACES``).
 
 The texts reach the CLI, the services' ``MeasuredPoint.error`` / ``note`` and the phone page
 unchanged, so each says what happened and what to do. ``said_codes`` checks what a caller
@@ -8,6 +9,7 @@ said of each pixel. No I/O.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
@@ -35,6 +37,7 @@ class Reason(IntEnum):
     TOP_ABOVE = 15
     TOP_TOO_DEEP = 16
     FACE_OR_TOP = 17
+    FLOOR_OR_FACE = 18
 
 
 #: Why a pixel has no 3D position, for the user. A point said to be on a wall that the
@@ -96,6 +99,11 @@ REASONS = {
         "a level edge runs below this point, the front edge of a top (a counter, a cabinet, a "
         "table) or a line on the wall: on the face below it and on that top the point lies too "
         "far apart to give one position; say top or wall to measure it on one",
+    Reason.FLOOR_OR_FACE:
+        "this point lies beside an edge where the floor line steps back (the side of a "
+        "cabinet, a door frame, a wall's end): on the floor behind it and on the face of what "
+        "stands in front, the point lies too far apart to give one position; say floor or "
+        "wall to measure it on one",
 }
 
 #: What the user should know of an answered point (``scene.Located.note``), by code. A point
@@ -107,6 +115,9 @@ FLOOR_PAST_LINE = 1
 #: A point nobody said the surface of, read on a face with a top's front edge below it
 #: (``tops.face_or_top``): its 1-sigma spans the face and the top.
 FACE_OR_TOP_NOTE = 2
+#: A point nobody said the surface of, read on the floor just beside a step of the floor line
+#: (``steps.floor_or_face``): its 1-sigma spans the floor and the face in front.
+FLOOR_OR_FACE_NOTE = 3
 NOTES = {
     FLOOR_PAST_LINE:
         "the chosen floor line runs below this point you said is on the floor: if the floor "
@@ -118,6 +129,11 @@ NOTES = {
         "table) or a line on the wall: the point is given on the face below it, as the floor "
         "line has it, and its 1-sigma spans where it would be on that top; if it is on the top "
         "or beyond it, say top (or floor) to measure it there",
+    FLOOR_OR_FACE_NOTE:
+        "this point lies beside an edge where the floor line steps back (the side of a "
+        "cabinet, a door frame, a wall's end): it is given on the floor behind, as the floor "
+        "line has it, and its 1-sigma spans where it would be on the face in front; if it is "
+        "on that face, say wall to measure it there",
 }
 
 #: The surfaces a located point can be on (and a user can say it is on), by code 1, 2, 3:
@@ -147,3 +163,34 @@ def said_codes(surfaces, n: int) -> np.ndarray:
     if bad:
         raise InputError(f"surface {bad[0]!r} is none of {', '.join(SURFACES)} (or None)")
     return np.array([SURFACE_CODES.get(x, 0) for x in said], int)
+
+
+@dataclass(frozen=True)
+class Located:
+    """3D position of one tapped pixel.
+
+    Attributes:
+        pixel: (u, v).
+        surface: "floor", "wall" or "top" (only when said), None when there is no answer.
+        xyz: (3,) camera-frame point in metres, None when there is no answer.
+        sigma_m: 1-sigma radius of the point in metres: the root sum of squares of
+            ``sigma_parts`` ("boundary": the boundary off by its sigma, "height": the camera
+            height off by its sigma, "pixel": the tap off by one pixel, "gravity": gravity's
+            tilt off by its covariance, "surface": nobody having said its surface, how far the
+            point would be on the top whose front edge runs below it, ``tops.face_or_top``, or
+            on the face in front of a step of the boundary beside it, ``steps.floor_or_face``).
+        error: why there is no answer, else None.
+        gravity_jac: (2, 3) camera-frame displacement of the point (metres) for a 1-sigma
+            tilt of gravity along each principal axis of its covariance (every point of a
+            photo moves together: ``distances`` uses it), None when gravity is exact.
+        note: what the user should know of an answered point (``NOTES``), else None.
+    """
+
+    pixel: tuple[float, float]
+    surface: str | None
+    xyz: np.ndarray | None
+    sigma_m: float | None = None
+    sigma_parts: dict | None = None
+    error: str | None = None
+    gravity_jac: np.ndarray | None = None
+    note: str | None = None

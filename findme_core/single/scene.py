@@ -18,7 +18,9 @@ above the photo's edge) is a wall nobody saw the base of: ``locate`` gives its p
 (``Reason.UNSEEN``) rather than a distance that is an inference; so does every wall of a
 photo that shows almost no floor under its boundary (``Reason.NO_FLOOR_VIEW``,
 ``seen.shows_floor``). A pixel said to be on the top of something standing on the boundary
-(a table, a counter) is put on that top (``tops``). The texts a user reads are ``answers``'.
+(a table, a counter) is put on that top (``tops``). A floor point just beside a step of the
+boundary may be on the face in front of it instead (``steps``). The texts a user reads are
+``answers``'.
 
 A point whose 1-sigma (``uncertainty``) exceeds ``max_rel_sigma`` of its distance is not
 placed: an honest "unknown" (``Reason.LOOSE``) rather than a guess. On real photos these
@@ -30,17 +32,15 @@ How far each point may be off (boundary, height, tap, gravity) is ``uncertainty`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
 # the answers' texts live in ``answers``; re-exported here, where they began
-from findme_core.single.answers import (FACE_OR_TOP_NOTE, FLOOR_PAST_LINE,  # noqa: F401
-                                        NOTES, REASONS, SURFACE_CODES, SURFACE_NAMES,
-                                        SURFACES, Reason, said_codes)
-from findme_core.single import tops
+from findme_core.single.answers import (FACE_OR_TOP_NOTE, FLOOR_OR_FACE_NOTE,  # noqa: F401
+                                        FLOOR_PAST_LINE, NOTES, REASONS, SURFACE_CODES,
+                                        SURFACE_NAMES, SURFACES, Located, Reason, said_codes)
+from findme_core.single import steps, tops
 from findme_core.single.search import SegKind
 from findme_core.single.seen import shows_floor, walls_seen
 # the uncertainty of the points lives in ``uncertainty``; re-exported here, where it began
@@ -52,36 +52,6 @@ _PARALLEL = 1e-9
 #: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
 #: not fitted
 MAX_REL_SIGMA = 0.5
-@dataclass(frozen=True)
-class Located:
-    """3D position of one tapped pixel.
-
-    Attributes:
-        pixel: (u, v).
-        surface: "floor", "wall" or "top" (only when said), None when there is no answer.
-        xyz: (3,) camera-frame point in metres, None when there is no answer.
-        sigma_m: 1-sigma radius of the point in metres: the root sum of squares of
-            ``sigma_parts`` ("boundary": the boundary off by its sigma, "height": the camera
-            height off by its sigma, "pixel": the tap off by one pixel, "gravity": gravity's
-            tilt off by its covariance, "surface": how far the point would be on the top whose
-            front edge runs below it, nobody having said its surface, ``tops.face_or_top``).
-        error: why there is no answer, else None.
-        gravity_jac: (2, 3) camera-frame displacement of the point (metres) for a 1-sigma
-            tilt of gravity along each principal axis of its covariance (every point of a
-            photo moves together: ``distances`` uses it), None when gravity is exact.
-        note: what the user should know of an answered point (``NOTES``), else None.
-    """
-
-    pixel: tuple[float, float]
-    surface: str | None
-    xyz: np.ndarray | None
-    sigma_m: float | None = None
-    sigma_parts: dict | None = None
-    error: str | None = None
-    gravity_jac: np.ndarray | None = None
-    note: str | None = None
-
-
 class Scene:
     """Floor and walls of one photo under one hypothesis.
 
@@ -153,8 +123,8 @@ class Scene:
                 f"{poly[s + 1].round(1).tolist()} reaches the horizon: not a floor line")
         with np.errstate(divide="ignore", invalid="ignore"):   # (vertices of no wall)
             q = (self.height / r[:, 1])[:, None] * r[:, [0, 2]]   # eq. 2 on each vertex
-        d = q[1:] - q[:-1]
-        length = np.hypot(d[:, 0], d[:, 1])
+            d = q[1:] - q[:-1]
+            length = np.hypot(d[:, 0], d[:, 1])
         wall &= ~(length < 1e-9)                   # a wall of no length: no piece
         normal, offset = np.zeros((len(wall), 2)), np.zeros(len(wall))
         normal[wall] = np.column_stack([-d[wall, 1], d[wall, 0]]) / length[wall, None]
@@ -230,13 +200,13 @@ class Scene:
     def _locate_all(self, pixels, surfaces=None, unseen: bool = False):
         """``locate_level``'s five results plus the (N, 2, 3) gravity displacements
         (``uncertainty.point_sigmas``) and the (N,) note codes (``NOTES``; 0: none).
-        ``surfaces``: (N,) "floor", "wall", "top" or None per pixel,
-        the surface the user says it is on: a floor pixel is put on the floor whatever the
-        boundary (below the horizon); a top pixel on its top (``tops.place``); a wall pixel
-        the boundary puts on the floor gets no
-        answer. ``unseen``: answer points on walls whose base is outside the photo (or in a photo
-        that shows almost no floor) too, each face point read on its face alone (the motion's
-        lifting; else a point nobody said the surface of gains ``tops.face_or_top``'s spread).
+        ``surfaces``: (N,) "floor", "wall", "top" or None per pixel, the surface the user says
+        it is on: a floor pixel is put on the floor whatever the boundary (below the horizon);
+        a top pixel on its top (``tops.place``); a wall pixel the boundary puts on the floor
+        gets no answer. ``unseen``: answer points on walls whose base is outside the photo (or
+        in a photo that shows almost no floor) too, each point read on its surface alone (the
+        motion's lifting; else a point nobody said the surface of gains the spread of
+        ``tops.face_or_top`` or ``steps.floor_or_face``).
 
         Raises:
             InputError: ``surfaces`` is not one entry per pixel or names no surface."""
@@ -270,13 +240,17 @@ class Scene:
         surface = np.where(ok, surface, 0)
         P = t[:, None] * rays
         P[~ok] = np.nan
-        # a face with a top's edge below the point: the top reading's spread (not lifting's)
-        spread = np.zeros(len(px)) if unseen else tops.face_or_top(
-            self, said == 0, pxs, rays, t, surface, reason)
-        note = np.where(spread > 0, FACE_OR_TOP_NOTE, note)   # unsaid: no other note
+        # which surface (not lifting's): a face with a top's edge below the point, a floor point
+        # beside a step of the boundary; the spread of the two readings (a point has one)
+        top = step = np.zeros(len(px))
+        if not unseen:
+            top = tops.face_or_top(self, said == 0, pxs, rays, t, surface, reason)
+            step = steps.floor_or_face(self, said == 0, pxs, rays, t, surface, reason,
+                                       self.boundary_sigma_px)
+        note = np.select([top > 0, step > 0], [FACE_OR_TOP_NOTE, FLOOR_OR_FACE_NOTE], note)
 
         parts, jac = point_sigmas(self, pxs, rays, P, surface, edges)
-        parts["surface"] = spread
+        parts["surface"] = top + step
         sigma = np.sqrt(sum(x * x for x in parts.values()))
         if self.max_rel_sigma is not None:
             with np.errstate(invalid="ignore"):
@@ -285,7 +259,8 @@ class Scene:
             by_gravity = parts["gravity"] >= np.maximum(rest, parts["surface"])
             by_top = ~by_gravity & (parts["surface"] >= rest)
             reason = np.where(loose, np.select([by_gravity, by_top], [
-                Reason.LOOSE_GRAVITY, Reason.FACE_OR_TOP], Reason.LOOSE), reason)
+                Reason.LOOSE_GRAVITY, np.where(step > 0, Reason.FLOOR_OR_FACE,
+                                               Reason.FACE_OR_TOP)], Reason.LOOSE), reason)
             ok &= ~loose
             surface = np.where(ok, surface, 0)
             P[~ok] = np.nan

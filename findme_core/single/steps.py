@@ -1,0 +1,94 @@
+"""A point beside a step of the boundary: on the floor behind an occluding edge, or on the face
+of the thing that stands in front of it.
+
+Where the chosen boundary steps (``SegKind.STEP``: an occluding edge, the side of a cabinet, a
+door frame, a wall's end), the floor line jumps from the foot of a near surface up to a farther
+one. A pixel on the far side of the step, above the step's lower end (its *foot*, where the
+near surface meets the floor), is read on the floor behind. The boundary is off by its sigma
+(``uncertainty.BOUNDARY_SIGMA_WORK_PX``), and so is a step, sideways: a pixel within that many
+pixels of it may lie on the near thing's face instead (a cabinet's side face, seen obliquely,
+that the step's column left on the floor's side), metres nearer. The boundary part of the
+1-sigma, linearised (the scene under the boundary moved by one pixel), keeps a floor point on
+the floor and cannot see that.
+
+Geometry, in the photo's LEVEL frame (x right, y down along gravity, z forward; metres; the
+floor is y = h). The step's foot pixel, lifted onto the floor (eq. 2), is F = (h / f_y) f for
+its ray f. The face reading of a pixel with ray r is where r reaches F's horizontal range,
+
+    t_face = |F_xz| / |r_xz|,
+
+the face taken as facing the camera at the foot (the near surface's own plane is unknown
+beyond the step). The floor reading is t = h / r_y. When t_face < t the spread is
+
+    |t - t_face| |r|   (metres),
+
+how far apart the two answers lie; ``scene.Scene`` adds it to the point's 1-sigma as its
+"surface" part, and refuses the point (``Reason.FLOOR_OR_FACE``) when that makes the 1-sigma
+exceed ``max_rel_sigma`` of its distance. A point said to be on the floor keeps the floor, with
+no spread. Pure numpy; no I/O.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from findme_core.single.search import SegKind
+
+
+def step_feet(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The steps of ``scene``'s boundary, in pixels.
+
+    Returns:
+        (S, 2) each step's lower end (the foot), pixels; (S,) du / dv of the image of the 3D
+        vertical through the foot (the step's line; NaN where that image is level); (S, 3)
+        the foot's level-frame floor point (metres; NaN when its ray does not go down).
+    """
+    poly, kinds, cam = scene.polyline, scene.kinds, scene.camera
+    s = np.flatnonzero(kinds == SegKind.STEP)
+    a, b = poly[s], poly[s + 1]
+    foot = np.where((b[:, 1] >= a[:, 1])[:, None], b, a)
+    up = cam.up_direction(foot)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(np.abs(up[:, 1]) > 1e-6, up[:, 0] / up[:, 1], np.nan)
+        f = cam.rays_level(foot)
+        F = np.where(f[:, 1:2] > 0, scene.height / f[:, 1:2] * f, np.nan)
+    return foot, slope, F
+
+
+def floor_or_face(scene, unsaid, px, rays, t, surface, reason, window_px: float) -> np.ndarray:
+    """(N,) metres between each floor point's reading and its reading on the face of the step
+    beside it (0: none).
+
+    Args:
+        scene: the ``scene.Scene`` (its polyline, kinds, camera, height).
+        unsaid: (N,) bool, nobody said the pixel's surface; px: (N, 2) pixels; rays: (N, 3)
+            their level rays; t, surface, reason: (N,) ray parameter, surface code (1 floor)
+            and reason code (0 answered) as the boundary gives them.
+        window_px: how far sideways of a step (pixels, at the pixel's row) a pixel may be on
+            its face: the boundary's sigma.
+    Returns:
+        (N,) spread, metres, of the nearest step's face reading, for pixels on the floor on a
+        step's far side, above its foot, within ``window_px`` of it.
+    """
+    out = np.zeros(len(px))
+    floor = np.asarray(unsaid, bool) & (reason == 0) & (surface == 1)
+    if not floor.any() or not (scene.kinds == SegKind.STEP).any():
+        return out
+    foot, slope, F = step_feet(scene)
+    u, v = px[floor, :1], px[floor, 1:]                                 # (n, 1)
+    u_step = foot[:, 0] + (v - foot[:, 1]) * slope                      # (n, S)
+    # sideways of the step's line, either side: a pixel the boundary puts on the floor above
+    # the foot is on the far floor (the near side's face would have it), whichever side of the
+    # line the boundary's own step, not quite vertical, leaves it
+    side = np.abs(u - u_step)
+    r = rays[floor]
+    t_face = np.hypot(F[:, 0], F[:, 2])[None, :] / np.hypot(r[:, :1], r[:, 2:])
+    gap = (t[floor, None] - t_face) * np.linalg.norm(r, axis=1, keepdims=True)
+    near = (side <= window_px) & (v < foot[:, 1]) & (gap > 0)
+    # of the steps it is beside, the nearest sideways
+    d = np.where(near, side, np.inf)
+    j = np.argmin(d, axis=1)
+    spread = np.where(np.isfinite(d.min(1, initial=np.inf)),
+                      np.take_along_axis(gap, j[:, None], 1)[:, 0], 0.0)
+    out[floor] = np.nan_to_num(spread, nan=0.0)
+    return out
