@@ -24,10 +24,10 @@ from findme_core.errors import GeometryError, HypothesisError
 
 #: 1-sigma of a chosen boundary's position on real photos, pixels of the ~640 px working
 #: size (the hypotheses' resolution). Fitted on an earlier dev run so that 68 % of wall and
-#: non-floor points lay within their 1-sigma; on 2026-12-02 78.4 % do, and
+#: non-floor points lay within their 1-sigma; on 2026-12-02 78.6 % do, and
 #: tools/calibrate_sigma.py (the rule of the plan's model errors: nearest a Gaussian's coverage
-#: within 1 and 3 sigma) gives 36.5 on all dev rooms, 9.3-39.4 with one room left out (37.2
-#: and 11.1-38.7 on 2026-11-30, before the top readings' spread). Kept: within 10 % of the
+#: within 1 and 3 sigma) gives 36.5 on all dev rooms, 9.1-39.4 with one room left out (37.2
+#: and 11.1-38.7 on 2026-11-30, before the spreads of a top's and a step's readings). Kept: within 10 % of the
 #: rule's value, and wider than the 68 % rule's 19.9, which would leave more of the wrong
 #: boundaries' points beyond 3 sigma (0.81 against 0.88 within 3 on 2026-11-30).
 BOUNDARY_SIGMA_WORK_PX = 34.0
@@ -149,8 +149,8 @@ def distances(points: list, height: float, height_sigma: float):
     Height errors scale every point alike, so that part of a distance's sigma is
     d * height_sigma / height; a gravity tilt moves every point of the photo together, so
     its part is the change of the distance along each tilt axis (``Located.gravity_jac``);
-    boundary, pixel and surface parts (a top's reading, ``tops.face_or_top``) are taken as
-    independent.
+    boundary, pixel and surface parts (a top's reading, ``tops.face_or_top``; a step's face,
+    ``steps.floor_or_face``) are taken as independent.
 
     Returns:
         list of (distance | None, sigma | None, error | None), len(points) - 1 entries.
