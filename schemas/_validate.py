@@ -30,6 +30,9 @@ Problems = list[str]
 
 #: Lines a HypothesisSet may carry (a 12 MP photo has a few hundred merged lines).
 MAX_LINES = 4096
+#: Points a boundary polyline may carry (the product's have tens; locating N pixels on one
+#: costs N x points of memory: 1024 x 4096 pairs, ~100 MB at most).
+MAX_POLYLINE_POINTS = 4096
 #: Alternatives a Motion may carry, and wall / corner pairs of its layout evidence.
 MAX_ALTERNATIVES = 8
 MAX_LAYOUT_PAIRS = 64
@@ -110,6 +113,9 @@ def _polyline(p: Problems, name: str, pl: common_pb2.Polyline) -> None:
     n = len(pl.points)
     if n < 2:
         p.append(f"{name} needs at least 2 points, got {n}")
+    if n > MAX_POLYLINE_POINTS:   # nothing more is read of it
+        p.append(f"{name}: at most {MAX_POLYLINE_POINTS} points, got {n}")
+        return
     if len(pl.kinds) != max(n - 1, 0):
         p.append(f"{name} has {n} points, so needs {max(n - 1, 0)} segment kinds, "
                  f"got {len(pl.kinds)}")

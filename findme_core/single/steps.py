@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from findme_core.single.search import SegKind
+from findme_core.single.tops import BLOCK
 
 
 def step_feet(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -75,20 +76,31 @@ def floor_or_face(scene, unsaid, px, rays, t, surface, reason, window_px: float)
     if not floor.any() or not (scene.kinds == SegKind.STEP).any():
         return out
     foot, slope, F = step_feet(scene)
-    u, v = px[floor, :1], px[floor, 1:]                                 # (n, 1)
+    idx = np.flatnonzero(floor)
+    # pixels x steps in blocks of at most ``tops.BLOCK`` pairs: bounded memory whatever the
+    # request (1024 pixels, a boundary of up to 4096 points on the bus)
+    block = max(1, BLOCK // len(foot))
+    for i in range(0, len(idx), block):
+        k = idx[i:i + block]
+        out[k] = _nearest_face(px[k], rays[k], t[k], foot, slope, F, window_px)
+    return out
+
+
+def _nearest_face(px, rays, t, foot, slope, F, window_px):
+    """``floor_or_face`` of (n, 2) floor pixels, their (n, 3) rays and (n,) floor ray
+    parameters, against the steps of ``step_feet``: (n,) spreads, metres."""
+    u, v = px[:, :1], px[:, 1:]                                         # (n, 1)
     u_step = foot[:, 0] + (v - foot[:, 1]) * slope                      # (n, S)
     # sideways of the step's line, either side: a pixel the boundary puts on the floor above
     # the foot is on the far floor (the near side's face would have it), whichever side of the
     # line the boundary's own step, not quite vertical, leaves it
     side = np.abs(u - u_step)
-    r = rays[floor]
-    t_face = np.hypot(F[:, 0], F[:, 2])[None, :] / np.hypot(r[:, :1], r[:, 2:])
-    gap = (t[floor, None] - t_face) * np.linalg.norm(r, axis=1, keepdims=True)
+    t_face = np.hypot(F[:, 0], F[:, 2])[None, :] / np.hypot(rays[:, :1], rays[:, 2:])
+    gap = (t[:, None] - t_face) * np.linalg.norm(rays, axis=1, keepdims=True)
     near = (side <= window_px) & (v < foot[:, 1]) & (gap > 0)
     # of the steps it is beside, the nearest sideways
     d = np.where(near, side, np.inf)
     j = np.argmin(d, axis=1)
     spread = np.where(np.isfinite(d.min(1, initial=np.inf)),
                       np.take_along_axis(gap, j[:, None], 1)[:, 0], 0.0)
-    out[floor] = np.nan_to_num(spread, nan=0.0)
-    return out
+    return np.nan_to_num(spread, nan=0.0)

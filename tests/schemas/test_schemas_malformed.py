@@ -189,6 +189,11 @@ INVALID = [
     ("findme.v1.HypothesisSet", lambda m: setattr(m.hypotheses[0].polyline.points[2], "v",
                                                   math.nan),
      "hypotheses[0].polyline.points[2].v must be finite"),
+    ("findme.v1.HypothesisSet", lambda m: (m.hypotheses[0].polyline.points.extend(
+        [S.Pixel(u=1, v=2)] * 4093), m.hypotheses[0].polyline.kinds.extend([0] * 4093)),
+     "hypotheses[0].polyline: at most 4096 points, got 4097"),
+    ("findme.v1.Scene", lambda m: m.polyline.points.extend([S.Pixel(u=1, v=2)] * 5000),
+     "polyline: at most 4096 points, got 5004"),
     ("findme.v1.HypothesisSet", lambda m: m.lines.append(1.0),
      "lines must hold 4 numbers per line (u1, v1, u2, v2), got 9"),
     ("findme.v1.HypothesisSet", lambda m: m.lines.__setitem__(5, math.inf),

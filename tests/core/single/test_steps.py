@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from findme_core.single import hypotheses
+from findme_core.single import hypotheses, steps
 from findme_core.single.answers import FLOOR_OR_FACE_NOTE, NOTES, REASONS, Reason
 from findme_core.single.scene import Scene
 from findme_core.single.search import SegKind
@@ -154,3 +154,19 @@ def test_the_rendered_cabinets_side_with_the_detectors_own_boundary(side_view):
     assert np.mean(spread > 0) >= 0.95
     assert np.mean(err <= 3 * sig) >= 0.97
     assert np.mean(err <= 3 * np.sqrt(sig ** 2 - spread ** 2)) < 0.3
+
+
+def test_pixels_meet_the_steps_in_blocks_with_the_same_answer(monkeypatch):
+    """Memory is bounded by blocks of pixel x step pairs; the answer does not depend on them."""
+    cam = camera()
+    sc = _scene(cam)
+    rng = np.random.default_rng(1)
+    px = np.column_stack([rng.uniform(0, 639, 300), rng.uniform(0, 479, 300)])
+    args = (sc, np.ones(len(px), bool), px, cam.rays_level(px))
+    t, surface, reason = sc._solve(sc._pieces, args[3])
+    ref = steps.floor_or_face(*args, t, surface, reason, WINDOW)
+    assert (ref > 0).sum() >= 5
+    for block in (1, 3, 7, 500):
+        monkeypatch.setattr(steps, "BLOCK", block)
+        np.testing.assert_array_equal(steps.floor_or_face(*args, t, surface, reason, WINDOW),
+                                      ref)
