@@ -67,6 +67,35 @@ def box_view():
 
 
 @pytest.fixture(scope="session")
+def side_view():
+    """A cabinet turned 30 deg: the detector's step at its front corner leaves its side face
+    on the floor's side of the line (as on TUM's cabinet, dev split; ``steps``)."""
+    r = Room.rectangle(5.0, 6.0, floor_style="wood",
+                       boxes=(Box(0.2, 1.2, 0.8, 0.5, 0.7, yaw_deg=30.0),))
+    return render(r, Pose(0.0, -1.6, 1.3, yaw_deg=5.0, pitch_deg=25.0), 640, 480,
+                  hfov_deg=70.0, seed=3)
+
+
+def side_face_pixels(view, box: int = 0, step: int = 1):
+    """(N, 2) pixels (every ``step``-th, raster order) of ``view``'s box in its few leftmost
+    columns (its side face, turned away), below its top and below the foot of the wall seen
+    just left of it (the side face a step at the box's front corner leaves on the floor's
+    side), and their (N, 3) true camera-frame points."""
+    import numpy as np
+    b = view.room.boxes[box]
+    level = view.points_cam.reshape(-1, 3) @ view.camera.R_level_from_cam.T
+    height = view.camera_height - level[:, 1]
+    W = view.labels.shape[1]
+    on = (view.labels.ravel() == 50 + box) & (height < b.height - 0.02)
+    left = int(np.percentile(np.flatnonzero(on) % W, 1))
+    wall = np.flatnonzero((view.labels[:, left - 8] > 0) & (view.labels[:, left - 8] < 50))
+    rows, cols = np.arange(on.size) // W, np.arange(on.size) % W
+    pick = np.flatnonzero(on & (cols <= left + 6) & (rows > wall.max() + 4))[::step]
+    return (np.column_stack([pick % W, pick // W]).astype(float),
+            view.points_cam.reshape(-1, 3)[pick])
+
+
+@pytest.fixture(scope="session")
 def counter_view():
     """A counter 0.9 m high, 3 m long and 0.7 m deep against the far wall: the boundary runs
     along its foot, and the photo looks down on its top."""

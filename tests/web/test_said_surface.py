@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from findme_core.single.hypotheses import column_rows
-from tests.conftest import top_pixels
+from tests.conftest import side_face_pixels, top_pixels
 from test_web_app import PHONE, SIDE_A, close, tap_pixel, type_camera, upload
 
 pytestmark = pytest.mark.timeout(120)
@@ -123,6 +123,51 @@ def test_a_point_said_on_a_top_comes_back_on_it(app, counter_view):
         err = np.linalg.norm(np.subtract(p["xyz"], t))
         assert err < 0.1 and err < 3 * p["sigma_m"], (p, t)
     assert on_floor["xyz"] is None and "puts the point on the floor" in on_floor["error"]
+
+
+def test_a_point_beside_a_step_spans_the_floor_and_the_face(app, side_view):
+    """A rendered cabinet turned 30 deg, through a real gateway and measurement service: the
+    hypotheses step at its front corner, so pixels of its side face come back on the floor
+    behind. Said nothing, those on the floor carry the note and a 1-sigma that spans the face
+    in front (the truth within 3), or have no point and why; said floor, they are on the
+    floor as said, without that note or its spread."""
+    v, cam = side_view, side_view.camera
+    lens = {"kind": "intrinsics", "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
+            "width": cam.width, "height": cam.height}
+    header = {"id": "s", "lens": lens, "gravity": cam.gravity.tolist(),
+              "camera_height_m": v.camera_height}
+    ok, jpg = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    px, truth = side_face_pixels(v, step=23)
+    pixels = px.tolist()
+
+    async def run():
+        async with aiohttp.ClientSession() as http, http.ws_connect(app.url + "ws") as ws:
+            assert (await ws.receive_json(timeout=10))["type"] == "hello"
+            await ws.send_bytes(upload_bytes(header, jpg.tobytes()))
+            await next_of(ws, "scene", index=0, rank=1)
+            await ws.send_str(json.dumps({"type": "measure", "id": 1, "index": 0,
+                                          "pixels": pixels}))
+            unsaid = await next_of(ws, "measure", id=1)
+            await ws.send_str(json.dumps({"type": "measure", "id": 2, "index": 0,
+                                          "pixels": pixels, "surfaces": ["floor"] * len(pixels)}))
+            return unsaid, await next_of(ws, "measure", id=2)
+
+    unsaid, said = asyncio.run(run())
+    assert not unsaid["error"] and not said["error"], (unsaid, said)
+    noted = 0
+    for p, t in zip(unsaid["points"], truth):
+        if p["xyz"] is None:
+            assert p["error"], p
+            continue
+        assert np.linalg.norm(np.subtract(p["xyz"], t)) < 3 * p["sigma_m"], (p, t)
+        if p["surface"] == "floor" and p["note"]:
+            assert "the floor line steps back" in p["note"], p
+            noted += 1
+    assert noted >= 0.6 * len(pixels), unsaid
+    for p, q in zip(unsaid["points"], said["points"]):   # on the floor, the user has decided
+        assert (q["surface"], q["said"]) == ("floor", "floor"), q
+        if p["surface"] == "floor":
+            assert q["note"] is None and q["sigma_m"] < p["sigma_m"], (p, q)
 
 
 def _phone_with_room_a(browser, app):

@@ -17,8 +17,6 @@ from findme_core.single import hypotheses, steps
 from findme_core.single.answers import FLOOR_OR_FACE_NOTE, NOTES, REASONS, Reason
 from findme_core.single.scene import Scene
 from findme_core.single.search import SegKind
-from findme_core.synth.render import Pose, render
-from findme_core.synth.room import Box, Room
 from tests.core.level_lines import camera
 
 H_CAM, FACE_Z, WALL_Z, X0, X1, SIDE_Z = 1.3, 2.0, 5.0, 0.5, 1.1, 2.5
@@ -124,16 +122,6 @@ def test_a_step_whose_foot_does_not_go_down_gives_no_face_reading():
     sc = Scene(cam, H_CAM, poly, kinds, boundary_sigma_px=WINDOW)
     got = sc.locate(np.array([[280.0, 430.0], [320.0, 440.0]]))
     assert all(p.surface == "floor" and p.sigma_parts["surface"] == 0 for p in got)
-
-
-@pytest.fixture(scope="module")
-def side_view():
-    """A cabinet turned 30 deg: the detector's step at its front corner leaves the side face
-    on the floor's side of the line (as on TUM's cabinet, dev split)."""
-    r = Room.rectangle(5.0, 6.0, floor_style="wood",
-                       boxes=(Box(0.2, 1.2, 0.8, 0.5, 0.7, yaw_deg=30.0),))
-    return render(r, Pose(0.0, -1.6, 1.3, yaw_deg=5.0, pitch_deg=25.0), 640, 480,
-                  hfov_deg=70.0, seed=3)
 
 
 def test_the_rendered_cabinets_side_with_the_detectors_own_boundary(side_view):
