@@ -169,11 +169,16 @@ class Scene:
     def _piece(pieces, rays) -> np.ndarray:
         """(N,) the piece each (N, 3) level ray's azimuth falls in; outside every interval,
         the nearest end piece (walls extend past the image)."""
-        az = np.arctan2(rays[:, 0], rays[:, 2])
-        a0, a1 = pieces[0], pieces[1]
-        inside = (a0[None, :] <= az[:, None]) & (az[:, None] <= a1[None, :])
-        gap = np.minimum(np.abs(az[:, None] - a0[None, :]), np.abs(az[:, None] - a1[None, :]))
-        return np.where(inside.any(1), np.argmax(inside, 1), np.argmin(gap, 1))
+        az = np.arctan2(rays[:, 0], rays[:, 2])[:, None]
+        a0, a1 = pieces[0][None, :], pieces[1][None, :]
+        out = np.zeros(len(az), int)
+        step = max(1, tops.BLOCK // a0.size)   # rays x pieces in blocks: bounded memory
+        for i in range(0, len(az), step):
+            a = az[i:i + step]
+            inside = (a0 <= a) & (a <= a1)
+            gap = np.minimum(np.abs(a - a0), np.abs(a - a1))
+            out[i:i + step] = np.where(inside.any(1), np.argmax(inside, 1), np.argmin(gap, 1))
+        return out
 
     def _top_t(self, pieces, rays, edge_rays) -> np.ndarray:
         """(N,) ray parameters of points on tops (``tops.top_t``) under ``pieces``."""

@@ -4,6 +4,7 @@ import pytest
 
 from findme_core.errors import GeometryError, HypothesisError, InputError
 from findme_core.geometry.camera import Camera
+from findme_core.single import tops
 from findme_core.single.scene import REASONS, Scene, boundary_sigma_px, distances
 from findme_core.single.search import SegKind
 from findme_core.single.seen import floor_under, seen_px, shows_floor
@@ -115,6 +116,26 @@ def test_open_and_none_segments():
     none = Scene(cam, 1.2, [[0, 479.5], [639, 479.5]], [SegKind.NONE])
     p = none.locate([(320, 200)])[0]
     assert p.xyz is None and "no floor is visible" in p.error
+
+
+def test_rays_meet_the_pieces_in_blocks_with_the_same_answer(monkeypatch):
+    """Memory is bounded by blocks of ray x piece pairs (a boundary may carry 4096 points on
+    the bus); the pieces found, and so every answer, do not depend on them."""
+    cam = Camera.from_hfov(70, 640, 480, (0, np.cos(0.5), np.sin(0.5)))
+    u = np.linspace(0, 639, 40)
+    poly = np.column_stack([u, 300 + 40 * np.sin(u / 50)])
+    scene = Scene(cam, 1.4, poly, boundary_sigma_px=10.0)
+    rng = np.random.default_rng(3)
+    px = np.column_stack([rng.uniform(0, 639, 500), rng.uniform(0, 479, 500)])
+    whole = scene.locate_level(px)
+    assert len(set(scene._piece(scene._pieces, cam.rays_level(px)).tolist())) > 20
+    for block in (1, 39, 1000):
+        monkeypatch.setattr(tops, "BLOCK", block)
+        points, surface, sigma, parts, reason = scene.locate_level(px)
+        for a, b in zip((points, surface, sigma, reason), whole[:3] + whole[4:]):
+            np.testing.assert_array_equal(a, b)
+        for k, part in whole[3].items():
+            np.testing.assert_array_equal(parts[k], part)
 
 
 @pytest.mark.parametrize("args,exc,msg", [
