@@ -36,7 +36,8 @@ import numpy as np
 
 from findme_core.errors import GeometryError, HypothesisError
 from findme_core.geometry.camera import Camera
-# the answers' texts live in ``answers``; re-exported here, where they began
+# the answers (``Located``) and their texts live in ``answers``; re-exported here, where
+# they began
 from findme_core.single.answers import (FACE_OR_TOP_NOTE, FLOOR_OR_FACE_NOTE,  # noqa: F401
                                         FLOOR_PAST_LINE, NOTES, REASONS, SURFACE_CODES,
                                         SURFACE_NAMES, SURFACES, Located, Reason, said_codes)
@@ -52,6 +53,8 @@ _PARALLEL = 1e-9
 #: placed (its distance is uncertain by a factor of three within 1-sigma); a round number,
 #: not fitted
 MAX_REL_SIGMA = 0.5
+
+
 class Scene:
     """Floor and walls of one photo under one hypothesis.
 
