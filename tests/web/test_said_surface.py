@@ -42,6 +42,32 @@ async def next_of(ws, kind: str, timeout: float = 60, **match):
             return m
 
 
+def measures_of_rendered(app, view, *requests):
+    """``view`` (a render: its lens, gravity and camera height sent with it) uploaded as photo
+    0 through ``app``'s gateway; once its scene is up, each request (the measure's "pixels"
+    and, if any, "surfaces") is sent in turn: their replies."""
+    cam = view.camera
+    lens = {"kind": "intrinsics", "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
+            "width": cam.width, "height": cam.height}
+    header = {"id": "r", "lens": lens, "gravity": cam.gravity.tolist(),
+              "camera_height_m": view.camera_height}
+    ok, jpg = cv2.imencode(".jpg", view.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    assert ok
+
+    async def run():
+        async with aiohttp.ClientSession() as http, http.ws_connect(app.url + "ws") as ws:
+            assert (await ws.receive_json(timeout=10))["type"] == "hello"
+            await ws.send_bytes(upload_bytes(header, jpg.tobytes()))
+            await next_of(ws, "scene", index=0, rank=1)
+            replies = []
+            for i, req in enumerate(requests, 1):
+                await ws.send_str(json.dumps({"type": "measure", "id": i, "index": 0, **req}))
+                replies.append(await next_of(ws, "measure", id=i))
+            return replies
+
+    return asyncio.run(run())
+
+
 def test_said_surfaces_reach_the_service_and_come_back(app):
     """A measure with surfaces, through a real gateway and measurement service: the reply
     to the page says what was said of each point, a wall pixel said floor comes back on
@@ -83,29 +109,12 @@ def test_a_point_said_on_a_top_comes_back_on_it(app, counter_view):
     the lines the hypotheses came with), one of the floor said "top" with no point and why.
     Said nothing, a top pixel comes back on the counter's face with a 1-sigma that spans its
     top reading and the note that says so, or with no point and why."""
-    v, cam = counter_view, counter_view.camera
-    lens = {"kind": "intrinsics", "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
-            "width": cam.width, "height": cam.height}
-    header = {"id": "c", "lens": lens, "gravity": cam.gravity.tolist(),
-              "camera_height_m": v.camera_height}
-    ok, jpg = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    v = counter_view
     top_px, truth = top_pixels(v, step=4001)
     floor = np.argwhere(v.labels == 0)[-1][::-1].tolist()     # a floor pixel near the bottom
     pixels = [p.tolist() for p in top_px] + [floor]
-
-    async def run():
-        async with aiohttp.ClientSession() as http, http.ws_connect(app.url + "ws") as ws:
-            assert (await ws.receive_json(timeout=10))["type"] == "hello"
-            await ws.send_bytes(upload_bytes(header, jpg.tobytes()))
-            await next_of(ws, "scene", index=0, rank=1)
-            await ws.send_str(json.dumps({"type": "measure", "id": 1, "index": 0,
-                                          "pixels": pixels, "surfaces": ["top"] * len(pixels)}))
-            said = await next_of(ws, "measure", id=1)
-            await ws.send_str(json.dumps({"type": "measure", "id": 2, "index": 0,
-                                          "pixels": pixels[:-1]}))
-            return said, await next_of(ws, "measure", id=2)
-
-    reply, unsaid = asyncio.run(run())
+    reply, unsaid = measures_of_rendered(
+        app, v, {"pixels": pixels, "surfaces": ["top"] * len(pixels)}, {"pixels": pixels[:-1]})
     assert not reply["error"] and not unsaid["error"], (reply, unsaid)
     assert sum(p["xyz"] is not None for p in unsaid["points"]) >= 2, unsaid
     for p, q, t in zip(unsaid["points"], reply["points"], truth):
@@ -131,28 +140,10 @@ def test_a_point_beside_a_step_spans_the_floor_and_the_face(app, side_view):
     behind. Said nothing, those on the floor carry the note and a 1-sigma that spans the face
     in front (the truth within 3), or have no point and why; said floor, they are on the
     floor as said, without that note or its spread."""
-    v, cam = side_view, side_view.camera
-    lens = {"kind": "intrinsics", "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
-            "width": cam.width, "height": cam.height}
-    header = {"id": "s", "lens": lens, "gravity": cam.gravity.tolist(),
-              "camera_height_m": v.camera_height}
-    ok, jpg = cv2.imencode(".jpg", v.image, [cv2.IMWRITE_JPEG_QUALITY, 95])
-    px, truth = side_face_pixels(v, step=23)
+    px, truth = side_face_pixels(side_view, step=23)
     pixels = px.tolist()
-
-    async def run():
-        async with aiohttp.ClientSession() as http, http.ws_connect(app.url + "ws") as ws:
-            assert (await ws.receive_json(timeout=10))["type"] == "hello"
-            await ws.send_bytes(upload_bytes(header, jpg.tobytes()))
-            await next_of(ws, "scene", index=0, rank=1)
-            await ws.send_str(json.dumps({"type": "measure", "id": 1, "index": 0,
-                                          "pixels": pixels}))
-            unsaid = await next_of(ws, "measure", id=1)
-            await ws.send_str(json.dumps({"type": "measure", "id": 2, "index": 0,
-                                          "pixels": pixels, "surfaces": ["floor"] * len(pixels)}))
-            return unsaid, await next_of(ws, "measure", id=2)
-
-    unsaid, said = asyncio.run(run())
+    unsaid, said = measures_of_rendered(app, side_view, {"pixels": pixels},
+                                        {"pixels": pixels, "surfaces": ["floor"] * len(pixels)})
     assert not unsaid["error"] and not said["error"], (unsaid, said)
     noted = 0
     for p, t in zip(unsaid["points"], truth):
