@@ -116,7 +116,7 @@ FLOOR_PAST_LINE = 1
 #: (``tops.face_or_top``): its 1-sigma spans the face and the top.
 FACE_OR_TOP_NOTE = 2
 #: A point nobody said the surface of, read on the floor just beside a step of the floor line
-#: (``steps.floor_or_face``): its 1-sigma spans the floor and the face in front.
+#: (``steps.floor_or_face``): its 1-sigma is widened toward the face in front.
 FLOOR_OR_FACE_NOTE = 3
 NOTES = {
     FLOOR_PAST_LINE:
@@ -132,8 +132,8 @@ NOTES = {
     FLOOR_OR_FACE_NOTE:
         "this point lies beside an edge where the floor line steps back (the side of a "
         "cabinet, a door frame, a wall's end): it is given on the floor behind, as the floor "
-        "line has it, and its 1-sigma spans where it would be on the face in front; if it is "
-        "on that face, say wall to measure it there",
+        "line has it, and its 1-sigma is widened toward where it would be on the face in "
+        "front; if it is on that face, say wall to measure it there",
 }
 
 #: The surfaces a located point can be on (and a user can say it is on), by code 1, 2, 3:

@@ -10,6 +10,8 @@ between the step and the wall's foot behind, lies on the floor's side of the lin
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -53,20 +55,26 @@ def _side_face(cam, n=6):
 @pytest.mark.parametrize("pitch,roll", [(25.0, 0.0), (35.0, 3.0)])
 def test_a_floor_point_beside_a_step_spans_the_floor_and_the_face(pitch, roll):
     """The side face's pixels are read on the floor behind, as the boundary has them; the
-    1-sigma gains the distance to the face reading (the foot's horizontal range) and the
-    truth lies within it, where the floor reading's own 1-sigma puts it beyond 5."""
+    1-sigma gains sqrt(w) times the distance to the face reading (the foot's horizontal
+    range), w = Phi(-d / sigma) for a pixel d px sideways of the step's line, and the truth
+    lies within 2.5 of it, where the floor reading's own 1-sigma puts it beyond 5."""
     cam = camera(pitch, roll)
     sc = _scene(cam, max_rel_sigma=None)    # every answer, however loose (refusal: below)
     px, truth = _side_face(cam)
     got = sc.locate(px)
     foot = np.hypot(X0, FACE_Z)
+    c = _foot(cam, X0, FACE_Z)
+    up = cam.up_direction([c])[0]           # the image of the vertical through the foot
     R = cam.R_level_from_cam
-    for p, q in zip(got, truth):
+    for (u, v), p, q in zip(px, got, truth):
         assert p.surface == "floor" and p.note == NOTES[FLOOR_OR_FACE_NOTE]
+        d = abs(u - (c[0] + (v - c[1]) * up[0] / up[1]))
+        w = 0.5 * math.erfc(d / (math.sqrt(2.0) * WINDOW))
+        assert 0.158 < w <= 0.5                     # within the window
         P = R @ p.xyz                               # camera -> level frame
         face = P * foot / np.hypot(P[0], P[2])      # the same ray at the foot's range
-        assert p.sigma_parts["surface"] == pytest.approx(np.linalg.norm(P - face))
-        assert np.linalg.norm(P - q) <= p.sigma_m
+        assert p.sigma_parts["surface"] == pytest.approx(math.sqrt(w) * np.linalg.norm(P - face))
+        assert np.linalg.norm(P - q) <= 2.5 * p.sigma_m
     z_own = [np.linalg.norm(R @ p.xyz - q) / np.sqrt(p.sigma_m ** 2 - p.sigma_parts["surface"] ** 2)
              for p, q in zip(got, truth)]
     assert max(z_own) > 5.0
@@ -98,16 +106,16 @@ def test_what_was_said_and_the_lifting_take_no_spread():
 
 def test_readings_too_far_apart_are_refused_with_the_reason():
     """Where the floor and the face put the point farther apart than the allowed share of its
-    distance (the scene's default, half), it has no answer, and the reason says why."""
+    distance (here a fifth), it has no answer, and the reason says why."""
     cam = camera()
     px, _ = _side_face(cam)
     loose = _scene(cam, max_rel_sigma=None).locate(px)
-    far = np.array([p.sigma_m > 0.5 * np.linalg.norm(p.xyz) for p in loose])
+    far = np.array([p.sigma_m > 0.2 * np.linalg.norm(p.xyz) for p in loose])
     assert far.any() and not far.all()
-    for p, q, f in zip(_scene(cam).locate(px), loose, far):
+    for p, q, f in zip(_scene(cam, max_rel_sigma=0.2).locate(px), loose, far):
         assert (p.error == REASONS[Reason.FLOOR_OR_FACE]) if f else (p.sigma_m == q.sigma_m)
     # said floor, the user has decided: the same pixels are answered on the floor
-    said = _scene(cam).locate(px, ["floor"] * len(px))
+    said = _scene(cam, max_rel_sigma=0.2).locate(px, ["floor"] * len(px))
     assert all(p.surface == "floor" for p in said)
 
 
