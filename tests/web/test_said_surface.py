@@ -134,11 +134,11 @@ def test_a_point_said_on_a_top_comes_back_on_it(app, counter_view):
     assert on_floor["xyz"] is None and "puts the point on the floor" in on_floor["error"]
 
 
-def test_a_point_beside_a_step_spans_the_floor_and_the_face(app, side_view):
+def test_a_point_beside_a_step_is_widened_toward_the_face(app, side_view):
     """A rendered cabinet turned 30 deg, through a real gateway and measurement service: the
     hypotheses step at its front corner, so pixels of its side face come back on the floor
-    behind. Said nothing, those on the floor carry the note and a 1-sigma that spans the face
-    in front (the truth within 3), or have no point and why; said floor, they are on the
+    behind. Said nothing, those on the floor carry the note and a 1-sigma widened toward the
+    face in front (the truth within 3), or have no point and why; said floor, they are on the
     floor as said, without that note or its spread."""
     px, truth = side_face_pixels(side_view, step=23)
     pixels = px.tolist()

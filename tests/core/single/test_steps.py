@@ -1,5 +1,5 @@
-"""A floor point beside a step of the boundary (``steps.floor_or_face``): its 1-sigma spans the
-floor behind and the face in front, or it asks which surface.
+"""A floor point beside a step of the boundary (``steps.floor_or_face``): its 1-sigma is widened
+toward the face in front (the face reading within 2.5 of it), or it asks which surface.
 
 The exact scene, in the level frame (x right, y down, z forward; metres): a cabinet whose
 front face stands at z = 2 from x = 0.5 to 1.1, its left side face on the plane x = 0.5 from
@@ -53,7 +53,7 @@ def _side_face(cam, n=6):
 
 
 @pytest.mark.parametrize("pitch,roll", [(25.0, 0.0), (35.0, 3.0)])
-def test_a_floor_point_beside_a_step_spans_the_floor_and_the_face(pitch, roll):
+def test_a_floor_point_beside_a_step_is_widened_toward_the_face(pitch, roll):
     """The side face's pixels are read on the floor behind, as the boundary has them; the
     1-sigma gains sqrt(w) times the distance to the face reading (the foot's horizontal
     range), w = Phi(-d / sigma) for a pixel d px sideways of the step's line, and the truth
