@@ -27,9 +27,9 @@ from findme_core.errors import GeometryError, HypothesisError
 #: non-floor points lay within their 1-sigma; on 2026-12-02 78.4 % do, and
 #: tools/calibrate_sigma.py (the rule of the plan's model errors: nearest a Gaussian's coverage
 #: within 1 and 3 sigma) gives 36.5 on all dev rooms, 9.3-39.4 with one room left out (37.2
-#: and 11.1-38.7 on 2026-11-30, before the spreads of a top's and a step's readings). Kept: within 10 % of the
-#: rule's value, and wider than the 68 % rule's 19.9, which would leave more of the wrong
-#: boundaries' points beyond 3 sigma (0.81 against 0.88 within 3 on 2026-11-30).
+#: and 11.1-38.7 on 2026-11-30, before the spreads of a top's and a step's readings). Kept:
+#: within 10 % of the rule's value, and wider than the 68 % rule's 19.9, which would leave more
+#: of the wrong boundaries' points beyond 3 sigma (0.81 against 0.88 within 3 on 2026-11-30).
 BOUNDARY_SIGMA_WORK_PX = 34.0
 WORK_SIZE_PX = 640
 

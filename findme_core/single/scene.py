@@ -265,10 +265,11 @@ class Scene:
                 loose = ok & ~(sigma <= self.max_rel_sigma * np.linalg.norm(P, axis=1))
             rest = np.maximum.reduce([parts[k] for k in ("height", "boundary", "pixel")])
             by_gravity = parts["gravity"] >= np.maximum(rest, parts["surface"])
-            by_top = ~by_gravity & (parts["surface"] >= rest)
-            reason = np.where(loose, np.select([by_gravity, by_top], [
-                Reason.LOOSE_GRAVITY, np.where(step > 0, Reason.FLOOR_OR_FACE,
-                                               Reason.FACE_OR_TOP)], Reason.LOOSE), reason)
+            by_surface = ~by_gravity & (parts["surface"] >= rest)
+            reason = np.where(loose, np.select(
+                [by_gravity, by_surface & (step > 0), by_surface],
+                [Reason.LOOSE_GRAVITY, Reason.FLOOR_OR_FACE, Reason.FACE_OR_TOP], Reason.LOOSE),
+                reason)
             ok &= ~loose
             surface = np.where(ok, surface, 0)
             P[~ok] = np.nan

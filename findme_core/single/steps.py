@@ -123,5 +123,5 @@ def _nearest_face(px, rays, t, foot, slope, F, window_px):
     # the chance the step lies beyond the pixel, Phi(-d / window_px) (module doc)
     w = np.zeros(len(nearest))
     w[beside] = 0.5 * _erfc(nearest[beside] / (math.sqrt(2.0) * window_px)).astype(float)
-    spread = np.where(beside, np.take_along_axis(gap, j[:, None], 1)[:, 0] * np.sqrt(w), 0.0)
-    return np.nan_to_num(spread, nan=0.0)
+    # (a pixel is beside a step only where its gap is a positive number: no NaN gets through)
+    return np.where(beside, np.take_along_axis(gap, j[:, None], 1)[:, 0] * np.sqrt(w), 0.0)

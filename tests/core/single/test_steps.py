@@ -75,8 +75,8 @@ def test_a_floor_point_beside_a_step_is_widened_toward_the_face(pitch, roll):
         face = P * foot / np.hypot(P[0], P[2])      # the same ray at the foot's range
         assert p.sigma_parts["surface"] == pytest.approx(math.sqrt(w) * np.linalg.norm(P - face))
         assert np.linalg.norm(P - q) <= 2.5 * p.sigma_m
-    z_own = [np.linalg.norm(R @ p.xyz - q) / np.sqrt(p.sigma_m ** 2 - p.sigma_parts["surface"] ** 2)
-             for p, q in zip(got, truth)]
+    own = [np.sqrt(p.sigma_m ** 2 - p.sigma_parts["surface"] ** 2) for p in got]
+    z_own = [np.linalg.norm(R @ p.xyz - q) / s for p, q, s in zip(got, truth, own)]
     assert max(z_own) > 5.0
 
 
