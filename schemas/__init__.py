@@ -31,9 +31,9 @@ from ._codec import (
     schema_of,
     validate,
 )
-from ._validate import (HEADING_REFS, IMAGE_FORMATS, MAX_ALTERNATIVES,
-                        MAX_GRAVITY_ALTERNATIVES, MAX_LAYOUT_PAIRS, MAX_MEASURE_PIXELS,
-                        SESSION_PATTERN, is_valid_session)
+from ._fields import (HEADING_REFS, IMAGE_FORMATS, MAX_ALTERNATIVES,
+                      MAX_GRAVITY_ALTERNATIVES, MAX_LAYOUT_PAIRS, MAX_MEASURE_PIXELS,
+                      SESSION_PATTERN, is_valid_session)
 from .helpers import (
     level_frame_id,
     msg_to_pixels,
