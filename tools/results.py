@@ -24,8 +24,10 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import coverage_plot  # noqa: E402
 import openings_report  # noqa: E402
 import results_trust  # noqa: E402
+import sigma_coverage  # noqa: E402
 
 SINGLE = ["zind-level", "zind-tilted", "zind-pairs-tilted", "tum-cabinet", "zind-level-lowfloor",
           "zind-pairs-level"]
@@ -244,6 +246,14 @@ def main(argv=None):
         nograv_preds = json.loads((t / "nograv.json").read_text())
         phone_preds = json.loads((t / "noisy_refined_declared.json").read_text())
         said_preds = json.loads((t / "said.json").read_text())
+        # the coverage tables as pictures, beside the markdown (``coverage_plot``)
+        figures = {"given": "coverage.svg", "phone": "coverage-phone.svg"}
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        for key, preds, what in (("given", ours_preds, "the dataset's gravity"),
+                                 ("phone", phone_preds, f"a phone's ({PHONE_NOISE_DEG:g}°)")):
+            (a.out.parent / figures[key]).write_text(coverage_plot.svg(
+                sigma_coverage.collect(str(a.split), preds),
+                f"Do the stated 1-sigmas hold? Gravity: {what}"))
         ours = _score(a.split, scorer, t / "ours.json")
         nograv = _score(a.split, scorer, t / "nograv.json")
         auto_spots = _score(a.split, scorer, t / "auto.json")
@@ -337,7 +347,8 @@ def main(argv=None):
         "tell and gives its candidates, best first.", "",
         *_locate_rows(locate), "",
         *results_trust.section(a.split, ours, refit, loro, ours_preds, nograv_preds,
-                               phone_preds, trust_tools, PHONE_NOISE_DEG, said_preds),
+                               phone_preds, trust_tools, PHONE_NOISE_DEG, said_preds,
+                               figures),
     ]
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text("\n".join(lines) + "\n")

@@ -117,11 +117,23 @@ def run(split: Path, tmp: Path) -> dict:
 
 def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dict,
             ours_preds: dict, nograv_preds: dict, phone_preds: dict, tools: dict,
-            phone_deg: float, said_preds: dict) -> list[str]:
+            phone_deg: float, said_preds: dict, figures: dict | None = None) -> list[str]:
     """The markdown lines of the section. ``phone_preds``: a run with the gravity a phone's
     page sends (the dataset's tilted by a seeded N(0, ``phone_deg``), declared at that 1-sigma
     and refined by the photo's lines, as the services do); ``said_preds``: the same with every
-    floor and wall query point said to be on its surface (``--declared-surface``)."""
+    floor and wall query point said to be on its surface (``--declared-surface``);
+    ``figures``: {"given" / "phone": the path, relative to the markdown, of the
+    ``coverage_plot`` of the dataset's gravity's / the phone's predictions}."""
+    figures = figures or {}
+
+    def figure(key: str, what: str) -> list[str]:
+        return ([f"![The share of answers beyond k sigma against k, {what}: the curves against "
+                 f"a Gaussian's]({figures[key]})", "",
+                 "(`tools/coverage_plot.py`: the share beyond k times the stated 1-sigma, log "
+                 "scale; solid as stated, dotted left out; dashed black a Gaussian; green the "
+                 "goal. A curve that levels off above 0.03 at 3 sigma is a tail of answers "
+                 "under a wrong boundary.)", ""] if key in figures else [])
+
     ranker = [ln for ln in tools["ranker"].splitlines() if ln.startswith("  ")]
     return [
         "## Rooms never seen: leave one room out, and do the sigmas hold", "",
@@ -149,7 +161,7 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "within 3), i.e. the constant chosen leave-one-room-out; gravity is scored where the "
         "dataset measured it, not on KITTI's nominal one). With the dataset's gravity, exact, "
         "taken as it is with the default 1-sigma of 0.5°:", "",
-        *coverage_rows(split, ours_preds), "",
+        *coverage_rows(split, ours_preds), "", *figure("given", "the dataset's gravity"),
         "Gravity withheld (`--no-gravity`: gravity from each photo's lines; rooms: agreed spot "
         "by spot, `plan/shared_gravity`):", "",
         *coverage_rows(split, nograv_preds), "",
@@ -160,7 +172,7 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "`--gravity-refine`; the \"noisy, refined at "
         f"{phone_deg:g}°\" run above). The simulated sensor error is Gaussian at its declared "
         "1-sigma by construction; a real sensor's may not be:", "",
-        *coverage_rows(split, phone_preds), "",
+        *coverage_rows(split, phone_preds), "", *figure("phone", "a phone's gravity"),
         "**Where the points' sigmas fail** (`tools/surface_coverage.py`, the same run): each "
         "point on the surface the product put it on, its own (a floor point on the floor, a "
         "wall point on a wall, a non-floor point on a wall or a top) or the other. A point's 1-sigma takes its surface "
