@@ -120,6 +120,7 @@ def hypotheses_json(hs, camera=None, provenance=None, view=None) -> dict:
         "hypotheses": [{"rank": i + 1, "score": round(float(h.score), 6),
                         "support": round(float(h.support), 4),
                         "flat": round(float(h.flat), 4),
+                        "smooth": round(float(h.smooth), 4),
                         "polyline": [[round(float(u), 3), round(float(v), 3)] for u, v in h.polyline],
                         "segments": [KIND_NAMES[int(k)] for k in h.kinds]}
                        for i, h in enumerate(hs.hypotheses)],
@@ -163,6 +164,8 @@ def cmd_hypotheses(args) -> int:
         corners = " ".join(f"({u:.0f},{v:.0f})" for u, v in h["polyline"])
         flat = (f"  the same colour above and below along {100 * h['flat']:.0f} % of it"
                 if h["flat"] else "")
+        flat += (f"  smooth below (a counter top, a sill?) along {100 * h['smooth']:.0f} % of it"
+                 if h["smooth"] else "")
         print(f"  {h['rank']:2d}  score {h['score']:7.3f}  edge support {h['support']:.2f}  "
               f"{corners}{flat}")
     print(f"  ({out['timing_ms']['total']:.0f} ms)")

@@ -252,7 +252,7 @@ def behind(camera: Camera, height: float, hyp: Hypothesis, counters: list[Counte
         verts += [np.array([b1[0], _row(base, b1[0])]), np.array([b2[0], _row(base, b2[0])]), b2]
         kinds += [int(SegKind.STEP), int(SegKind.WALL), int(SegKind.STEP)]
         s = c.last + 1
-    return Hypothesis(np.array(verts), np.array(kinds), hyp.score, hyp.support, hyp.flat)
+    return replace(hyp, polyline=np.array(verts), kinds=np.array(kinds))
 
 
 def _base(camera: Camera, height: float, c: Counter, b1, b2) -> np.ndarray | None:
@@ -268,11 +268,13 @@ def _base(camera: Camera, height: float, c: Counter, b1, b2) -> np.ndarray | Non
 
 def apply(hs, camera: Camera, height: float | None, max_n: int | None = None,
           lines: np.ndarray | None = None, params: CounterParams = CounterParams()):
-    """A ``HypothesisSet`` with its best hypothesis seen behind the counters it stands on:
-    ``behind`` of it first, the hypothesis as found second (the counters' front edges, for
-    a user who measures the cabinets), the others after; at most ``max_n`` (default: as
-    many as before). Unchanged without a camera height (a counter's height is metric) or
-    when no counter is found.
+    """A ``HypothesisSet`` with its best boundary seen behind the counters it stands on:
+    ``behind`` of it first, the hypotheses as found after it (the counters' front edges, for
+    a user who measures the cabinets); at most ``max_n`` (default: as many as before).
+    Unchanged without a camera height (a counter's height is metric) or when no counter is
+    found. The best boundary is the first hypothesis, or the second when "no floor visible"
+    came first (``flat.no_floor_first``: a counter top's edge, smooth under it, is what put it
+    there; the doors and the back edge found here say where the wall is).
 
     Args:
         hs: ``hypotheses.HypothesisSet`` of the photo (its lines and hypotheses in the
@@ -283,7 +285,9 @@ def apply(hs, camera: Camera, height: float | None, max_n: int | None = None,
     """
     if height is None or not hs.hypotheses:
         return hs
-    top = hs.hypotheses[0]
+    top = next((h for h in hs.hypotheses[:2] if not np.all(h.kinds == SegKind.NONE)), None)
+    if top is None:
+        return hs
     found = find(camera, height, top, hs.lines.ends if lines is None else lines, params)
     if not found:
         return hs

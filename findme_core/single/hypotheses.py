@@ -48,6 +48,8 @@ class Hypothesis:
         support: fraction of the in-image WALL length on edge evidence (the paper's score).
         flat: share of its WALL columns across which the photo's colour does not step
             (``flat.flat_share``; measured for the best boundary found; 0: not measured).
+        smooth: share of its WALL columns over a smooth band, in a photo whose horizon is
+            in view (``flat.smooth_share``; measured as ``flat``).
     """
 
     polyline: np.ndarray
@@ -55,6 +57,7 @@ class Hypothesis:
     score: float
     support: float = 0.0
     flat: float = 0.0
+    smooth: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -261,7 +264,8 @@ def generate(image: np.ndarray, camera: Camera, max_n: int = 10,
             poly = snap_polyline(lab, camera, poly, kinds_i, params.snap_params, cache, built[2])
         f = ranked[i][3]
         hyps.append(Hypothesis(poly, kinds_i, float(ranked[i][0]), float(f[IDX["fraction"]])))
-    hyps = no_floor_first(hyps, lab, max_n)
+    hyps = no_floor_first(hyps, lab, max_n, field.band_texture, horizon_top_row(camera),
+                          sp.smooth_texture)
     if clock:
         t.append(clock())
     return HypothesisSet(W, H, hyps, lines, kinds, None,

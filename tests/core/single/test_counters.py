@@ -147,6 +147,23 @@ def test_apply_puts_the_wall_first_and_keeps_the_counters_edge():
     assert counters.apply(plain, cam, H_CAM, lines=lines[:1]) is plain   # nothing found
 
 
+def test_apply_sees_behind_the_counter_put_second_by_no_floor_visible():
+    """"No floor visible" first (``flat.no_floor_first``: the counter top smooth under its
+    edge), the counter's edge second: the wall behind it goes first, then both as found; a
+    NONE first with no boundary after it, or two NONEs, are left as they are."""
+    cam = camera()
+    hyp, lines = _kitchen(cam)
+    none = Hypothesis(np.array([[0.0, 479.5], [639.0, 479.5]]), np.array([SegKind.NONE]), 1.0)
+    ls = Lines(lines, np.zeros((len(lines), 3)), np.ones(len(lines)))
+    hs = HypothesisSet(640, 480, [none, hyp], ls, np.zeros(len(lines), int))
+    out = counters.apply(hs, cam, H_CAM, max_n=3)
+    assert list(out.hypotheses[0].kinds) == [SegKind.STEP, SegKind.WALL, SegKind.STEP]
+    assert out.hypotheses[1] is none and out.hypotheses[2] is hyp
+    for hyps in ([none], [none, none, hyp]):
+        alone = HypothesisSet(640, 480, hyps, ls, np.zeros(len(lines), int))
+        assert counters.apply(alone, cam, H_CAM) is alone
+
+
 def test_segments_that_cannot_be_a_counter_are_not_tested():
     """Not a WALL (an occluding step), narrower than ``min_segment_px``, or above the
     horizon (no floor line): none is a counter, whatever the lines say."""

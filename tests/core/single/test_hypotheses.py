@@ -97,12 +97,15 @@ def test_large_photo_is_processed_at_working_size(level_view):
     assert floor_pixel_error(hs.hypotheses[0].polyline, lab) < 0.03
 
 
-@pytest.mark.parametrize("row,top_is_none", [(124, True), (180, False)])
-def test_a_boundary_implausibly_far_gives_no_floor_visible(row, top_is_none):
+@pytest.mark.parametrize("row,grain,top_is_none", [(124, 0, True), (180, 16, False),
+                                                   (180, 0, True)])
+def test_a_boundary_implausibly_far_gives_no_floor_visible(row, grain, top_is_none):
     """A level camera and one horizontal edge: 4 px below the horizon (row 119.5) its floor
     would lie ~30 camera heights away (a counter top's edge, a window sill), so "no floor
-    visible" comes first; 60 px below, the edge is the boundary."""
-    hs = H.generate(_edge_image(row), Camera.from_hfov(70, 320, 240))
+    visible" comes first; 60 px below, over a floor's grain (``_edge_image``: 1.7 grey levels
+    per pixel), the edge is the boundary; over a band as smooth as a counter top (0), in this
+    photo that looks across the room, "no floor visible" comes first again (``flat``)."""
+    hs = H.generate(_edge_image(row, grain), Camera.from_hfov(70, 320, 240))
     kinds = [h.kinds.tolist() for h in hs.hypotheses]
     assert (kinds[0] == [SegKind.NONE]) == top_is_none
     assert [SegKind.NONE] in kinds   # both answers are offered either way
@@ -123,10 +126,13 @@ def test_no_floor_visible_is_offered_only_against_a_far_boundary(box_view):
         assert len(nones) == int(forced), (forced, len(dbg["ranked"]))
 
 
-def _edge_image(row):
-    img = np.full((240, 320, 3), 200, np.uint8)
-    img[row:, :] = 90
-    return cv2.GaussianBlur(img, (0, 0), 1)
+def _edge_image(row, grain=0.0):
+    """A 320 x 240 photo: grey 200 above ``row``, 90 from it down with a seeded noise of
+    ``grain`` grey levels (1-sigma) per pixel, a floor's grain (16: a band texture of about
+    1.7 grey levels per pixel, ``support.EdgeField.band_texture``); blurred by 1 px."""
+    img = np.full((240, 320, 3), 200.0)
+    img[row:, :] = 90 + np.random.default_rng(0).normal(0.0, grain, (240 - row, 320, 1))
+    return cv2.GaussianBlur(np.clip(img, 0, 255).astype(np.uint8), (0, 0), 1)
 
 
 def test_a_poster_under_a_far_seed_does_not_pass_for_the_wall_base():
