@@ -41,8 +41,8 @@ gravity): 16 of the 123 photos with the horizon in view (all ZInD) have a smooth
 half or more, and 311 of their 787 answers were beyond 3 sigma (4 % in the other ZInD
 photos). 10 show no floor at all (9 kitchen counters, 1 window sill); the other 6 show a
 sliver of it (2-4 % of the photo: a counter's front, a sill above the floor), 64 of their
-422 answers beyond 3 sigma, now unanswered too. The highest share of the other photos is 0.48: a carpet whose
-boundary is right, the margin this test has.
+422 answers beyond 3 sigma, now unanswered too. The highest share of the other photos is
+0.48: a carpet whose boundary is right, the margin this test has.
 
 Frames and units: image pixels (u right, v down) of the working-size photo ``lab`` (H, W, 3)
 uint8, OpenCV's 8-bit CIE Lab; polylines (M, 2) with u non-decreasing, kinds (M - 1,)
