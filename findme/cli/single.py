@@ -162,12 +162,12 @@ def cmd_hypotheses(args) -> int:
           + (" (guesses: this photo does not look like a room):" if not view.ok else ":"))
     for h in out["hypotheses"]:
         corners = " ".join(f"({u:.0f},{v:.0f})" for u, v in h["polyline"])
-        flat = (f"  the same colour above and below along {100 * h['flat']:.0f} % of it"
+        said = (f"  the same colour above and below along {100 * h['flat']:.0f} % of it"
                 if h["flat"] else "")
-        flat += (f"  smooth below (a counter top, a sill?) along {100 * h['smooth']:.0f} % of it"
+        said += (f"  smooth below (a counter top, a sill?) along {100 * h['smooth']:.0f} % of it"
                  if h["smooth"] else "")
         print(f"  {h['rank']:2d}  score {h['score']:7.3f}  edge support {h['support']:.2f}  "
-              f"{corners}{flat}")
+              f"{corners}{said}")
     print(f"  ({out['timing_ms']['total']:.0f} ms)")
     if args.overlay:
         print(f"selection image: {args.overlay}")

@@ -273,8 +273,8 @@ def apply(hs, camera: Camera, height: float | None, max_n: int | None = None,
     a user who measures the cabinets); at most ``max_n`` (default: as many as before).
     Unchanged without a camera height (a counter's height is metric) or when no counter is
     found. The best boundary is the first hypothesis, or the second when "no floor visible"
-    came first (``flat.no_floor_first``: a counter top's edge, smooth under it, is what put it
-    there; the doors and the back edge found here say where the wall is).
+    came first (as ``flat.no_floor_first`` puts it before a counter top's edge, smooth under
+    it; the doors and the back edge found here say where the wall is).
 
     Args:
         hs: ``hypotheses.HypothesisSet`` of the photo (its lines and hypotheses in the

@@ -70,7 +70,7 @@ FLAT_SHARE = 0.5
 #: ... measured over at least this many strips (else it is not judged: 0)
 MIN_COLUMNS = 16
 #: rows between the boundary and the band whose texture is measured, and the band's rows
-#: (``support.EdgeField.band_texture``'s defaults; pixels at the working size)
+#: (pixels at the working size; passed to the texture, ``support.EdgeField.band_texture``)
 TEXTURE_OFFSET, TEXTURE_BAND = 3, 24
 
 
@@ -114,15 +114,16 @@ def smooth_share(texture, top_row: int, poly, kinds, width: int, height: int,
     """Share in [0, 1] of the boundary's WALL strips under which the photo is smoother than
     ``smooth`` (grey levels per pixel); 0 when the photo's horizon is not in view
     (``top_row``, ``segments.horizon_top_row``, is 0) or fewer than ``MIN_COLUMNS`` strips
-    are measured. ``texture``: (rows (K,), columns (K,)) -> (K,) mean gradient of the band
-    ``TEXTURE_OFFSET`` rows under each (``support.EdgeField.band_texture``); ``poly`` (M, 2),
+    are measured. ``texture``: (rows (K,), columns (K,), offset, band) -> (K,) mean gradient
+    of the ``band`` rows ``offset`` rows under each (``support.EdgeField.band_texture``;
+    ``TEXTURE_OFFSET``, ``TEXTURE_BAND``); ``poly`` (M, 2),
     ``kinds`` (M - 1,) as a ``Hypothesis``'s, of a ``width`` x ``height`` photo."""
     if top_row <= 0:
         return 0.0
     _, us, vs = _strips(poly, kinds, width, height, 0, TEXTURE_OFFSET + TEXTURE_BAND)
     if len(us) < MIN_COLUMNS:
         return 0.0
-    t = np.asarray(texture(vs, np.rint(us).astype(int)), float)
+    t = np.asarray(texture(vs, np.rint(us).astype(int), TEXTURE_OFFSET, TEXTURE_BAND), float)
     return float(np.count_nonzero(t < smooth)) / len(us)
 
 

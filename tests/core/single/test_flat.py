@@ -140,7 +140,8 @@ def _texture(value):
     levels per pixel everywhere, or ``value(rows, cols)``; it records the rows it is asked."""
     asked = []
 
-    def texture(rows, cols):
+    def texture(rows, cols, offset, band):
+        assert (offset, band) == (flat.TEXTURE_OFFSET, flat.TEXTURE_BAND)
         asked.append(np.asarray(rows, float))
         return value(rows, cols) if callable(value) else np.full(len(rows), float(value))
     texture.asked = asked
