@@ -9,7 +9,8 @@ sigmas (``PlanParams.pose_sigma_model`` = (1, 0, 1, 0), ``length_sigma_model`` a
 ``corner_sigma_model`` = (1, 0): the joint refinement's covariance alone), matches every seen
 wall to the truth, every placed photo to its true pose and every scored true corner to the
 nearest vertex, then fits each term as ``sigma = hypot(k * raw, floor)``
-(``sigma_coverage.fit_model``: the coverage within 1 and 3 sigma nearest a Gaussian's):
+(``sigma_coverage.fit_model``: the coverage within 1 and 3 sigma nearest the goal, then a
+Gaussian's; ``rule_key``):
 
 * on all rooms: the values to put in ``PlanParams`` (findme_core/plan/floorplan.py:
   ``pose_sigma_model``, ``length_sigma_model`` and ``corner_sigma_model`` from ``--gravity

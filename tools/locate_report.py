@@ -220,8 +220,8 @@ SIGMA_GRID_DEG = np.exp(np.linspace(np.log(0.05), np.log(10.0), 241))
 def _found_sigma_loro(rows) -> str:
     """``relocalise.FOUND_SIGMA`` against the stated poses (turns found with the plan's
     photos): the constant 1-sigma fitted by the rule the product's sigma constants are
-    fitted by (``sigma_coverage.fit_factor``: coverage nearest 0.68 within 1 and 0.99 within
-    3; x and z pooled, yaw), on all rooms and with each room left out, the coverage each room
+    fitted by (``sigma_coverage.fit_factor``: coverage nearest the goal, then a Gaussian's;
+    x and z pooled, yaw), on all rooms and with each room left out, the coverage each room
     gets from the value fitted on the others, and the RMS errors beside them."""
     done = [(room, d) for room, d in _turns_found_with_photos(rows) if d["found"]]
     if not done:

@@ -157,8 +157,9 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "answered item; a Gaussian puts 0.68 within 1 sigma, 0.95 within 2 and 0.997 within 3; "
         "goal: 0.60-0.80 within 1, >= 0.97 within 3, for >= 10 items; \"left out\": each room's "
         "sigmas scaled by the one factor fitted on the others by the rule the product's sigma "
-        "constants are fitted by (`sigma_coverage.fit_factor`: nearest 0.68 within 1 and 0.99 "
-        "within 3), i.e. the constant chosen leave-one-room-out; gravity is scored where the "
+        "constants are fitted by (`sigma_coverage.rule_key`: the coverage within 1 and 3 sigma "
+        "nearest the goal, then nearest a Gaussian's 0.68 and 0.99), i.e. the constant chosen "
+        "leave-one-room-out; gravity is scored where the "
         "dataset measured it, not on KITTI's nominal one). With the dataset's gravity, exact, "
         "taken as it is with the default 1-sigma of 0.5°:", "",
         *coverage_rows(split, ours_preds), "", *figure("given", "the dataset's gravity"),
@@ -203,7 +204,7 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "1-sigma in pixels of the 640 px working size, on the wall and non-floor points with "
         "the dataset's gravity; the factor on the gravity fit's own covariance, on the pitch "
         "and roll of the views whose gravity came from the image, gravity withheld; each "
-        "chosen as the plan's are, nearest a Gaussian's 0.68 within 1 sigma and 0.99 within 3):",
+        "chosen as the plan's are, the coverage nearest the goal, then a Gaussian's):",
         "", "```", *tools["points_gravity"].strip().splitlines(), "```", "",
         "**The motion's model errors** (`tools/calibrate_motion.py`: scale, direction, yaw and "
         "position terms added to the estimator's own sigmas, fitted on tum-cabinet-pairs so "

@@ -21,16 +21,25 @@ share within 1, 2 and 3 sigma (a Gaussian: 0.68 / 0.95 / 0.997; the goal: 0.60-0
 
 Leave-one-room-out (``--loro``, the default): each sigma is scaled by one factor fitted on the
 OTHER rooms (ZInD: one room per group; TUM: blocks of 6 frames; KITTI: one group) by the rule
-the product's sigma constants are fitted by (``fit_factor``: the coverage nearest a Gaussian's
-0.68 within 1 and 0.99 within 3, more than 0.99 within 3 costing nothing; ``calibrate_sigma``,
-``calibrate_plan``), and the left-out room is scored with it: the coverage a room never used
-for fitting gets. "in" is the coverage as stated (in sample: the constants were fitted on
-these rooms). Until 2026-12-02 the factor put 68 % of the other rooms' items within 1 sigma,
-the rule the product's constants left on 2026-11-30 because it shrinks a sigma until the
-wrong answers' tail lies beyond 3: for a quantity stated wider than that in sample it gave a
-left-out room the shrunk sigma no constant of the product has (ZInD level pairs' yaw, gravity
-withheld: 0.83 / 1.00 / 1.00 in sample, 0.50 / 0.50 / 0.56 left out; 0.67 / 0.83 / 0.89 by
-the product's rule). Reads the dataset's ground truth: a tool, not the product.
+the product's sigma constants are fitted by (``fit_factor`` / ``rule_key``: the coverage
+within 1 and 3 sigma nearest the goal, 0.60-0.80 and >= 0.97, and among factors equally near
+it, nearest a Gaussian's 0.68 and 0.99; ``calibrate_sigma``, ``calibrate_plan``), and the
+left-out room is scored with it: the coverage a room never used for fitting gets. "in" is the
+coverage as stated (in sample: the constants were fitted on these rooms).
+
+The rule's history. Until 2026-11-30 the constants put 68 % within 1 sigma; that shrinks a
+sigma until the wrong answers' tail lies beyond 3. Until 2026-12-02 (morning) this tool's
+factor still did, and gave a left-out room shrunk sigmas no constant of the product has (ZInD
+level pairs' yaw, gravity withheld: 0.83 / 1.00 / 1.00 in sample, 0.50 / 0.50 / 0.56 left
+out). Until 2026-12-02 (afternoon) the rule was the coverage nearest a Gaussian's 0.68 and
+0.99 alone: a 1-sigma share above 0.68 cost as much as one below it, so with a tail of wrong
+answers it still traded the tail for the 1-sigma row (the boundary's 1-sigma: 13.2 px, 0.72
+/ 0.87 within 1 / 3, against the shipped 34 px's 0.83 / 0.93). The goal allows 0.80 within 1,
+and what it asks at 3 sigma is what a user relies on; the goal first gives 36.5 px. Left out, over
+the three gravity modes, 21 rows gain 0.01-0.07 within 3 sigma and none loses (ZInD wall
+points, the dataset's gravity, 0.76 / 0.84 -> 0.79 / 0.88 within 1 / 3); within 1 sigma TUM's
+cabinet faces go to 0.82-0.85, over the goal's 0.80. Reads the dataset's ground truth:
+a tool, not the product.
 
 ``--widened`` asks what one constant could do if the 3-sigma goal came first: each room
 scored with the factor that puts at least 97 % of the OTHER rooms' items within 3 sigma (and
@@ -280,14 +289,17 @@ def widened(items: list) -> tuple[np.ndarray, float]:
 
 def loro(items: list) -> np.ndarray:
     """z of every item with its sigma scaled by the factor fitted on the other groups by the
-    rule the product's constants are fitted by (``fit_factor``: coverage nearest a Gaussian's
-    0.68 within 1 and 0.99 within 3): what a constant fitted without the item's room gives it."""
+    rule the product's constants are fitted by (``fit_factor``: coverage nearest the goal,
+    then a Gaussian's): what a constant fitted without the item's room gives it."""
     return _left_out(items, lambda t: fit_factor(lambda k: t / k, SCALES)[1])[0]
 
 
-#: the scale grid of ``fit_model`` and its target coverage within 1 and 3 sigma
+#: the scale grid of ``fit_model`` and a Gaussian's coverage within 1 and 3 sigma (the
+#: tie-break of ``rule_key``)
 SCALES = np.exp(np.linspace(np.log(0.3), np.log(30.0), 93))
 TARGET = (0.68, 0.99)
+#: the goal every stated sigma is held to: within 1 sigma in this band, within 3 at least this
+GOAL = ((0.60, 0.80), 0.97)
 
 
 #: a floor term must improve the fit's loss by this much to be kept (fewer parameters)
@@ -301,30 +313,52 @@ def target_loss(z: np.ndarray) -> float:
     return (c1 - TARGET[0]) ** 2 + (min(c3, TARGET[1]) - TARGET[1]) ** 2
 
 
-def fit_factor(z_of, grid) -> tuple[float, float]:
-    """(loss, k): the k of ``grid`` (ascending) whose ``z_of(k)`` has the least
-    ``target_loss``; ties: the smaller k."""
-    best, arg = np.inf, float(grid[0])
+def goal_loss(z: np.ndarray) -> float:
+    """How far the coverage of ``z`` within 1 and 3 sigma is from ``GOAL`` (squares of the
+    shortfalls; 0 anywhere inside it)."""
+    c1, c3 = float(np.mean(z <= 1)), float(np.mean(z <= 3))
+    (lo, hi), least3 = GOAL
+    return max(lo - c1, c1 - hi, 0.0) ** 2 + max(least3 - c3, 0.0) ** 2
+
+
+def rule_key(z: np.ndarray) -> tuple[float, float]:
+    """The rule every sigma constant is chosen by, as a key to compare (smaller is better):
+    ``goal_loss`` first, then, among values equally far from the goal (inside it, mostly),
+    ``target_loss``, the one nearest a Gaussian."""
+    return goal_loss(z), target_loss(z)
+
+
+def improves(new: tuple[float, float], old: tuple[float, float], by: float = 1e-12) -> bool:
+    """Whether ``rule_key`` ``new`` beats ``old`` by more than ``by``: in the goal's loss, or
+    at the same goal loss (to 1e-12) in the Gaussian's."""
+    if abs(new[0] - old[0]) > 1e-12:
+        return new[0] < old[0] - by
+    return new[1] < old[1] - by
+
+
+def fit_factor(z_of, grid) -> tuple[tuple[float, float], float]:
+    """(key, k): the k of ``grid`` (ascending) whose ``z_of(k)`` has the least ``rule_key``;
+    ties: the smaller k."""
+    best, arg = (np.inf, np.inf), float(grid[0])
     for k in grid:
-        loss = target_loss(z_of(float(k)))
-        if loss < best - 1e-12:
-            best, arg = loss, float(k)
+        key = rule_key(z_of(float(k)))
+        if improves(key, best):
+            best, arg = key, float(k)
     return best, arg
 
 
 def fit_model(err: np.ndarray, sig: np.ndarray) -> tuple[float, float]:
-    """(k, f): the sigma model hypot(k * stated, f) whose coverage within 1 and 3 sigma
-    comes nearest a Gaussian's (``TARGET``; least squares over a grid; f from the errors'
-    quantiles). f = 0 unless a floor improves the loss by ``FLOOR_GAIN``. Ties: the smaller
-    k, then the smaller f."""
+    """(k, f): the sigma model hypot(k * stated, f) of least ``rule_key`` (a grid over k;
+    f from the errors' quantiles). f = 0 unless a floor improves the key by ``FLOOR_GAIN``.
+    Ties: the smaller k, then the smaller f."""
     def best_k(f):
         return fit_factor(lambda k: err / np.hypot(k * sig, f), SCALES)
-    loss0, k0 = best_k(0.0)
-    best, arg = loss0 - FLOOR_GAIN, (k0, 0.0)
+    best, k0 = best_k(0.0)
+    arg, gain = (k0, 0.0), FLOOR_GAIN
     for f in np.unique(np.quantile(err, [0.1, 0.25, 0.4, 0.55, 0.7])):
-        loss, k = best_k(float(f))
-        if f > 0 and loss < best - 1e-12:
-            best, arg = loss, (k, float(f))
+        key, k = best_k(float(f))
+        if f > 0 and improves(key, best, gain):
+            best, arg, gain = key, (k, float(f)), 1e-12
     return arg
 
 

@@ -11,10 +11,10 @@ prediction's ``inliers``), the translation rests on the two photos' walls regist
 other, and a wrong wall correspondence moves it by a share of the baseline that the fit's
 covariance does not see. So add c * |t| (t: the estimated translation, metres) in quadrature
 to the 1-sigma of x and of z of those pairs. (N, c) are chosen on a grid (``N_GRID``,
-``C_GRID``) by ``sigma_coverage.target_loss`` (coverage within 1 and 3 sigma nearest a
-Gaussian's) over the ZInD pairs of every run given, pooled (the term is for pairs whose
-translation the walls decide; TUM and KITTI pairs are only scored), and again leaving each
-ZInD room out.
+``C_GRID``) by ``sigma_coverage.rule_key`` (the coverage within 1 and 3 sigma nearest the
+goal, then a Gaussian's) over the ZInD pairs of every run given, pooled (the term is for
+pairs whose translation the walls decide; TUM and KITTI pairs are only scored), and again
+leaving each ZInD room out.
 
 Measured 2026-11-30 on the dev split (runs: the dataset's gravity, a phone's, withheld): all
 rooms N = 15, c = 0.2; in sample the phone run's tilted pairs go from 0.59 / 0.82 / 0.82 to
@@ -22,7 +22,10 @@ rooms N = 15, c = 0.2; in sample the phone run's tilted pairs go from 0.59 / 0.8
 0.63 / 0.89 / 0.95; but the fold without room06 (the kitchen, where most such pairs fail)
 picks c = 0, so left out the gain is gone (tilted x 0.68 / 0.82 / 0.82, level z
 0.68 / 0.84 / 0.89). In and out disagree, so by the rule of fewer parameters the product
-does not have the term. Reads the dataset's ground truth: a tool, not the product.
+does not have the term. Again on 2026-12-02 by the goal-first rule: all rooms N = 10,
+c = 0.15, the folds without room06 and without room17 c = 0; left out no row gains within 3
+sigma (a phone's tilted pairs' x 0.90, level pairs' x and z 0.94, withheld level 0.93), so
+still not. Reads the dataset's ground truth: a tool, not the product.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from sigma_coverage import coverage, group_of, target_loss  # noqa: E402
+from sigma_coverage import coverage, group_of, improves, rule_key  # noqa: E402
 
 N_GRID = (5, 10, 15, 20, 30, 40)
 C_GRID = (0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
@@ -67,13 +70,13 @@ def z_scores(rows: list[dict], n_max: int, c: float) -> np.ndarray:
 
 
 def fit(rows: list[dict]) -> tuple[int, float]:
-    """(N, c) of least ``target_loss`` over the rows' x and z; ties: smaller c, then N."""
-    best, arg = np.inf, (N_GRID[0], 0.0)
+    """(N, c) of least ``rule_key`` over the rows' x and z; ties: smaller c, then N."""
+    best, arg = (np.inf, np.inf), (N_GRID[0], 0.0)
     for c in C_GRID:
         for n_max in N_GRID:
-            loss = target_loss(z_scores(rows, n_max, c).ravel())
-            if loss < best - 1e-12:
-                best, arg = loss, (n_max, c)
+            key = rule_key(z_scores(rows, n_max, c).ravel())
+            if improves(key, best):
+                best, arg = key, (n_max, c)
     return arg
 
 

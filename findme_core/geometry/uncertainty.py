@@ -24,19 +24,17 @@ from findme_core.errors import GeometryError, HypothesisError
 
 #: 1-sigma of a chosen boundary's position on real photos, pixels of the ~640 px working
 #: size (the hypotheses' resolution). Fitted on an earlier dev run so that 68 % of wall and
-#: non-floor points lay within their 1-sigma; on 2026-12-02 78.4 % do, and
-#: tools/calibrate_sigma.py (the rule of the plan's model errors: nearest a Gaussian's coverage
-#: within 1 and 3 sigma) gives 36.5 on all dev rooms, 9.3-39.4 with one room left out (37.2
-#: and 11.1-38.7 on 2026-11-30, before the spreads of a top's and a step's readings). Kept:
-#: within 10 % of the rule's value, and wider than the 68 % rule's 19.9, which would leave more
-#: of the wrong boundaries' points beyond 3 sigma (0.81 against 0.88 within 3 on 2026-11-30).
-#: Since a smooth band under the line refuses the kitchen's level photos (``flat``, later on
-#: 2026-12-02) 82.9 % lie within 1 sigma, and the rule's loss has its least at 13.2 (0.017;
-#: 8.9-17.0 with one room left out), no longer near 34 (0.026): 0.72 / 0.87 within 1 / 3
-#: sigma there against 0.83 / 0.93 at 34. Kept: at 13.2 every row's points and distances
-#: fall within 3 sigma (ZInD wall points 0.93 -> 0.86, TUM's cabinet faces 0.91 -> 0.87,
-#: distances 0.99 -> 0.96 and 0.92 -> 0.88), and left out the wall points gain nothing at 3
-#: (0.76 / 0.84 -> 0.72 / 0.84 within 1 / 3): the rule trades the tail for the 1-sigma row.
+#: non-floor points lay within their 1-sigma; a rule that shrinks it until the wrong
+#: boundaries' points lie beyond 3 sigma (19.9 px on 2026-11-30: 0.81 against 0.88 within 3).
+#: tools/calibrate_sigma.py now chooses it by the rule every sigma constant is
+#: (``sigma_coverage.rule_key``: coverage within 1 and 3 sigma nearest the goal, 0.60-0.80
+#: and >= 0.97, then a Gaussian's): on 2026-12-02, with the kitchen's level photos refused
+#: (``flat``), 36.5 px on all dev rooms (0.834 / 0.897 / 0.932 within 1 / 2 / 3 sigma), 34.4-
+#: 37.9 with one room left out but room06, the kitchen (14.6); left out 0.803 / 0.858 /
+#: 0.895. Kept at 34 (0.829 / 0.893 / 0.928), within 10 % of the rule's value. The rule
+#: before, nearest a Gaussian alone, had gone to 13.2 px that day (0.72 / 0.87), where every
+#: row's points and distances lose within 3 sigma (ZInD wall points 0.93 -> 0.86, TUM's
+#: cabinet faces 0.91 -> 0.87, distances 0.99 -> 0.96 and 0.92 -> 0.88).
 BOUNDARY_SIGMA_WORK_PX = 34.0
 WORK_SIZE_PX = 640
 

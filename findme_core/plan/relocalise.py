@@ -154,11 +154,12 @@ FOUND_RATIO = 0.8
 #: 1-sigma of a stated pose, (x and z each: metres, yaw: degrees), fitted on the poses stated
 #: on the dev rooms (``tools/locate_report.py``: 35 photos of 8 turns in 4 rooms; each spot
 #: found on the plan of the others) by the rule the product's sigma constants are fitted by
-#: (``sigma_coverage.fit_factor``: coverage nearest 0.68 within 1 and 0.99 within 3). Left
-#: out room by room (each room with the value fitted on the others, 0.044-0.048 m and
+#: (``sigma_coverage.fit_factor``: coverage nearest the goal, then a Gaussian's). Left
+#: out room by room (each room with the value fitted on the others, 0.044-0.049 m and
 #: 0.49-0.54 deg), 0.77 / 0.97 / 0.97 of x and z lie within 1 / 2 / 3 sigma and 0.60 / 1.00 /
-#: 1.00 of the yaws (2026-12-02; the RMS errors used before, 0.043 m and 0.47 deg, left
-#: 0.54 / 0.97 / 0.97 and 0.57 / 1.00 / 1.00). Eight turns are few: a constant, not a model.
+#: 1.00 of the yaws (2026-12-02, by both the goal-first rule and the Gaussian-nearest one
+#: before it; the RMS errors used before, 0.043 m and 0.47 deg, left 0.54 / 0.97 / 0.97 and
+#: 0.57 / 1.00 / 1.00). Eight turns are few: a constant, not a model.
 FOUND_SIGMA = (0.044, 0.53)
 
 
