@@ -84,7 +84,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(__file__))
 from calibrate_plan import GRAVITIES  # noqa: E402
-from sigma_coverage import group_of  # noqa: E402
+from sigma_coverage import goal_gap, group_of  # noqa: E402
 from findme.evaluation.pairs import pair_inputs  # noqa: E402
 from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion.model import MotionParams  # noqa: E402
@@ -142,14 +142,14 @@ def coverage(rows, k: int) -> np.ndarray:
 
 def loss(rows, k: int) -> float:
     """Mean over the subsets with >= 10 pairs of the squared distance of the coverage to the
-    goal (module doc): 0.60-0.80 within 1 sigma, >= 0.97 within 3."""
+    goal (``sigma_coverage.goal_gap``): 0.60-0.80 within 1 sigma, >= 0.97 within 3."""
     parts = []
     for s in SUBSETS:
         sub = [r for r in rows if r[1] == s]
         if len(sub) < 10:
             continue
         c = coverage(sub, k)
-        parts.append(max(0.60 - c[0], c[0] - 0.80, 0.0) ** 2 + max(0.97 - c[2], 0.0) ** 2)
+        parts.append(goal_gap(c[0], c[2]))
     return float(np.mean(parts)) if parts else float("inf")
 
 
