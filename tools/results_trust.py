@@ -209,7 +209,8 @@ def section(split: Path, ours_scored: dict, refit_scored: dict, loro_scored: dic
         "**The motion's model errors** (`tools/calibrate_motion.py`: scale, direction, yaw and "
         "position terms added to the estimator's own sigmas, fitted on tum-cabinet-pairs so "
         "that the median normalised error is a Gaussian's; the other subsets held out, and the "
-        "fit left out block by block):", "", "```",
+        "fit left out block by block; last, the same terms by the rule of the other sigma "
+        "constants, the coverage nearest the goal, then a Gaussian's):", "", "```",
         *tools["motion"].strip().splitlines(), "```", "",
         "**Gravity's ambiguity ratio** (`tools/choose_ambiguity.py`: a frame scoring this share "
         "of the best, more than 5° away, widens the 1-sigma over it):", "", "```",
