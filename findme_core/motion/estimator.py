@@ -31,6 +31,11 @@ from findme_core.motion.model import (MotionInputs, MotionParams, PlanarMotion, 
                                      motion_result)
 
 
+#: rivals of an answer tested at most (``Registration._rivals``): a room's other three
+#: quarter and half turns
+MAX_RIVALS = 3
+
+
 class Registration:
     """One run of the ``findme`` estimator (see the module docstring); arguments as
     ``methods.estimate``."""
@@ -224,15 +229,34 @@ class Registration:
         best = out[k][0]
         alts = tuple(o for o, _ in out[:k] + out[k + 1:]
                      if o.score >= self.p.alternative_ratio * best.score)
-        alts += self._rival(best, alts, cy, ct, total, which)
+        alts += self._rivals(best, alts, cy, ct, total, which)
         alts += tuple(as_scored(best, cy[i], ct[i], s, *self._evidence(cy[i], ct[i], which[i]))
                       for i, s in along(best, alts, cy, ct, self.fit.scale_score,
                                         self.p.scale_ratio, self.p.refine_top))
         return spread_over(replace(best, alternatives=alts))
 
-    def _rival(self, best, alts, cy, ct, total, which) -> tuple:
-        """The best candidate turned more than ``rival_sep_deg`` from ``best``, refined, when
-        the photos do not prefer ``best`` to it: () or (it,). They do not when the counts of
+    def _rivals(self, best, alts, cy, ct, total, which) -> tuple:
+        """The rivals of ``best`` (``_rival``) turned more than ``rival_sep_deg`` from it and
+        from one another, best-scoring first: in a symmetric room the other quarter turns
+        and the half turn, so at most ``MAX_RIVALS``. Each is tested on its own, so one
+        the photos rule out (a half turn few matches agree with) does not hide the next (the
+        quarter turn as many agree with: dev pair zpl_r06_p10_p11_t2, a phone's gravity,
+        2026-12-02: 89 deg off at +-1.4 deg with only the half turn tested)."""
+        sep = np.radians(self.p.rival_sep_deg)
+        out, left = (), np.ones(len(cy), bool)
+        for _ in range(MAX_RIVALS):
+            idx = np.flatnonzero(left)
+            j = rival(cy[idx], total[idx], best.yaw, sep)
+            if j is None:
+                break
+            i = int(idx[j])
+            out += self._rival(i, best, alts + out, cy, ct, which)
+            left &= np.abs(wrap(cy - cy[i])) > sep
+        return out
+
+    def _rival(self, i: int, best, alts, cy, ct, which) -> tuple:
+        """Candidate ``i``, a motion turned away from ``best``, refined, when the photos do
+        not prefer ``best`` to it: () or (it,). They do not when the counts of
         agreeing matches differ by at most their standard error (sqrt of their sum: counts
         of chance agreements scatter as Poisson's) and the appearance correlations by at
         most theirs. Only the layouts and room orientations chose ``best`` then, and they
@@ -241,8 +265,7 @@ class Registration:
         "at least as many" (until 2026-12-01) left out zpl_r06_p10_p11_t1's, 8 matches
         against the answer's 11, its answer 90 deg off at +-0.8 deg."""
         sep = np.radians(self.p.rival_sep_deg)
-        i = rival(cy, total, best.yaw, sep)
-        if i is None or any(abs(wrap(a.yaw - cy[i])) <= sep for a in alts):
+        if any(abs(wrap(a.yaw - cy[i])) <= sep for a in alts):
             return ()
         n_i, n_b = self._support(cy[i], ct[i]), self._support(best.yaw, (best.x, best.dy, best.z))
         if more_agree(n_b, n_i):

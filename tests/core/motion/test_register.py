@@ -238,3 +238,26 @@ def test_a_rival_the_photos_cannot_rule_out_is_an_alternative_whatever_its_score
     else:
         assert not m.alternatives and math.degrees(m.sigma_yaw) < 2.0
         assert _err(m, pa, pb)[1] < 1e-5
+
+
+def test_each_turn_is_tested_as_a_rival_not_only_the_best_scoring():
+    """``Registration._rivals`` on scored candidates (yaw, score): the answer at 0 deg, a half
+    turn scoring best of the others, then a quarter turn, a second copy of the half turn and
+    the other quarter turn. The half turn is ruled out (as when few matches agree with it);
+    the quarter turns are still tested, each once, and one the photos cannot rule out is an
+    alternative. Before, only the best-scoring turn was tested, so nothing was."""
+    from types import SimpleNamespace
+
+    from findme_core.motion.estimator import MAX_RIVALS, Registration
+    cy = np.radians([0.0, 180.0, 90.0, 178.0, -90.0, 2.0])
+    total = np.array([10.0, 9.0, 8.0, 8.5, 7.0, 9.5])
+    tested = []
+
+    def judge(i, best, alts, cy_, ct, which):
+        tested.append(round(math.degrees(cy_[i])))
+        return () if round(math.degrees(cy_[i])) == 180 else (SimpleNamespace(yaw=cy_[i]),)
+    fake = SimpleNamespace(p=MotionParams(), _rival=judge)
+    best = SimpleNamespace(yaw=0.0)
+    out = Registration._rivals(fake, best, (), cy, np.zeros((6, 3)), total, np.zeros(6))
+    assert tested == [180, 90, -90] and len(tested) <= MAX_RIVALS
+    assert [round(math.degrees(o.yaw)) for o in out] == [90, -90]
