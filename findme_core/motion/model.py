@@ -94,10 +94,12 @@ class MotionParams:
             walls mean no common wall.
         alternative_ratio: other refined motions scoring at least this fraction of the best
             are its alternatives.
-        rival_sep_deg: the best candidate turned more than this from the answer is an
-            alternative too, whatever its score, when the photos do not prefer the answer
-            to it: about as many matches agree with it and the appearance correlates about
-            as well, each within its standard error (``estimator.Registration._rival``).
+        rival_sep_deg: each of the best candidates turned more than this from the answer and
+            from one another (at most three: ``estimator.MAX_RIVALS``) is an alternative too,
+            whatever its score, when the photos do not prefer the answer to it: about as
+            many matches agree with it and the appearance correlates about as well, each
+            within its standard error (``estimator.Registration._rivals``; until 2026-12-02
+            only the best-scoring one was tested). Chosen when one was:
             ``tools/choose_alternatives.py --param rival_sep_deg --gravity
             given,phone,withheld`` (2026-12-01, the three gravities pooled): loss 0.0107
             without the rule (180), 0.0034 at 45, 0.0036 at 30, 20 and 10; in sample at 45
