@@ -115,7 +115,10 @@ class MotionParams:
             scale_ratio --gravity given,phone,withheld`` (2026-12-01): loss 0.0039 at 0.1,
             0.2 and 0.3 against 0.0069 without (1.1); picks 0.3, and so does every group
             left out but room06 (0.5); ZInD level pairs within 3 sigma 0.90 -> 0.92, tilted
-            0.92 -> 0.95, KITTI 0.83 -> 0.86, TUM 0.99 either way.
+            0.92 -> 0.95, KITTI 0.83 -> 0.86, TUM 0.99 either way. Since every turn is
+            tested as a rival (2026-12-02) the same run picks 0.7 (loss 0.0000 at 0.5 and
+            0.7, 0.0001 at 0.3; every group left out 0.7, KITTI 0.9): not refitted yet, 0.3
+            keeps more alternatives (docs/RESULTS.md).
         duplicate_px: matches within this many pixels of a more distinctive one (their
             distances in A and in B add up to less than twice it) are its copies (one corner
             at several ORB pyramid levels) and count once (``features.distinct``). Dev
