@@ -34,6 +34,26 @@ def rival(cy, total, yaw: float, sep: float) -> int | None:
     return int(far[ties.order(np.asarray(total)[far])[0]])
 
 
+#: rivals of an answer tested at most (``turns``): a room's other quarter turns and half turn
+MAX_RIVALS = 3
+
+
+def turns(cy, total, yaw: float, sep: float, k: int = MAX_RIVALS) -> list[int]:
+    """Indices of up to ``k`` rivals (``rival``): the best-scoring candidate (yaw (C,)
+    radians, score (C,)) more than ``sep`` radians from ``yaw``, then the best more than
+    ``sep`` from it too, and so on: each of a symmetric room's other turns once."""
+    cy = np.asarray(cy)
+    out, left = [], np.ones(len(cy), bool)
+    for _ in range(k):
+        idx = np.flatnonzero(left)
+        j = rival(cy[idx], np.asarray(total)[idx], yaw, sep)
+        if j is None:
+            break
+        out.append(int(idx[j]))
+        left &= np.abs(wrap(cy - cy[out[-1]])) > sep
+    return out
+
+
 def more_agree(n_best: int, n_other: int) -> bool:
     """Whether more of the photos' matches agree with one motion than with another: the
     counts of agreeing matches differ by more than their standard error, sqrt(n_best +

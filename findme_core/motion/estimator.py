@@ -21,19 +21,14 @@ from findme_core.geometry import ties
 from findme_core.geometry.planar import bearings, rot_y, wrap
 from findme_core.motion import one_sided, photometric, register
 from findme_core.motion.alternatives import (along, as_scored, distinct, distinct_top,
-                                              looks_more_alike, more_agree, rival, same,
-                                              spread_over)
+                                              looks_more_alike, more_agree, same, spread_over,
+                                              turns)
 from findme_core.motion.feature_motion import (_epipolar_ransac, _inflate, _lift_order,
                                                _model_error, check_matches, local_optimisation)
 from findme_core.motion.fit import (Fit, Turned, YawScale, common_depth_sigma, known_yaw_score,
                                     scene_depth)
 from findme_core.motion.model import (MotionInputs, MotionParams, PlanarMotion, check_position,
                                      motion_result)
-
-
-#: rivals of an answer tested at most (``Registration._rivals``): a room's other three
-#: quarter and half turns
-MAX_RIVALS = 3
 
 
 class Registration:
@@ -236,22 +231,14 @@ class Registration:
         return spread_over(replace(best, alternatives=alts))
 
     def _rivals(self, best, alts, cy, ct, total, which) -> tuple:
-        """The rivals of ``best`` (``_rival``) turned more than ``rival_sep_deg`` from it and
-        from one another, best-scoring first: in a symmetric room the other quarter turns
-        and the half turn, so at most ``MAX_RIVALS``. Each is tested on its own, so one
-        the photos rule out (a half turn few matches agree with) does not hide the next (the
-        quarter turn as many agree with: dev pair zpl_r06_p10_p11_t2, a phone's gravity,
-        2026-12-02: 89 deg off at +-1.4 deg with only the half turn tested)."""
-        sep = np.radians(self.p.rival_sep_deg)
-        out, left = (), np.ones(len(cy), bool)
-        for _ in range(MAX_RIVALS):
-            idx = np.flatnonzero(left)
-            j = rival(cy[idx], total[idx], best.yaw, sep)
-            if j is None:
-                break
-            i = int(idx[j])
+        """The rivals of ``best`` (``alternatives.turns``: in a symmetric room its other quarter
+        turns and half turn, best-scoring first) the photos do not prefer it to (``_rival``),
+        each tested on its own: one they rule out (a half turn few matches agree with) hid
+        the next (the quarter turn as many agree with: dev pair zpl_r06_p10_p11_t2, a phone's
+        gravity, 2026-12-02: 89 deg off at +-1.4 deg with only the half turn tested)."""
+        out = ()
+        for i in turns(cy, total, best.yaw, np.radians(self.p.rival_sep_deg)):
             out += self._rival(i, best, alts + out, cy, ct, which)
-            left &= np.abs(wrap(cy - cy[i])) > sep
         return out
 
     def _rival(self, i: int, best, alts, cy, ct, which) -> tuple:

@@ -12,8 +12,8 @@ import pytest
 
 from findme_core.errors import MotionError
 from findme_core.motion.alternatives import (along, as_scored, distinct, distinct_top,
-                                              looks_more_alike, more_agree, rival, same,
-                                              spread_over, turned)
+                                             looks_more_alike, more_agree, rival, same,
+                                             spread_over, turned, turns)
 from findme_core.motion.model import PlanarMotion
 
 BEST = PlanarMotion(x=0.6, z=0.8, yaw=math.radians(20.0), dy=0.0, sigma_x=0.03, sigma_z=0.04,
@@ -214,3 +214,14 @@ def test_distinct_refuses_with_the_best_motions_reason():
     turned = replace(BEST, yaw=BEST.yaw + math.pi / 2)
     with pytest.raises(MotionError, match="first"):
         distinct([BEST, turned], [first, second])
+
+
+def test_turns_gives_each_turn_once_best_first():
+    # the answer at 0 deg; a half turn (and a copy of it 2 deg on), two quarter turns, a
+    # candidate near the answer: each turn once, best-scoring first, at most k
+    cy = np.radians([0.0, 180.0, 90.0, 178.0, -90.0, 2.0])
+    total = np.array([10.0, 9.0, 8.0, 8.5, 7.0, 9.5])
+    sep = math.radians(45.0)
+    assert turns(cy, total, 0.0, sep) == [1, 2, 4]
+    assert turns(cy, total, 0.0, sep, k=1) == [1] == [rival(cy, total, 0.0, sep)]
+    assert turns(cy[[0, 5]], total[[0, 5]], 0.0, sep) == []

@@ -248,7 +248,8 @@ def test_each_turn_is_tested_as_a_rival_not_only_the_best_scoring():
     alternative. Before, only the best-scoring turn was tested, so nothing was."""
     from types import SimpleNamespace
 
-    from findme_core.motion.estimator import MAX_RIVALS, Registration
+    from findme_core.motion.alternatives import MAX_RIVALS
+    from findme_core.motion.estimator import Registration
     cy = np.radians([0.0, 180.0, 90.0, 178.0, -90.0, 2.0])
     total = np.array([10.0, 9.0, 8.0, 8.5, 7.0, 9.5])
     tested = []
