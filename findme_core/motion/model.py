@@ -95,7 +95,7 @@ class MotionParams:
         alternative_ratio: other refined motions scoring at least this fraction of the best
             are its alternatives.
         rival_sep_deg: each of the best candidates turned more than this from the answer and
-            from one another (at most three: ``estimator.MAX_RIVALS``) is an alternative too,
+            from one another (at most three: ``alternatives.MAX_RIVALS``) is an alternative too,
             whatever its score, when the photos do not prefer the answer to it: about as
             many matches agree with it and the appearance correlates about as well, each
             within its standard error (``estimator.Registration._rivals``; until 2026-12-02
