@@ -41,7 +41,7 @@ from findme_core.errors import FindmeError  # noqa: E402
 from findme_core.motion.methods import MotionParams  # noqa: E402
 from findme_core.motion.methods import METHODS  # noqa: E402
 from findme_core.motion.pair import motion_photos, photo_of  # noqa: E402
-from sigma_coverage import group_of, improves, leave_group_out, rule_key  # noqa: E402
+from sigma_coverage import fit_factor, group_of, leave_group_out  # noqa: E402
 
 SUBSETS = ("tum-cabinet-pairs", "zind-pairs-tilted", "zind-pairs-level", "kitti06-pairs")
 MEDIAN_ABS_Z = 0.6745   # median |z| of a standard normal
@@ -144,13 +144,8 @@ def fit_terms(d: dict) -> tuple[float, float, float, float]:
 
 def _least(z_of, hi: float) -> float:
     """The term in [0, hi] (a grid of 401) of least ``sigma_coverage.rule_key`` of
-    ``z_of(term)``; ties: the smaller."""
-    best, arg = (np.inf, np.inf), 0.0
-    for m in np.linspace(0.0, hi, 401):
-        key = rule_key(z_of(float(m)))
-        if improves(key, best):
-            best, arg = key, float(m)
-    return arg
+    ``z_of(term)`` (``sigma_coverage.fit_factor``); ties: the smaller."""
+    return fit_factor(z_of, np.linspace(0.0, hi, 401))[1]
 
 
 def fit_terms_goal(d: dict) -> tuple[float, float, float, float]:
@@ -188,11 +183,11 @@ def main(argv=None) -> None:
     cv2.setNumThreads(1)
     data = {s: raw_motions(a.split, s, a.method) for s in SUBSETS}
     d = data[a.fit]
-    fitted = fit_terms(d)
+    fitted, by_rule = fit_terms(d), fit_terms_goal(d)
     p = MotionParams()
     for name, terms in (("current", p.model_errors(a.method)),
                         (f"fitted on {a.fit}", fitted),
-                        (f"by the sigma constants' rule on {a.fit}", fit_terms_goal(d))):
+                        (f"by the sigma constants' rule on {a.fit}", by_rule)):
         print(f"{name}: scale_sigma {terms[0]:.3f}, direction_sigma_deg {terms[1]:.2f}, "
               f"yaw_sigma_deg {terms[2]:.2f}, position_sigma_m {terms[3]:.3f}")
         for s, dd in data.items():
@@ -212,7 +207,7 @@ def main(argv=None) -> None:
     folds, zs = left_out(d, fit_terms_goal)
     print("  by the sigma constants' rule (folds: " + "; ".join(
         f"{g} {t[0]:.3f} / {t[1]:.2f} / {t[2]:.2f} / {t[3]:.3f}" for g, t in folds.items()) + ")")
-    print(f"    in sample, within 1 / 2 / 3 sigma: {_cover(normalised(d, *fit_terms_goal(d)))}")
+    print(f"    in sample, within 1 / 2 / 3 sigma: {_cover(normalised(d, *by_rule))}")
     print(f"    left out,  within 1 / 2 / 3 sigma: {_cover(zs)}")
 
 

@@ -42,11 +42,11 @@ def turns(cy, total, yaw: float, sep: float, k: int = MAX_RIVALS) -> list[int]:
     """Indices of up to ``k`` rivals (``rival``): the best-scoring candidate (yaw (C,)
     radians, score (C,)) more than ``sep`` radians from ``yaw``, then the best more than
     ``sep`` from it too, and so on: each of a symmetric room's other turns once."""
-    cy = np.asarray(cy)
+    cy, total = np.asarray(cy), np.asarray(total)
     out, left = [], np.ones(len(cy), bool)
     for _ in range(k):
         idx = np.flatnonzero(left)
-        j = rival(cy[idx], np.asarray(total)[idx], yaw, sep)
+        j = rival(cy[idx], total[idx], yaw, sep)
         if j is None:
             break
         out.append(int(idx[j]))
